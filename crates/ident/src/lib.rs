@@ -1,0 +1,1 @@
+//! harmonid-ident (work in progress).

@@ -1,0 +1,1 @@
+//! harmonid-sim (work in progress).

@@ -1,0 +1,1 @@
+//! harmonid-spectral (work in progress).

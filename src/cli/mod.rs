@@ -1,0 +1,9 @@
+//! Subcommands of the `harmonid` binary. Each module has an `Args` (clap) and a `run`.
+
+pub mod check;
+pub mod common;
+pub mod identify;
+pub mod mix;
+pub mod noise_study;
+pub mod simulate;
+pub mod sweep;

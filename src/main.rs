@@ -1,0 +1,41 @@
+//! The `harmonid` command line: one subcommand per capability, each in `src/cli/<name>.rs`.
+
+mod cli;
+
+use clap::{Parser, Subcommand};
+
+/// harmonid: nonlinear multimode resonator models from multi-tone sideband spectra.
+#[derive(Debug, Parser)]
+#[command(name = "harmonid", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Parse and validate a model file and print its equations of motion.
+    Check(cli::check::Args),
+    /// Print the combination frequencies each term generates under a set of drive tones.
+    Mix(cli::mix::Args),
+    /// Identify the model's coefficients from a measured dataset.
+    Identify(cli::identify::Args),
+    /// Simulate measurements and write a dataset folder.
+    Simulate(cli::simulate::Args),
+    /// Compute a frequency-response curve with continuation through folds.
+    Sweep(cli::sweep::Args),
+    /// Robustness of the identification to measurement noise (Supplementary Note V).
+    NoiseStudy(cli::noise_study::Args),
+}
+
+fn main() -> miette::Result<()> {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Check(args) => cli::check::run(args),
+        Command::Mix(args) => cli::mix::run(args),
+        Command::Identify(args) => cli::identify::run(args),
+        Command::Simulate(args) => cli::simulate::run(args),
+        Command::Sweep(args) => cli::sweep::run(args),
+        Command::NoiseStudy(args) => cli::noise_study::run(args),
+    }
+}
