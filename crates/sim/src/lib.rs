@@ -1,1 +1,26 @@
-//! harmonid-sim (work in progress).
+//! Forward simulation of nonlinear multimode resonators.
+//!
+//! Every mode `n` obeys (mass-normalised, SI, `DATA_FORMAT.md` conventions)
+//!
+//! ```text
+//! q̈_n + (ω_n/Q_n) q̇_n + ω_n² q_n + Σ_m b_m^(n) m(q) = Σ_d Re[F_d^(n) e^{i 2π f_d t}],
+//! ```
+//!
+//! and a complex amplitude `X` at `f` means `Re[X e^{i 2π f t}]` (peak). This crate computes:
+//!
+//! - time-domain responses with an exact-linear-part (Lawson) Dormand–Prince integrator and
+//!   lock-in demodulation over windows holding whole periods of every frequency
+//!   ([`simulate_lockin`]);
+//! - (more below as it lands).
+
+#![warn(missing_docs)]
+
+mod error;
+mod excitation;
+mod numeric;
+mod time_domain;
+
+pub use error::SimError;
+pub use excitation::{common_grid, linear_response, Excitation};
+pub use numeric::{parse_monomial, ModeValues, ModelValues, NumericModel, Term};
+pub use time_domain::{simulate_lockin, LockinResult, Start, TdSettings};

@@ -1,0 +1,76 @@
+//! Errors of the simulation crate. Non-convergence of a solve is a status in its result
+//! ([`crate::HbStatus`]); these are the failures that leave nothing to report.
+
+/// What went wrong in a simulation, with the numbers and what to try.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SimError {
+    /// A value the model needs was not supplied.
+    #[error("no value for {what}; give it in the values file (e.g. `[parameters] {what} = ...` or `[modes.<name>] f_hz = ..., Q = ...`)")]
+    MissingValue {
+        /// The parameter or modal quantity.
+        what: String,
+    },
+    /// A value is not a finite number in its allowed range.
+    #[error("{what} = {value} is not allowed: {why}")]
+    BadValue {
+        /// The quantity.
+        what: String,
+        /// The value given.
+        value: f64,
+        /// The rule it breaks.
+        why: String,
+    },
+    /// A monomial name in a values file does not parse or names an unknown mode.
+    #[error("cannot read the monomial `{name}`: {why} (expected factors like `q1^3` or `q1*q2^2` joined by `*`, with mode names {modes})")]
+    BadMonomial {
+        /// The name as written.
+        name: String,
+        /// Why it failed.
+        why: String,
+        /// The known mode names, for the message.
+        modes: String,
+    },
+    /// The restoring force of a mode is unbounded: the model has no stable equilibrium to
+    /// oscillate about, so every simulation would run away.
+    #[error("the model is unbounded along {mode}: {why}; add a positive odd-degree term that stops it (e.g. a positive `{mode}^3` coefficient) or check the sign of the parameters")]
+    Unbounded {
+        /// The mode.
+        mode: String,
+        /// What makes it unbounded.
+        why: String,
+    },
+    /// Shapes or sizes of the inputs disagree.
+    #[error("{0}")]
+    Shape(String),
+    /// The time integration left any reasonable amplitude (or produced a non-finite value).
+    #[error("the time integration blew up at t = {t_s:.6e} s (|q| = {amplitude:.3e}, {scale:.3e} expected from the linear response): the drive is beyond what the model can hold (softening or unbounded terms) or the step is too coarse; try a smaller drive or more steps per period (--steps-per-period)")]
+    BlowUp {
+        /// Time of the failure, s.
+        t_s: f64,
+        /// Largest modal amplitude at that time.
+        amplitude: f64,
+        /// Amplitude scale of the linear response.
+        scale: f64,
+    },
+    /// The demodulated amplitudes kept changing between consecutive lock-in windows.
+    #[error("the response did not settle: after {t_s:.3} s the demodulated amplitudes still change by {change:.2e} (relative) from one window to the next (tolerance {tol:.1e}); the state may be quasi-periodic or chaotic, or the transient longer than expected; try a longer settling time (--settle-tau), a smaller drive, or starting from the harmonic-balance state")]
+    NotSettled {
+        /// Simulated time when giving up, s.
+        t_s: f64,
+        /// Relative change between the last two windows.
+        change: f64,
+        /// Tolerance asked for.
+        tol: f64,
+    },
+    /// The lock-in window cannot hold an integer number of periods of every measured frequency
+    /// within the allowed length.
+    #[error("the measured frequencies have no common period up to {max_s} s (the lock-in needs a window that is an integer number of periods of every frequency): put the tones on a common grid (e.g. multiples of 0.5 Hz)")]
+    NoCommonPeriod {
+        /// Longest window tried, s.
+        max_s: f64,
+    },
+    /// The harmonic-balance problem could not be set up.
+    #[error("harmonic balance: {0}")]
+    Hb(String),
+}

@@ -1,0 +1,127 @@
+//! Drive tones and the forces they exert on each mode.
+
+use crate::SimError;
+use num_complex::Complex64;
+
+/// A multi-tone drive: tone `d` at `tones_hz[d]` exerts on mode `n` the force
+/// `Re[force[n][d] · e^{i 2π f_d t}] = |F| cos(2π f_d t + arg F)` (N/kg, mass-normalised), with
+/// `t` the time base shared by the drive and every measured amplitude (`DATA_FORMAT.md`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Excitation {
+    /// Drive frequencies, Hz (positive, distinct).
+    pub tones_hz: Vec<f64>,
+    /// `force[n][d]`: complex force amplitude of tone `d` on mode `n`, N/kg.
+    pub force: Vec<Vec<Complex64>>,
+}
+
+impl Excitation {
+    /// Checks the shapes against `n_modes` and the values (finite, positive distinct tones).
+    pub fn check(&self, n_modes: usize) -> Result<(), SimError> {
+        if self.tones_hz.is_empty() {
+            return Err(SimError::Shape("no drive tone given".into()));
+        }
+        if self.force.len() != n_modes || self.force.iter().any(|f| f.len() != self.tones_hz.len())
+        {
+            return Err(SimError::Shape(format!(
+                "the forces must be given for {n_modes} modes × {} tones",
+                self.tones_hz.len()
+            )));
+        }
+        for (i, &f) in self.tones_hz.iter().enumerate() {
+            if !(f.is_finite() && f > 0.0) {
+                return Err(SimError::BadValue {
+                    what: format!("drive tone {i}"),
+                    value: f,
+                    why: "tones must be finite positive frequencies in Hz".into(),
+                });
+            }
+            if self.tones_hz[..i]
+                .iter()
+                .any(|&g| (g - f).abs() <= 1e-9 * f)
+            {
+                return Err(SimError::BadValue {
+                    what: format!("drive tone {i}"),
+                    value: f,
+                    why: "two tones share this frequency; give one tone with the summed force"
+                        .into(),
+                });
+            }
+        }
+        for row in &self.force {
+            for z in row {
+                if !(z.re.is_finite() && z.im.is_finite()) {
+                    return Err(SimError::BadValue {
+                        what: "a drive force".into(),
+                        value: f64::NAN,
+                        why: "forces must be finite".into(),
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The same drive with every force scaled by `s` (drive ramps).
+    pub fn scaled(&self, s: f64) -> Self {
+        Self {
+            tones_hz: self.tones_hz.clone(),
+            force: self
+                .force
+                .iter()
+                .map(|r| r.iter().map(|z| z * s).collect())
+                .collect(),
+        }
+    }
+}
+
+/// The linear (small-amplitude) response of mode `n` to a force `F` at `f_hz`:
+/// `F / (ω_n² − Ω² + i Ω ω_n/Q_n)` with `Ω = 2π f_hz` (DATA_FORMAT convention, peak amplitude).
+pub fn linear_response(omega_n: f64, gamma_n: f64, f_hz: f64, force: Complex64) -> Complex64 {
+    let w = std::f64::consts::TAU * f_hz;
+    force / Complex64::new(omega_n * omega_n - w * w, w * gamma_n)
+}
+
+/// The grid spacing `Δ` (Hz) with every frequency an integer multiple of it, found by Euclid's
+/// algorithm to `tol_hz`; `None` when the spacing would be below `min_hz`.
+pub fn common_grid(freqs_hz: &[f64], tol_hz: f64, min_hz: f64) -> Option<f64> {
+    let mut g = 0.0f64;
+    for &f in freqs_hz {
+        let (mut a, mut b) = (g.max(f), g.min(f));
+        while b > tol_hz {
+            let r = a % b;
+            a = b;
+            b = if r > b - tol_hz { 0.0 } else { r };
+            if a < min_hz {
+                return None;
+            }
+        }
+        g = a;
+    }
+    if g < min_hz {
+        return None;
+    }
+    // Check every frequency is a near-integer multiple.
+    for &f in freqs_hz {
+        let k = f / g;
+        if (k - k.round()).abs() * g > 10.0 * tol_hz {
+            return None;
+        }
+    }
+    Some(g)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn grid() {
+        let g = common_grid(&[207572.5, 207592.5, 415841.5], 1e-7, 1e-3);
+        assert_eq!(g, Some(0.5));
+        let g = common_grid(&[207572.5, 207592.5], 1e-7, 1e-3);
+        assert_eq!(g, Some(2.5));
+        let g = common_grid(&[1000.1, 1000.3], 1e-6, 1e-3).map(|g| (g * 1e6).round() / 1e6);
+        assert_eq!(g, Some(0.1));
+        assert_eq!(common_grid(&[1.0, std::f64::consts::PI], 1e-9, 1e-3), None);
+    }
+}

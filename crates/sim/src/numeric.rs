@@ -1,0 +1,556 @@
+//! The numeric form of a model: evaluated coefficients in a flat layout for fast evaluation of
+//! the nonlinear forces `Σ_m b_m^(n) m(q)` and their derivatives.
+
+use crate::SimError;
+use harmonid_model::{Linear, Model};
+use harmonid_poly::PowerProduct;
+use std::collections::BTreeMap;
+
+/// One term `coef · Π q_var^exp` of an equation, in flat storage.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Term {
+    /// Mode whose equation holds the term.
+    pub eq: usize,
+    /// Coefficient `b` in SI units of the equation (N/kg per m^degree).
+    pub coef: f64,
+    /// `(mode, exponent)` factors, sorted by mode, exponents ≥ 1.
+    pub factors: Vec<(usize, u32)>,
+}
+
+impl Term {
+    /// Total degree.
+    pub fn degree(&self) -> u32 {
+        self.factors.iter().map(|&(_, k)| k).sum()
+    }
+}
+
+/// A model with numbers: linear modal data and the nonlinear terms of each equation,
+///
+/// ```text
+/// q̈_n + (ω_n/Q_n) q̇_n + ω_n² q_n + Σ_m b_m^(n) m(q) = F_n(t),   ω_n = 2π f_n.
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct NumericModel {
+    /// Mode names in declaration order.
+    pub mode_names: Vec<String>,
+    /// Linear resonance frequencies `f_n`, Hz.
+    pub f_hz: Vec<f64>,
+    /// Quality factors `Q_n`.
+    pub q_factor: Vec<f64>,
+    /// Nonlinear terms, grouped by equation (`terms[eq_start[n]..eq_start[n+1]]`).
+    terms: Vec<Term>,
+    eq_start: Vec<usize>,
+    /// Highest exponent of each mode in any term.
+    max_pow: Vec<u32>,
+}
+
+/// Values that turn a [`Model`] into a [`NumericModel`]: modal data and parameters by name.
+#[derive(Debug, Clone, Default, PartialEq, serde::Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelValues {
+    /// Per mode: `f_hz` and `Q` (used when the model leaves them unknown, and winning over the
+    /// model's fixed values when given).
+    #[serde(default)]
+    pub modes: BTreeMap<String, ModeValues>,
+    /// Parameter values by name (SI units of the terms they multiply).
+    #[serde(default)]
+    pub parameters: BTreeMap<String, f64>,
+    /// Optional: equation coefficients by monomial name (`[eom.q1] "q1^3" = 2.68e22`), as in
+    /// `truth.toml`. When given for a mode, they replace that mode's equation terms from the
+    /// model entirely.
+    #[serde(default)]
+    pub eom: BTreeMap<String, BTreeMap<String, f64>>,
+}
+
+/// Linear data of one mode.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Deserialize, serde::Serialize)]
+pub struct ModeValues {
+    /// Linear resonance frequency, Hz.
+    pub f_hz: Option<f64>,
+    /// Quality factor.
+    #[serde(rename = "Q")]
+    pub q: Option<f64>,
+}
+
+fn check_positive(what: &str, v: f64, min: f64) -> Result<f64, SimError> {
+    if v.is_finite() && v > min {
+        Ok(v)
+    } else {
+        Err(SimError::BadValue {
+            what: what.to_string(),
+            value: v,
+            why: format!("it must be a finite number above {min}"),
+        })
+    }
+}
+
+/// Parses a monomial name (`q1*q2^2`) against mode names into sorted `(mode, exponent)` pairs.
+pub fn parse_monomial(name: &str, modes: &[String]) -> Result<Vec<(usize, u32)>, SimError> {
+    let bad = |why: String| SimError::BadMonomial {
+        name: name.to_string(),
+        why,
+        modes: modes.join(", "),
+    };
+    let mut exps = vec![0u32; modes.len()];
+    for part in name.split('*') {
+        let part = part.trim();
+        let (var, k) = match part.split_once('^') {
+            Some((v, k)) => (
+                v.trim(),
+                k.trim()
+                    .parse::<u32>()
+                    .map_err(|_| bad(format!("`{k}` is not a whole exponent")))?,
+            ),
+            None => (part, 1),
+        };
+        let m = modes
+            .iter()
+            .position(|n| n == var)
+            .ok_or_else(|| bad(format!("`{var}` is not a mode")))?;
+        if k == 0 || k > 16 {
+            return Err(bad(format!("exponent {k} is outside 1..=16")));
+        }
+        exps[m] += k;
+    }
+    Ok(exps
+        .iter()
+        .enumerate()
+        .filter(|(_, &k)| k > 0)
+        .map(|(m, &k)| (m, k))
+        .collect())
+}
+
+impl NumericModel {
+    /// Builds the numeric model from modal data and terms. `f_hz > 0`, `Q > 1/2` (underdamped),
+    /// coefficients finite; zero coefficients are dropped. Checks that no mode is unbounded by
+    /// its own terms (see [`SimError::Unbounded`]).
+    pub fn new(
+        mode_names: Vec<String>,
+        f_hz: Vec<f64>,
+        q_factor: Vec<f64>,
+        terms: Vec<Term>,
+    ) -> Result<Self, SimError> {
+        let n = mode_names.len();
+        if f_hz.len() != n || q_factor.len() != n {
+            return Err(SimError::Shape(format!(
+                "{n} modes but {} frequencies and {} quality factors",
+                f_hz.len(),
+                q_factor.len()
+            )));
+        }
+        for (i, name) in mode_names.iter().enumerate() {
+            check_positive(&format!("f_hz of {name}"), f_hz[i], 0.0)?;
+            check_positive(&format!("Q of {name}"), q_factor[i], 0.5)?;
+        }
+        let mut terms: Vec<Term> = terms.into_iter().filter(|t| t.coef != 0.0).collect();
+        for t in &terms {
+            if t.eq >= n || t.factors.iter().any(|&(m, k)| m >= n || k == 0) {
+                return Err(SimError::Shape(format!(
+                    "a term refers to a mode beyond the {n} declared"
+                )));
+            }
+            if !t.coef.is_finite() {
+                return Err(SimError::BadValue {
+                    what: format!("a coefficient in the equation of {}", mode_names[t.eq]),
+                    value: t.coef,
+                    why: "coefficients must be finite".into(),
+                });
+            }
+        }
+        terms.sort_by_key(|t| t.eq);
+        let mut eq_start = vec![0; n + 1];
+        for t in &terms {
+            eq_start[t.eq + 1] += 1;
+        }
+        for i in 0..n {
+            eq_start[i + 1] += eq_start[i];
+        }
+        let mut max_pow = vec![1u32; n];
+        for t in &terms {
+            for &(m, k) in &t.factors {
+                max_pow[m] = max_pow[m].max(k);
+            }
+        }
+        let out = Self {
+            mode_names,
+            f_hz,
+            q_factor,
+            terms,
+            eq_start,
+            max_pow,
+        };
+        out.check_bounded()?;
+        Ok(out)
+    }
+
+    /// Evaluates a checked [`Model`] with `values`: unknown (or overridden) `f_hz`, `Q` and
+    /// parameters are looked up by name. `values.eom`, when it has an entry for a mode, replaces
+    /// that mode's terms.
+    pub fn from_model(model: &Model, values: &ModelValues) -> Result<Self, SimError> {
+        let names: Vec<String> = model.modes.iter().map(|m| m.name.clone()).collect();
+        for k in values.modes.keys().chain(values.eom.keys()) {
+            if !names.contains(k) {
+                return Err(SimError::Shape(format!(
+                    "the values name a mode `{k}` the model does not declare (modes: {})",
+                    names.join(", ")
+                )));
+            }
+        }
+        let mut f_hz = Vec::with_capacity(names.len());
+        let mut q = Vec::with_capacity(names.len());
+        for m in &model.modes {
+            let given = values.modes.get(&m.name).copied().unwrap_or_default();
+            let f = match (given.f_hz, m.f_hz) {
+                (Some(v), _) | (None, Linear::Fixed(v)) => v,
+                (None, Linear::Unknown) => {
+                    return Err(SimError::MissingValue {
+                        what: format!("f_hz of mode {}", m.name),
+                    })
+                }
+            };
+            let qf = match (given.q, m.q_factor) {
+                (Some(v), _) | (None, Linear::Fixed(v)) => v,
+                (None, Linear::Unknown) => {
+                    return Err(SimError::MissingValue {
+                        what: format!("Q of mode {}", m.name),
+                    })
+                }
+            };
+            f_hz.push(f);
+            q.push(qf);
+        }
+        for k in values.parameters.keys() {
+            if model.param_index(k).is_none() {
+                return Err(SimError::Shape(format!(
+                    "the values give parameter `{k}`, which the model does not declare (parameters: {})",
+                    model.param_names().join(", ")
+                )));
+            }
+        }
+        let needs_params = names.iter().any(|n| !values.eom.contains_key(n));
+        let pvals = if needs_params {
+            model
+                .param_values(|name| values.parameters.get(name).copied())
+                .map_err(|what| SimError::MissingValue { what })?
+        } else {
+            Vec::new()
+        };
+        let mut terms = Vec::new();
+        for (n, eq) in model.eom.iter().enumerate() {
+            if let Some(given) = values.eom.get(&names[n]) {
+                for (mono, &coef) in given {
+                    terms.push(Term {
+                        eq: n,
+                        coef,
+                        factors: parse_monomial(mono, &names)?,
+                    });
+                }
+                continue;
+            }
+            for (m, coef) in eq.eval_coefficients(&pvals) {
+                terms.push(Term {
+                    eq: n,
+                    coef,
+                    factors: flat_pp(&m),
+                });
+            }
+        }
+        Self::new(names, f_hz, q, terms)
+    }
+
+    /// Builds a numeric model straight from values with `[modes.*]` and `[eom.*]` (a
+    /// `truth.toml` or a result's `eom`), with modes in the order of `mode_names`.
+    pub fn from_values(mode_names: &[String], values: &ModelValues) -> Result<Self, SimError> {
+        let mut f_hz = Vec::new();
+        let mut q = Vec::new();
+        for n in mode_names {
+            let v = values.modes.get(n).copied().unwrap_or_default();
+            f_hz.push(v.f_hz.ok_or_else(|| SimError::MissingValue {
+                what: format!("f_hz of mode {n}"),
+            })?);
+            q.push(v.q.ok_or_else(|| SimError::MissingValue {
+                what: format!("Q of mode {n}"),
+            })?);
+        }
+        let mut terms = Vec::new();
+        for (mode, map) in &values.eom {
+            let eq = mode_names
+                .iter()
+                .position(|n| n == mode)
+                .ok_or_else(|| SimError::Shape(format!("[eom.{mode}] names an unknown mode")))?;
+            for (mono, &coef) in map {
+                terms.push(Term {
+                    eq,
+                    coef,
+                    factors: parse_monomial(mono, mode_names)?,
+                });
+            }
+        }
+        Self::new(mode_names.to_vec(), f_hz, q, terms)
+    }
+
+    /// Number of modes.
+    pub fn n_modes(&self) -> usize {
+        self.mode_names.len()
+    }
+
+    /// Angular resonance frequency `ω_n = 2π f_n`, rad/s.
+    pub fn omega(&self, n: usize) -> f64 {
+        std::f64::consts::TAU * self.f_hz[n]
+    }
+
+    /// Damping rate `ω_n / Q_n`, 1/s.
+    pub fn gamma(&self, n: usize) -> f64 {
+        self.omega(n) / self.q_factor[n]
+    }
+
+    /// All terms, grouped by equation.
+    pub fn terms(&self) -> &[Term] {
+        &self.terms
+    }
+
+    /// The terms of the equation of mode `n`.
+    pub fn eq_terms(&self, n: usize) -> &[Term] {
+        &self.terms[self.eq_start[n]..self.eq_start[n + 1]]
+    }
+
+    /// Largest total degree of any term (0 for a linear model).
+    pub fn max_degree(&self) -> u32 {
+        self.terms.iter().map(Term::degree).max().unwrap_or(0)
+    }
+
+    /// Highest exponent of mode `m` in any term (at least 1).
+    pub fn max_pow(&self, m: usize) -> u32 {
+        self.max_pow[m]
+    }
+
+    /// The terms of equation `n` as a map from monomial name to coefficient.
+    pub fn eom_map(&self, n: usize) -> BTreeMap<String, f64> {
+        self.eq_terms(n)
+            .iter()
+            .map(|t| {
+                let pp = PowerProduct::from_exponents(&{
+                    let mut e = vec![0u32; self.n_modes()];
+                    for &(m, k) in &t.factors {
+                        e[m] = k;
+                    }
+                    e
+                });
+                (pp.name(&self.mode_names), t.coef)
+            })
+            .collect()
+    }
+
+    /// Nonlinear forces `out[n] = Σ_m b_m^(n) m(q)` at modal coordinates `q` (m). `pows` is
+    /// scratch of length [`Self::pow_len`]. No allocation.
+    pub fn forces(&self, q: &[f64], pows: &mut [f64], out: &mut [f64]) {
+        self.fill_pows(q, pows);
+        let stride = self.pow_stride();
+        for (n, o) in out.iter_mut().enumerate().take(self.n_modes()) {
+            let mut s = 0.0;
+            for t in self.eq_terms(n) {
+                let mut v = t.coef;
+                for &(m, k) in &t.factors {
+                    v *= pows[m * stride + k as usize];
+                }
+                s += v;
+            }
+            *o = s;
+        }
+    }
+
+    /// Jacobian of the nonlinear forces, `jac[n * N + j] = ∂(Σ_m b_m^(n) m(q)) / ∂q_j`.
+    pub fn force_jacobian(&self, q: &[f64], pows: &mut [f64], jac: &mut [f64]) {
+        self.fill_pows(q, pows);
+        let stride = self.pow_stride();
+        let nm = self.n_modes();
+        jac[..nm * nm].iter_mut().for_each(|x| *x = 0.0);
+        for t in &self.terms {
+            for (i, &(j, kj)) in t.factors.iter().enumerate() {
+                let mut v = t.coef * kj as f64 * pows[j * stride + kj as usize - 1];
+                for (l, &(m, k)) in t.factors.iter().enumerate() {
+                    if l != i {
+                        v *= pows[m * stride + k as usize];
+                    }
+                }
+                jac[t.eq * nm + j] += v;
+            }
+        }
+    }
+
+    fn pow_stride(&self) -> usize {
+        self.max_pow.iter().copied().max().unwrap_or(1) as usize + 1
+    }
+
+    /// Length of the power table scratch used by [`Self::forces`].
+    pub fn pow_len(&self) -> usize {
+        self.n_modes() * self.pow_stride()
+    }
+
+    fn fill_pows(&self, q: &[f64], pows: &mut [f64]) {
+        let stride = self.pow_stride();
+        for (m, &x) in q.iter().enumerate().take(self.n_modes()) {
+            let row = &mut pows[m * stride..(m + 1) * stride];
+            row[0] = 1.0;
+            for k in 1..stride {
+                row[k] = row[k - 1] * x;
+            }
+        }
+    }
+
+    /// Checks that along each mode's own axis the restoring force `ω² q + Σ b q^k` does not
+    /// turn negative for large `q`: the highest pure power must be odd with a positive
+    /// coefficient, or absent with nothing else making the linear stiffness negative.
+    fn check_bounded(&self) -> Result<(), SimError> {
+        for n in 0..self.n_modes() {
+            let mut lin = self.omega(n).powi(2);
+            let mut lead: Option<(u32, f64)> = None;
+            for t in self.eq_terms(n) {
+                if t.factors.len() == 1 && t.factors[0].0 == n {
+                    let k = t.factors[0].1;
+                    if k == 1 {
+                        lin += t.coef;
+                    } else if lead.is_none_or(|(d, _)| k > d) {
+                        lead = Some((k, t.coef));
+                    }
+                }
+            }
+            let name = &self.mode_names[n];
+            match lead {
+                None if lin <= 0.0 => {
+                    return Err(SimError::Unbounded {
+                        mode: name.clone(),
+                        why: format!(
+                            "its linear stiffness ω² + b = {lin:.3e} s⁻² is not positive and no higher power of {name} stops it"
+                        ),
+                    })
+                }
+                Some((k, c)) if k % 2 == 0 && lin <= 0.0 => {
+                    return Err(SimError::Unbounded {
+                        mode: name.clone(),
+                        why: format!("its stiffness is negative and its highest own power {name}^{k} (coefficient {c:.3e}) is even"),
+                    })
+                }
+                Some((k, c)) if k % 2 == 1 && c < 0.0 && lin <= 0.0 => {
+                    return Err(SimError::Unbounded {
+                        mode: name.clone(),
+                        why: format!("its stiffness is negative and its highest own power {name}^{k} has a negative coefficient {c:.3e}"),
+                    })
+                }
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+}
+
+fn flat_pp(m: &PowerProduct) -> Vec<(usize, u32)> {
+    m.factors().iter().map(|&(v, k)| (v.index(), k)).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn two_mode() -> NumericModel {
+        let names = vec!["q1".to_string(), "q2".to_string()];
+        let mut v = ModelValues::default();
+        v.modes.insert(
+            "q1".into(),
+            ModeValues {
+                f_hz: Some(1.0e3),
+                q: Some(100.0),
+            },
+        );
+        v.modes.insert(
+            "q2".into(),
+            ModeValues {
+                f_hz: Some(2.1e3),
+                q: Some(200.0),
+            },
+        );
+        v.eom.insert(
+            "q1".into(),
+            [("q1^3".to_string(), 2.0), ("q1*q2^2".to_string(), 3.0)].into(),
+        );
+        v.eom.insert(
+            "q2".into(),
+            [("q2^3".to_string(), 5.0), ("q1^2*q2".to_string(), 3.0)].into(),
+        );
+        NumericModel::from_values(&names, &v).expect("valid model")
+    }
+
+    #[test]
+    fn forces_and_jacobian() {
+        let m = two_mode();
+        let q = [0.7, -1.3];
+        let mut pows = vec![0.0; m.pow_len()];
+        let mut f = [0.0; 2];
+        m.forces(&q, &mut pows, &mut f);
+        assert!((f[0] - (2.0 * 0.343 + 3.0 * 0.7 * 1.69)).abs() < 1e-12);
+        assert!((f[1] - (5.0 * -2.197 + 3.0 * 0.49 * -1.3)).abs() < 1e-12);
+        let mut jac = [0.0; 4];
+        m.force_jacobian(&q, &mut pows, &mut jac);
+        let h = 1e-6;
+        for j in 0..2 {
+            let mut qp = q;
+            qp[j] += h;
+            let mut qm = q;
+            qm[j] -= h;
+            let (mut fp, mut fm) = ([0.0; 2], [0.0; 2]);
+            m.forces(&qp, &mut pows, &mut fp);
+            m.forces(&qm, &mut pows, &mut fm);
+            for n in 0..2 {
+                let fd = (fp[n] - fm[n]) / (2.0 * h);
+                assert!(
+                    (jac[n * 2 + j] - fd).abs() < 1e-6,
+                    "{n},{j}: {} vs {fd}",
+                    jac[n * 2 + j]
+                );
+            }
+        }
+        assert_eq!(m.eom_map(0).get("q1*q2^2"), Some(&3.0));
+    }
+
+    #[test]
+    fn monomial_names() {
+        let names = vec!["q1".to_string(), "q2".to_string()];
+        assert_eq!(
+            parse_monomial("q1*q2^2", &names).ok(),
+            Some(vec![(0, 1), (1, 2)])
+        );
+        assert_eq!(
+            parse_monomial("q2 * q1^2", &names).ok(),
+            Some(vec![(0, 2), (1, 1)])
+        );
+        assert!(parse_monomial("q3^2", &names).is_err());
+        assert!(parse_monomial("q1^x", &names).is_err());
+    }
+
+    #[test]
+    fn unbounded_is_refused() {
+        let names = vec!["q1".to_string()];
+        let t = |coef, k| Term {
+            eq: 0,
+            coef,
+            factors: vec![(0, k)],
+        };
+        let w2 = (std::f64::consts::TAU * 1.0e3).powi(2);
+        let r = NumericModel::new(
+            names.clone(),
+            vec![1.0e3],
+            vec![100.0],
+            vec![t(-2.0 * w2, 1)],
+        );
+        assert!(matches!(r, Err(SimError::Unbounded { .. })));
+        let r = NumericModel::new(
+            names.clone(),
+            vec![1.0e3],
+            vec![100.0],
+            vec![t(-2.0 * w2, 1), t(1.0, 3)],
+        );
+        assert!(r.is_ok());
+        let r = NumericModel::new(names, vec![1.0e3], vec![0.3], vec![]);
+        assert!(matches!(r, Err(SimError::BadValue { .. })));
+    }
+}
