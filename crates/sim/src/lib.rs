@@ -11,16 +11,26 @@
 //! - time-domain responses with an exact-linear-part (Lawson) Dormand–Prince integrator and
 //!   lock-in demodulation over windows holding whole periods of every frequency
 //!   ([`simulate_lockin`]);
+//! - multi-tone harmonic-balance steady states on an automatic lattice with a drive ramp
+//!   ([`steady_state`], [`HbSolver`], [`convergence_report`]);
 //! - (more below as it lands).
 
 #![warn(missing_docs)]
 
 mod error;
 mod excitation;
+mod hb;
+mod lattice;
+mod linalg;
 mod numeric;
 mod time_domain;
 
 pub use error::SimError;
 pub use excitation::{common_grid, linear_response, Excitation};
+pub use hb::{
+    convergence_report, steady_state, ConvergenceReport, HbSettings, HbSolver, HbStatus,
+    SteadyState, MAX_MODES,
+};
+pub use lattice::{choose_lattice, LatticeSettings, LINE_TOL_HZ};
 pub use numeric::{parse_monomial, ModeValues, ModelValues, NumericModel, Term};
 pub use time_domain::{simulate_lockin, LockinResult, Start, TdSettings};

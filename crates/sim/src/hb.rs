@@ -1,0 +1,624 @@
+//! Multi-tone harmonic-balance steady states: Newton with an analytic Jacobian on a frequency
+//! lattice, nonlinear terms by exact sparse products ([`harmonid_spectral::ProductPlan`]), and a
+//! drive ramp that follows the branch an experiment sweeping the drive up would see.
+//!
+//! Unknowns: `X_{n,r}`, the complex amplitude of mode `n` at lattice frequency `f_r`. Residual
+//! (DATA_FORMAT conventions, `Ω_r = 2π f_r`):
+//!
+//! ```text
+//! R_{n,r} = (ω_n² − Ω_r² + i Ω_r ω_n/Q_n) X_{n,r} + Σ_m b_m^(n) [m(q)]_r − F_{n,r}.
+//! ```
+
+use crate::lattice::{choose_lattice, LatticeSettings, LINE_TOL_HZ};
+use crate::linalg::{lu_factor, lu_solve};
+use crate::{Excitation, NumericModel, SimError};
+use harmonid_poly::{PowerProduct, VarId};
+use harmonid_spectral::{monomial_amplitudes, monomial_jacobian, ProductPlan, ProductScratch};
+use num_complex::Complex64;
+use std::f64::consts::TAU;
+
+const Z: Complex64 = Complex64::new(0.0, 0.0);
+/// Most modes a harmonic-balance problem handles (fixed-size slice tables, no allocation).
+pub const MAX_MODES: usize = 32;
+
+/// Settings of a harmonic-balance solve.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HbSettings {
+    /// How the lattice is chosen.
+    pub lattice: LatticeSettings,
+    /// Converged when `max |R| / max |F|` is below this.
+    pub tol: f64,
+    /// Newton iterations per drive level before the ramp step is halved.
+    pub max_iter: usize,
+    /// Ramp the drive up from `ramp_start` (fraction of the full drive); `false`: one Newton
+    /// solve at full drive from the linear response.
+    pub ramp: bool,
+    /// First drive fraction of the ramp.
+    pub ramp_start: f64,
+    /// First ramp step (fraction of the full drive); grows when Newton converges fast.
+    pub ramp_step: f64,
+    /// Largest ramp step.
+    pub ramp_step_max: f64,
+    /// Most ramp steps before giving up (status [`HbStatus::NotConverged`]).
+    pub max_ramp_steps: usize,
+}
+
+impl Default for HbSettings {
+    fn default() -> Self {
+        Self {
+            lattice: LatticeSettings::default(),
+            tol: 1e-11,
+            max_iter: 12,
+            ramp: true,
+            ramp_start: 0.01,
+            ramp_step: 0.05,
+            ramp_step_max: 0.25,
+            max_ramp_steps: 2000,
+        }
+    }
+}
+
+/// Outcome of a harmonic-balance solve.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum HbStatus {
+    /// Newton converged at full drive.
+    Converged {
+        /// Newton iterations at the last drive level.
+        iterations: usize,
+    },
+    /// Newton did not converge; the state is the last converged one (at `drive_fraction`).
+    NotConverged {
+        /// Fraction of the full drive reached.
+        drive_fraction: f64,
+    },
+}
+
+/// A harmonic-balance steady state.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SteadyState {
+    /// Lattice frequencies, Hz (sorted).
+    pub lattice_hz: Vec<f64>,
+    /// `amplitudes[n][r]`: complex amplitude of mode `n` at `lattice_hz[r]`, m (peak;
+    /// `q_n(t) = Σ_r Re[X e^{i2π f_r t}]`).
+    pub amplitudes: Vec<Vec<Complex64>>,
+    /// Converged or not.
+    pub status: HbStatus,
+    /// `max |R| / max |F|` at the returned state (relative force balance error).
+    pub residual: f64,
+    /// Drive levels solved along the ramp.
+    pub ramp_steps: usize,
+}
+
+impl SteadyState {
+    /// Whether Newton converged at full drive.
+    pub fn converged(&self) -> bool {
+        matches!(self.status, HbStatus::Converged { .. })
+    }
+
+    /// Amplitude of mode `n` at `f_hz` (zero when `f_hz` is not on the lattice).
+    pub fn amplitude(&self, n: usize, f_hz: f64) -> Complex64 {
+        match self.index(f_hz) {
+            Some(r) => self.amplitudes[n][r],
+            None => Z,
+        }
+    }
+
+    /// Lattice index of `f_hz`.
+    pub fn index(&self, f_hz: f64) -> Option<usize> {
+        let i = self.lattice_hz.partition_point(|&f| f < f_hz - LINE_TOL_HZ);
+        match self.lattice_hz.get(i) {
+            Some(&f) if (f - f_hz).abs() <= LINE_TOL_HZ => Some(i),
+            _ => None,
+        }
+    }
+
+    /// Amplitude of the signal `Σ_n shape[n] q_n` at `f_hz`.
+    pub fn at_point(&self, shape: &[f64], f_hz: f64) -> Complex64 {
+        (0..self.amplitudes.len())
+            .map(|n| self.amplitude(n, f_hz) * shape.get(n).copied().unwrap_or(1.0))
+            .sum()
+    }
+
+    /// Modal displacements (m) and velocities (m/s) at time `t_s`.
+    pub fn state_at(&self, t_s: f64) -> (Vec<f64>, Vec<f64>) {
+        let mut q = vec![0.0; self.amplitudes.len()];
+        let mut v = vec![0.0; self.amplitudes.len()];
+        for (n, row) in self.amplitudes.iter().enumerate() {
+            for (&f, &x) in self.lattice_hz.iter().zip(row) {
+                let ph = (f * t_s).fract();
+                let e = Complex64::from_polar(1.0, TAU * ph) * x;
+                q[n] += e.re;
+                v[n] -= TAU * f * e.im;
+            }
+        }
+        (q, v)
+    }
+}
+
+/// A harmonic-balance problem on a fixed lattice, with every table and buffer allocated once;
+/// [`HbSolver::solve`] can then run many times (drive levels, noise studies) without allocating.
+#[derive(Debug, Clone)]
+pub struct HbSolver {
+    model: NumericModel,
+    lattice: Vec<f64>,
+    plan: ProductPlan,
+    scratch: ProductScratch,
+    monos: Vec<PowerProduct>,
+    /// `lin[n*R + r] = ω_n² − Ω_r² + iΩ_r γ_n`.
+    lin: Vec<Complex64>,
+    /// Full-drive forces on the lattice, `[n*R + r]`.
+    force: Vec<Complex64>,
+    force_max: f64,
+    // Buffers.
+    x: Vec<Complex64>,
+    res: Vec<Complex64>,
+    out: Vec<Complex64>,
+    jre: Vec<Complex64>,
+    jim: Vec<Complex64>,
+    jac: Vec<f64>,
+    piv: Vec<usize>,
+    step: Vec<f64>,
+    x_try: Vec<Complex64>,
+}
+
+impl HbSolver {
+    /// Sets the problem up: lattice from `settings.lattice`, product plan, linear operators and
+    /// forces. Errors: bad drive shapes, too many modes, a lattice too large for the plan.
+    pub fn new(
+        model: &NumericModel,
+        drive: &Excitation,
+        settings: &LatticeSettings,
+    ) -> Result<Self, SimError> {
+        let lattice = choose_lattice(model, drive, settings)?;
+        Self::with_lattice(model, drive, lattice)
+    }
+
+    /// As [`HbSolver::new`] with a given lattice (sorted distinct positive frequencies, Hz,
+    /// holding every drive tone).
+    pub fn with_lattice(
+        model: &NumericModel,
+        drive: &Excitation,
+        lattice: Vec<f64>,
+    ) -> Result<Self, SimError> {
+        let nm = model.n_modes();
+        drive.check(nm)?;
+        if nm > MAX_MODES {
+            return Err(SimError::Hb(format!(
+                "{nm} modes; at most {MAX_MODES} are supported"
+            )));
+        }
+        let nr = lattice.len();
+        let dmax = model.max_degree() as usize;
+        let plan = ProductPlan::new(&lattice, &lattice, dmax)
+            .map_err(|e| SimError::Hb(format!("cannot plan the products: {e}")))?;
+        let scratch = plan.scratch();
+        let monos = model
+            .terms()
+            .iter()
+            .map(|t| {
+                let mut e = vec![0u32; nm];
+                for &(m, k) in &t.factors {
+                    e[m] = k;
+                }
+                PowerProduct::from_exponents(&e)
+            })
+            .collect();
+        let mut lin = vec![Z; nm * nr];
+        for n in 0..nm {
+            let (w, g) = (model.omega(n), model.gamma(n));
+            for (r, &f) in lattice.iter().enumerate() {
+                let o = TAU * f;
+                lin[n * nr + r] = Complex64::new(w * w - o * o, o * g);
+            }
+        }
+        let mut force = vec![Z; nm * nr];
+        for (d, &f) in drive.tones_hz.iter().enumerate() {
+            let i = lattice.partition_point(|&x| x < f - LINE_TOL_HZ);
+            if lattice.get(i).is_none_or(|&x| (x - f).abs() > LINE_TOL_HZ) {
+                return Err(SimError::Hb(format!(
+                    "drive tone {f} Hz is not on the lattice"
+                )));
+            }
+            for n in 0..nm {
+                force[n * nr + i] += drive.force[n][d];
+            }
+        }
+        let force_max = force.iter().map(|z| z.norm()).fold(0.0, f64::max);
+        let nu = 2 * nm * nr;
+        Ok(Self {
+            model: model.clone(),
+            plan,
+            scratch,
+            monos,
+            lin,
+            force,
+            force_max,
+            x: vec![Z; nm * nr],
+            res: vec![Z; nm * nr],
+            out: vec![Z; nr],
+            jre: vec![Z; nr * nr],
+            jim: vec![Z; nr * nr],
+            jac: vec![0.0; nu * nu],
+            piv: vec![0; nu],
+            step: vec![0.0; nu],
+            x_try: vec![Z; nm * nr],
+            lattice,
+        })
+    }
+
+    /// The lattice, Hz.
+    pub fn lattice(&self) -> &[f64] {
+        &self.lattice
+    }
+
+    /// Number of real unknowns.
+    pub fn unknowns(&self) -> usize {
+        2 * self.x.len()
+    }
+
+    /// Residual at `x` with drive fraction `s` into `res`; returns `max |R| / max |s F|`.
+    fn residual(&mut self, use_try: bool, s: f64) -> f64 {
+        let nm = self.model.n_modes();
+        let nr = self.lattice.len();
+        let x = if use_try { &self.x_try } else { &self.x };
+        for i in 0..nm * nr {
+            self.res[i] = self.lin[i] * x[i] - self.force[i] * s;
+        }
+        let mut refs: [&[Complex64]; MAX_MODES] = [&[]; MAX_MODES];
+        for n in 0..nm {
+            refs[n] = &x[n * nr..(n + 1) * nr];
+        }
+        for (t, term) in self.model.terms().iter().enumerate() {
+            monomial_amplitudes(
+                &self.plan,
+                &self.monos[t],
+                &refs[..nm],
+                &mut self.out,
+                &mut self.scratch,
+            );
+            let row = &mut self.res[term.eq * nr..(term.eq + 1) * nr];
+            for (r, o) in row.iter_mut().zip(&self.out) {
+                *r += o * term.coef;
+            }
+        }
+        let fm = (self.force_max * s).max(f64::MIN_POSITIVE);
+        let mut m: f64 = 0.0;
+        for r in &self.res {
+            let a = r.norm();
+            if !a.is_finite() {
+                return f64::INFINITY;
+            }
+            m = m.max(a);
+        }
+        m / fm
+    }
+
+    /// Assembles the real Jacobian at `self.x` and factorises it. `false` when singular.
+    fn jacobian(&mut self) -> bool {
+        let nm = self.model.n_modes();
+        let nr = self.lattice.len();
+        let nu = 2 * nm * nr;
+        self.jac.iter_mut().for_each(|v| *v = 0.0);
+        for i in 0..nm * nr {
+            let l = self.lin[i];
+            self.jac[(2 * i) * nu + 2 * i] = l.re;
+            self.jac[(2 * i) * nu + 2 * i + 1] = -l.im;
+            self.jac[(2 * i + 1) * nu + 2 * i] = l.im;
+            self.jac[(2 * i + 1) * nu + 2 * i + 1] = l.re;
+        }
+        let mut refs: [&[Complex64]; MAX_MODES] = [&[]; MAX_MODES];
+        for n in 0..nm {
+            refs[n] = &self.x[n * nr..(n + 1) * nr];
+        }
+        for (t, term) in self.model.terms().iter().enumerate() {
+            for &(j, _) in &term.factors {
+                monomial_jacobian(
+                    &self.plan,
+                    &self.monos[t],
+                    &refs[..nm],
+                    VarId(j as u32),
+                    &mut self.jre,
+                    &mut self.jim,
+                    &mut self.scratch,
+                );
+                let b = term.coef;
+                for o in 0..nr {
+                    let row0 = 2 * (term.eq * nr + o);
+                    for r in 0..nr {
+                        let col0 = 2 * (j * nr + r);
+                        let a = self.jre[o * nr + r] * b;
+                        let c = self.jim[o * nr + r] * b;
+                        self.jac[row0 * nu + col0] += a.re;
+                        self.jac[(row0 + 1) * nu + col0] += a.im;
+                        self.jac[row0 * nu + col0 + 1] += c.re;
+                        self.jac[(row0 + 1) * nu + col0 + 1] += c.im;
+                    }
+                }
+            }
+        }
+        lu_factor(&mut self.jac, nu, &mut self.piv)
+    }
+
+    /// Newton at drive fraction `s` from the current `self.x`. Returns `(converged,
+    /// iterations, residual)`.
+    fn newton(&mut self, s: f64, tol: f64, max_iter: usize) -> (bool, usize, f64) {
+        let nu = self.unknowns();
+        let mut r0 = self.residual(false, s);
+        for it in 0..max_iter {
+            if r0 <= tol {
+                return (true, it, r0);
+            }
+            if !self.jacobian() {
+                return (false, it, r0);
+            }
+            for i in 0..nu / 2 {
+                self.step[2 * i] = -self.res[i].re;
+                self.step[2 * i + 1] = -self.res[i].im;
+            }
+            lu_solve(&self.jac, nu, &self.piv, &mut self.step);
+            // Backtracking on the residual norm.
+            let mut lam = 1.0;
+            let mut accepted = false;
+            for _ in 0..8 {
+                for i in 0..nu / 2 {
+                    self.x_try[i] =
+                        self.x[i] + Complex64::new(self.step[2 * i], self.step[2 * i + 1]) * lam;
+                }
+                let r1 = self.residual(true, s);
+                if r1 < r0 || r1 <= tol {
+                    std::mem::swap(&mut self.x, &mut self.x_try);
+                    r0 = r1;
+                    accepted = true;
+                    break;
+                }
+                lam *= 0.5;
+            }
+            if !accepted {
+                self.residual(false, s);
+                return (false, it + 1, r0);
+            }
+        }
+        let ok = r0 <= tol;
+        (ok, max_iter, r0)
+    }
+
+    /// Solves for the steady state under the full drive (ramped up from a small fraction when
+    /// `settings.ramp`), starting from the linear response. Never returns NaN: a failure is an
+    /// [`HbStatus::NotConverged`] status with the last converged state and its residual.
+    pub fn solve(&mut self, settings: &HbSettings) -> SteadyState {
+        let nm = self.model.n_modes();
+        let nr = self.lattice.len();
+        let s0 = if settings.ramp {
+            settings.ramp_start.clamp(1e-6, 1.0)
+        } else {
+            1.0
+        };
+        for i in 0..nm * nr {
+            self.x[i] = self.force[i] * s0 / self.lin[i];
+        }
+        let (ok, mut iters, mut res) = self.newton(s0, settings.tol, settings.max_iter * 2);
+        let mut steps = 1;
+        if !ok {
+            return self.finish(
+                HbStatus::NotConverged {
+                    drive_fraction: 0.0,
+                },
+                res,
+                steps,
+                true,
+            );
+        }
+        let mut s = s0;
+        let mut ds = settings.ramp_step;
+        let mut prev = self.x.clone();
+        let mut prev_s = s;
+        let mut good = self.x.clone();
+        while s < 1.0 {
+            if steps >= settings.max_ramp_steps || ds < 1e-7 {
+                self.x.copy_from_slice(&good);
+                let r = self.residual(false, s);
+                return self.finish(
+                    HbStatus::NotConverged { drive_fraction: s },
+                    r,
+                    steps,
+                    false,
+                );
+            }
+            let s_new = (s + ds).min(1.0);
+            // Secant predictor.
+            let slope = if s > prev_s {
+                (s_new - s) / (s - prev_s)
+            } else {
+                s_new / s - 1.0
+            };
+            for i in 0..nm * nr {
+                let base = good[i];
+                let d = if s > prev_s { base - prev[i] } else { base };
+                self.x[i] = base + d * slope;
+            }
+            let (ok, it, r) = self.newton(s_new, settings.tol, settings.max_iter);
+            steps += 1;
+            if ok {
+                prev.copy_from_slice(&good);
+                good.copy_from_slice(&self.x);
+                prev_s = s;
+                s = s_new;
+                iters = it;
+                res = r;
+                if it <= 3 {
+                    ds = (ds * 1.6).min(settings.ramp_step_max);
+                }
+            } else {
+                ds *= 0.5;
+            }
+        }
+        let _ = res;
+        let r = self.residual(false, 1.0);
+        self.finish(HbStatus::Converged { iterations: iters }, r, steps, false)
+    }
+
+    /// Newton at full drive from a given state (`amplitudes[n][r]` on this lattice), e.g. the
+    /// previous point of a sweep or a noise study.
+    pub fn solve_from(&mut self, start: &[Vec<Complex64>], settings: &HbSettings) -> SteadyState {
+        let nr = self.lattice.len();
+        for (n, row) in start.iter().enumerate().take(self.model.n_modes()) {
+            self.x[n * nr..(n + 1) * nr].copy_from_slice(&row[..nr]);
+        }
+        let (ok, it, r) = self.newton(1.0, settings.tol, settings.max_iter * 2);
+        let status = if ok {
+            HbStatus::Converged { iterations: it }
+        } else {
+            HbStatus::NotConverged {
+                drive_fraction: 1.0,
+            }
+        };
+        self.finish(status, r, 1, false)
+    }
+
+    fn finish(&mut self, status: HbStatus, residual: f64, steps: usize, zero: bool) -> SteadyState {
+        let nm = self.model.n_modes();
+        let nr = self.lattice.len();
+        let amplitudes = (0..nm)
+            .map(|n| {
+                self.x[n * nr..(n + 1) * nr]
+                    .iter()
+                    .map(|&z| {
+                        if zero || !(z.re.is_finite() && z.im.is_finite()) {
+                            Z
+                        } else {
+                            z
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        SteadyState {
+            lattice_hz: self.lattice.clone(),
+            amplitudes,
+            status,
+            residual: if residual.is_finite() {
+                residual
+            } else {
+                f64::MAX
+            },
+            ramp_steps: steps,
+        }
+    }
+}
+
+/// Solves the steady state under `drive` with the lattice chosen by `settings.lattice`.
+pub fn steady_state(
+    model: &NumericModel,
+    drive: &Excitation,
+    settings: &HbSettings,
+) -> Result<SteadyState, SimError> {
+    let mut solver = HbSolver::new(model, drive, &settings.lattice)?;
+    Ok(solver.solve(settings))
+}
+
+/// What widening the lattice changes: the steady state with the given settings, the one with
+/// the order raised by 2 and the window by 1.5×, and the largest change of an amplitude at the
+/// frequencies `at_hz` (every lattice frequency of the first when empty), relative to the
+/// largest amplitude.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConvergenceReport {
+    /// The steady state on the chosen lattice.
+    pub state: SteadyState,
+    /// Lattice sizes: chosen, widened.
+    pub lattice_sizes: (usize, usize),
+    /// `max |X − X'| / max |X|` over the compared frequencies.
+    pub change: f64,
+}
+
+/// Solves twice (chosen and widened lattice) and reports the change; see [`ConvergenceReport`].
+pub fn convergence_report(
+    model: &NumericModel,
+    drive: &Excitation,
+    settings: &HbSettings,
+    at_hz: &[f64],
+) -> Result<ConvergenceReport, SimError> {
+    let state = steady_state(model, drive, settings)?;
+    let mut wide = settings.clone();
+    wide.lattice.order += 2;
+    wide.lattice.window_rel *= 1.5;
+    let state2 = steady_state(model, drive, &wide)?;
+    let freqs: Vec<f64> = if at_hz.is_empty() {
+        state.lattice_hz.clone()
+    } else {
+        at_hz.to_vec()
+    };
+    let mut big: f64 = 0.0;
+    let mut diff: f64 = 0.0;
+    for n in 0..state.amplitudes.len() {
+        for &f in &freqs {
+            let a = state.amplitude(n, f);
+            big = big.max(a.norm());
+            diff = diff.max((a - state2.amplitude(n, f)).norm());
+        }
+    }
+    Ok(ConvergenceReport {
+        lattice_sizes: (state.lattice_hz.len(), state2.lattice_hz.len()),
+        state,
+        change: diff / big.max(f64::MIN_POSITIVE),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{linear_response, Term};
+
+    fn duffing(beta: f64) -> NumericModel {
+        NumericModel::new(
+            vec!["q".into()],
+            vec![1000.0],
+            vec![100.0],
+            vec![Term {
+                eq: 0,
+                coef: beta,
+                factors: vec![(0, 3)],
+            }],
+        )
+        .expect("model")
+    }
+
+    #[test]
+    fn vanishing_drive_is_linear_frf() {
+        let m = duffing(1e12);
+        let drive = Excitation {
+            tones_hz: vec![995.0, 1005.0],
+            force: vec![vec![Complex64::new(1e-6, 0.0), Complex64::new(0.0, 2e-6)]],
+        };
+        let st = steady_state(&m, &drive, &HbSettings::default()).expect("solve");
+        assert!(st.converged(), "{:?}", st.status);
+        for (d, &f) in drive.tones_hz.iter().enumerate() {
+            let want = linear_response(m.omega(0), m.gamma(0), f, drive.force[0][d]);
+            let got = st.amplitude(0, f);
+            assert!((got - want).norm() <= 1e-9 * want.norm(), "{got} vs {want}");
+        }
+    }
+
+    #[test]
+    fn single_tone_matches_cubic_balance() {
+        // One harmonic: (ω² − Ω² + iΩγ) X + 3/4 β |X|² X = F, checked on the solution.
+        let beta = 4e13;
+        let m = duffing(beta);
+        let drive = Excitation {
+            tones_hz: vec![1003.0],
+            force: vec![vec![Complex64::new(30.0, 0.0)]],
+        };
+        let mut s = HbSettings::default();
+        s.lattice.window_rel = 0.01; // only the fundamental (3f is far)
+        let st = steady_state(&m, &drive, &s).expect("solve");
+        assert!(st.converged());
+        assert_eq!(st.lattice_hz, vec![1003.0]);
+        let x = st.amplitude(0, 1003.0);
+        let o = TAU * 1003.0;
+        let l = Complex64::new(m.omega(0).powi(2) - o * o, o * m.gamma(0));
+        let r = l * x + x * x.norm_sqr() * 0.75 * beta - 30.0;
+        assert!(r.norm() < 1e-9 * 30.0, "{r}");
+        // Nonlinear: differs clearly from the linear response.
+        let lin = linear_response(m.omega(0), m.gamma(0), 1003.0, Complex64::new(30.0, 0.0));
+        assert!((x - lin).norm() > 0.05 * lin.norm());
+    }
+}
