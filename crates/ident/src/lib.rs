@@ -12,6 +12,7 @@
 #![warn(missing_docs)]
 
 pub mod dataset;
+pub mod solve;
 
 pub use dataset::{
     Dataset, DatasetError, Manifest, Measurement, MeasurementSpec, Point, Truth, TruthForce,
