@@ -13,7 +13,8 @@
 //!   ([`simulate_lockin`]);
 //! - multi-tone harmonic-balance steady states on an automatic lattice with a drive ramp
 //!   ([`steady_state`], [`HbSolver`], [`convergence_report`]);
-//! - (more below as it lands).
+//! - single-tone response curves through folds with stability, jumps and backbones ([`sweep`],
+//!   [`backbone`]).
 
 #![warn(missing_docs)]
 
@@ -23,6 +24,7 @@ mod hb;
 mod lattice;
 mod linalg;
 mod numeric;
+mod sweep;
 mod time_domain;
 
 pub use error::SimError;
@@ -33,4 +35,5 @@ pub use hb::{
 };
 pub use lattice::{choose_lattice, LatticeSettings, LINE_TOL_HZ};
 pub use numeric::{parse_monomial, ModeValues, ModelValues, NumericModel, Term};
+pub use sweep::{backbone, sweep, Fold, SweepPoint, SweepResult, SweepSettings};
 pub use time_domain::{simulate_lockin, LockinResult, Start, TdSettings};
