@@ -23,6 +23,7 @@ mod excitation;
 mod hb;
 mod lattice;
 mod linalg;
+mod noise;
 mod numeric;
 mod sweep;
 mod time_domain;
@@ -34,6 +35,7 @@ pub use hb::{
     SteadyState, MAX_MODES,
 };
 pub use lattice::{choose_lattice, LatticeSettings, LINE_TOL_HZ};
+pub use noise::{lockin_noise_sigma, NoiseGen};
 pub use numeric::{parse_monomial, ModeValues, ModelValues, NumericModel, Term};
 pub use sweep::{backbone, sweep, Fold, SweepPoint, SweepResult, SweepSettings};
 pub use time_domain::{simulate_lockin, LockinResult, Start, TdSettings};

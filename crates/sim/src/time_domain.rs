@@ -100,6 +100,9 @@ pub struct LockinResult {
     pub settle_change: f64,
     /// Steps per period used.
     pub steps_per_period: usize,
+    /// Lock-in samples per window (white noise of RMS `r` per sample gives a per-quadrature
+    /// std of `r·sqrt(2/samples)` in each amplitude, [`crate::lockin_noise_sigma`]).
+    pub samples: u64,
     /// Total integration steps.
     pub steps: u64,
     /// Largest local error estimate over the run, relative to the tolerance (≤ 1 when met).
@@ -572,6 +575,7 @@ fn run(
                     window_start_s: (win - 1) as f64 * window_s,
                     settle_change,
                     steps_per_period: st.steps_per_period,
+                    samples: n_samp,
                     steps: step,
                     max_error_ratio: max_err / 1.0,
                 });

@@ -1,0 +1,132 @@
+//! `harmonid simulate` and `harmonid sweep` end to end: the nanostring example model, a values
+//! file and a measurement plan (the three measurements of `nanostring_ls50_2mode`).
+
+use harmonid::ident::Dataset;
+use std::process::Command;
+
+const VALUES: &str = r#"
+[modes.q1]
+f_hz = 207582.0
+Q = 116232.0
+
+[modes.q2]
+f_hz = 415842.0
+Q = 599173.0
+
+[parameters]
+beta1 = 2.68e22
+beta2 = 3.70e23
+g12 = 8.57e22
+"#;
+
+const PLAN: &str = r#"
+description = "nanostring, three measurements of the two-mode identification"
+displacement_unit = "m"
+
+[[point]]
+name = "p0"
+shape = { q1 = 0.3090169943749474, q2 = 0.5877852522924731 }
+
+[[measurement]]
+name = "single_q1"
+drives_hz = [207572.5, 207592.5]
+force = { q1 = [3.5, 3.5] }
+measure_hz = [207492.5, 207512.5, 207532.5, 207552.5, 207572.5, 207592.5, 207612.5, 207632.5, 207652.5, 207672.5]
+
+[[measurement]]
+name = "single_q2"
+drives_hz = [415831.5, 415851.5]
+force = { q2 = [1.81, 1.81] }
+measure_hz = [415751.5, 415771.5, 415791.5, 415811.5, 415831.5, 415851.5, 415871.5, 415891.5, 415911.5, 415931.5]
+
+[[measurement]]
+name = "couple_q1_q2"
+drives_hz = [207572.5, 207592.5, 415841.5]
+force = { q1 = [3.5, 3.5, 0.0], q2 = [0.0, 0.0, 1.81] }
+measure_hz = [207492.5, 207512.5, 207532.5, 207552.5, 207572.5, 207592.5, 207612.5, 207632.5, 207652.5, 207672.5, 415761.5, 415781.5, 415801.5, 415821.5, 415841.5, 415861.5, 415881.5, 415901.5, 415921.5]
+"#;
+
+fn model_path() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/nanostring_2mode/model.hb")
+}
+
+#[test]
+fn simulate_writes_a_dataset_matching_the_reference() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    std::fs::write(dir.path().join("values.toml"), VALUES).expect("write");
+    std::fs::write(dir.path().join("plan.toml"), PLAN).expect("write");
+    let out = dir.path().join("ds");
+    let st = Command::new(env!("CARGO_BIN_EXE_harmonid"))
+        .arg("simulate")
+        .arg(model_path())
+        .arg("--values")
+        .arg(dir.path().join("values.toml"))
+        .arg("--plan")
+        .arg(dir.path().join("plan.toml"))
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .expect("runs");
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let ds = Dataset::load(&out).expect("the written dataset loads");
+    assert_eq!(ds.measurements.len(), 3);
+    let truth = ds.truth.as_ref().expect("truth.toml");
+    assert_eq!(truth.eom["q1"]["q1*q2^2"], 8.57e22);
+    assert_eq!(
+        truth.forces["couple_q1_q2"]["q2"].amplitude,
+        vec![0.0, 0.0, 1.81]
+    );
+    // Against the independent generator where it is available.
+    let shared = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data/nanostring_ls50_2mode");
+    if !shared.join("dataset.toml").exists() {
+        eprintln!("skipped the comparison: ../shared/data/nanostring_ls50_2mode is not present");
+        return;
+    }
+    let reference = Dataset::load(&shared).expect("reference loads");
+    for m in &reference.measurements {
+        let ours = ds.measurement(&m.spec.name).expect("same measurement");
+        let biggest = m.data.iter().map(|z| z.norm()).fold(0.0, f64::max);
+        for (f, &hz) in m.freqs_hz.iter().enumerate() {
+            let want = m.amplitude(0, f, 0);
+            let got = ours.amplitude(0, ours.freq_index(hz).expect("frequency"), 0);
+            if want.norm() > 0.01 * biggest {
+                assert!(
+                    (got - want).norm() < 1e-3 * want.norm(),
+                    "{} {hz}: {got} vs {want}",
+                    m.spec.name
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn simulate_refuses_missing_values() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    std::fs::write(
+        dir.path().join("values.toml"),
+        "[parameters]\nbeta1 = 1.0\n",
+    )
+    .expect("write");
+    std::fs::write(dir.path().join("plan.toml"), PLAN).expect("write");
+    let st = Command::new(env!("CARGO_BIN_EXE_harmonid"))
+        .args(["simulate"])
+        .arg(model_path())
+        .arg("--values")
+        .arg(dir.path().join("values.toml"))
+        .arg("--plan")
+        .arg(dir.path().join("plan.toml"))
+        .arg("--out")
+        .arg(dir.path().join("ds"))
+        .output()
+        .expect("runs");
+    assert!(!st.status.success());
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(err.contains("f_hz of mode q1"), "{err}");
+    assert!(!dir.path().join("ds").exists());
+}
