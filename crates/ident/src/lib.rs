@@ -12,6 +12,7 @@
 #![warn(missing_docs)]
 
 pub mod dataset;
+pub mod problem;
 pub mod solve;
 
 pub use dataset::{
