@@ -54,13 +54,13 @@ pub const MAX_NESTING: usize = 64;
 /// Largest whole number accepted in a family range or an index.
 pub const MAX_INDEX: i64 = 100_000;
 /// Index families may expand to at most this many statements (over the whole file).
-pub const MAX_FAMILY_INSTANCES: usize = 4_000_000;
+pub const MAX_FAMILY_INSTANCES: usize = 2_000_000;
 /// Highest total degree of any term, in the modes and in the parameters separately.
 pub const MAX_DEGREE: u32 = 64;
 /// Most terms any expression, equation or the potential may hold.
 pub const MAX_TERMS: usize = 2_000_000;
 /// Most term pairs one product may multiply while expanding.
-pub const MAX_PRODUCT_WORK: usize = 10_000_000;
+pub const MAX_PRODUCT_WORK: usize = 1_000_000;
 /// Most diagnostics reported for one file.
 pub const MAX_DIAGNOSTICS: usize = 100;
 /// Largest model file `load` reads, in bytes.

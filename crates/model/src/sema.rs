@@ -434,58 +434,56 @@ fn expand_family<'a>(f: &'a Family, env: &mut Env, d: &mut Decls<'a>, sink: &mut
         return;
     }
     let base = env.len();
-    let n = h.vars.len();
     env.extend(h.vars.iter().map(|(v, _)| (v.clone(), h.lo)));
-    // Odometer over the index tuple, skipping tuples that break a relation.
-    let mut vals = vec![h.lo; n];
-    'outer: loop {
-        let ok = (1..n).all(|k| match h.rels.get(k - 1) {
-            Some(IndexRel::Lt) => vals[k - 1] < vals[k],
-            Some(IndexRel::Le) => vals[k - 1] <= vals[k],
-            Some(IndexRel::Ne) => vals[k - 1] != vals[k],
-            _ => true,
-        });
-        if ok {
-            for (k, v) in vals.iter().enumerate() {
-                env[base + k].1 = *v;
-            }
-            for s in &f.body {
-                expand(s, env, d, sink);
-            }
+    enumerate_tuples(f, 0, base, env, d, sink);
+    env.truncate(base);
+}
+
+/// Runs the family body for every index tuple, position `k` onwards; relations `<` and `<=`
+/// bound each index by its predecessor, so only valid tuples are visited.
+fn enumerate_tuples<'a>(
+    f: &'a Family,
+    k: usize,
+    base: usize,
+    env: &mut Env,
+    d: &mut Decls<'a>,
+    sink: &mut Sink<'_>,
+) {
+    let h = &f.head;
+    if k == h.vars.len() {
+        for s in &f.body {
+            expand(s, env, d, sink);
             if d.stop {
-                break 'outer;
-            }
-        } else {
-            // Skipped tuples still cost time: count them against the same budget.
-            d.instances += 1;
-            if d.instances > MAX_FAMILY_INSTANCES {
-                d.stop = true;
-                sink.push(ModelDiagnostic::new(
-                    Code::TooLarge,
-                    h.span,
-                    format!("index families expand to more than {MAX_FAMILY_INSTANCES} statements"),
-                    "the expansion passes the limit here",
-                    "use smaller ranges; harmonid bounds the size of a model so that checks stay fast",
-                ));
-                break 'outer;
+                return;
             }
         }
-        let mut k = n;
-        loop {
-            if k == 0 {
-                break 'outer;
-            }
-            k -= 1;
-            if vals[k] < h.hi {
-                vals[k] += 1;
-                for v in vals.iter_mut().skip(k + 1) {
-                    *v = h.lo;
-                }
-                break;
-            }
+        return;
+    }
+    let prev = if k > 0 {
+        Some(env[base + k - 1].1)
+    } else {
+        None
+    };
+    let rel = if k > 0 {
+        h.rels.get(k - 1).copied()
+    } else {
+        None
+    };
+    let start = match (rel, prev) {
+        (Some(IndexRel::Lt), Some(p)) => p + 1,
+        (Some(IndexRel::Le), Some(p)) => p,
+        _ => h.lo,
+    };
+    for v in start..=h.hi {
+        if rel == Some(IndexRel::Ne) && prev == Some(v) {
+            continue;
+        }
+        env[base + k].1 = v;
+        enumerate_tuples(f, k + 1, base, env, d, sink);
+        if d.stop {
+            return;
         }
     }
-    env.truncate(base);
 }
 
 /// Evaluates the indices of a name in the current environment.
@@ -631,6 +629,26 @@ impl Eval<'_, '_, '_, '_> {
             0 => "none".to_string(),
             n if n <= 8 => modes.iter().map(|(_, s)| *s).collect::<Vec<_>>().join(", "),
             n => format!("{} ... {} ({n} modes)", modes[0].1, modes[n - 1].1),
+        }
+    }
+
+    /// The declared names `base` followed by a digit (`q1, q2, ...`), shortened when long.
+    fn family_list(&self, base: &str) -> String {
+        let mut list: Vec<&str> = self
+            .names
+            .table
+            .keys()
+            .filter(|k| {
+                k.strip_prefix(base)
+                    .is_some_and(|rest| rest.starts_with(|c: char| c.is_ascii_digit()))
+            })
+            .map(String::as_str)
+            .collect();
+        list.sort_by(|a, b| (a.len(), a).cmp(&(b.len(), b)));
+        match list.len() {
+            0 => "none".to_string(),
+            n if n <= 8 => list.join(", "),
+            n => format!("{}, {}, ..., {} ({n} names)", list[0], list[1], list[n - 1]),
         }
     }
 
@@ -873,6 +891,23 @@ impl Eval<'_, '_, '_, '_> {
         match self.names.table.get(&name) {
             Some((Sym::Mode(m), _)) => Some(Poly::var(VarId(*m))),
             Some((Sym::Param(p), _)) => Some(Poly::constant(Coeff::param(VarId(*p)))),
+            None if has_index_var(n) => {
+                if self.sink.is_new(Code::FamilyRange, n.span) {
+                    let w = self.written(n, &name);
+                    let declared = self.family_list(&n.base);
+                    self.sink.push(ModelDiagnostic::new(
+                        Code::FamilyRange,
+                        n.span,
+                        format!("the index family runs out of range: {w} is not declared"),
+                        "out of range",
+                        format!("declared with this stem: {declared}; shrink the family's range or declare `{name}`"),
+                    ));
+                } else {
+                    self.sink
+                        .push(ModelDiagnostic::new(Code::FamilyRange, n.span, "", "", ""));
+                }
+                None
+            }
             None => {
                 if self.sink.is_new(Code::UnknownName, n.span) {
                     let w = self.written(n, &name);
@@ -895,6 +930,12 @@ impl Eval<'_, '_, '_, '_> {
             }
         }
     }
+}
+
+fn has_index_var(n: &Name) -> bool {
+    n.indices
+        .as_ref()
+        .is_some_and(|l| l.iter().any(|i| matches!(i, Index::Var { .. })))
 }
 
 fn size(p: &Poly) -> usize {

@@ -126,6 +126,20 @@ fn syntax_error(source: &str, e: pest::error::Error<Rule>) -> ModelDiagnostic {
     // Keep the first occurrence of each wording, in a stable order.
     let mut seen = std::collections::HashSet::new();
     expected.retain(|w| seen.insert(*w));
+    // "end of file, `mode`, `modes`, `param`, ..." reads better as "a new statement".
+    const STARTS: [&str; 7] = [
+        "end of file",
+        "`mode`",
+        "`modes`",
+        "`param`",
+        "`eom`",
+        "`potential`",
+        "`for`",
+    ];
+    if expected.iter().filter(|w| STARTS.contains(w)).count() >= 3 {
+        expected.retain(|w| !STARTS.contains(w));
+        expected.push("a new statement");
+    }
     let found = found_text(source, pos);
     let expected_text = match expected.as_slice() {
         [] => "something else".to_string(),
@@ -181,6 +195,24 @@ fn syntax_help(found: &str, expected: &[&str]) -> String {
     if expected.contains(&"a frequency unit (Hz, kHz, MHz or GHz)") {
         return "write the unit after the number, as in `207.58 kHz`".to_string();
     }
+    const RESERVED: [&str; 9] = [
+        "mode",
+        "modes",
+        "param",
+        "params",
+        "eom",
+        "potential",
+        "for",
+        "in",
+        "at",
+    ];
+    if RESERVED.contains(&found)
+        && expected
+            .iter()
+            .any(|w| w.contains("name") || *w == "a parameter")
+    {
+        return format!("`{found}` is a reserved word of the model language; choose another name");
+    }
     if found.is_empty() {
         return "the file ends in the middle of a statement; complete it or remove it".to_string();
     }
@@ -191,8 +223,20 @@ struct Builder {
     errors: Vec<ModelDiagnostic>,
 }
 
+/// The span of a pair without the trailing spaces and comments that pest's implicit
+/// whitespace may have attached to it.
 fn span(p: &Pair<'_, Rule>) -> Span {
-    Span::from_pest(p.as_span())
+    let s = Span::from_pest(p.as_span());
+    let mut text = p.as_str();
+    loop {
+        text = text.trim_end();
+        let line_start = text.rfind('\n').map_or(0, |i| i + 1);
+        match text[line_start..].find('#') {
+            Some(h) => text = &text[..line_start + h],
+            None => break,
+        }
+    }
+    Span::new(s.start, s.start + text.len())
 }
 
 impl Builder {
