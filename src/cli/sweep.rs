@@ -1,10 +1,107 @@
-//! `harmonid sweep` (being built).
+//! `harmonid sweep MODEL --values V --from F0 --to F1 --force q1=F`: single-tone response curve
+//! with continuation through folds, written as CSV (one row per curve point).
+
+use super::simulate::numeric_model;
+use harmonid_sim::{self as sim, SweepSettings};
+use miette::{miette, IntoDiagnostic};
+use num_complex::Complex64;
+use std::fmt::Write as _;
+use std::path::PathBuf;
 
 /// Arguments of `harmonid sweep`.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// The model file (`*.hb`).
+    pub model: PathBuf,
+    /// Parameter values (TOML or an identification result JSON), as for `harmonid simulate`.
+    #[arg(long)]
+    pub values: PathBuf,
+    /// Start of the sweep, Hz.
+    #[arg(long)]
+    pub from: f64,
+    /// End of the sweep, Hz (below `--from` for a curve followed downwards).
+    #[arg(long)]
+    pub to: f64,
+    /// Force of the tone on a mode, N/kg (peak), as `mode=amplitude`; repeat for several modes.
+    #[arg(long = "force", value_name = "MODE=N_PER_KG", required = true)]
+    pub force: Vec<String>,
+    /// Approximate number of curve points.
+    #[arg(long, default_value_t = 2000)]
+    pub points: usize,
+    /// Highest harmonic of the tone kept.
+    #[arg(long, default_value_t = 3)]
+    pub harmonics: usize,
+    /// Output CSV (stdout when absent).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
 
 /// Runs the subcommand.
-pub fn run(_args: Args) -> miette::Result<()> {
-    Err(miette::miette!("`harmonid sweep` is not available yet"))
+pub fn run(args: Args) -> miette::Result<()> {
+    let model = numeric_model(&args.model, &args.values)?;
+    let mut force = vec![Complex64::new(0.0, 0.0); model.n_modes()];
+    for f in &args.force {
+        let (m, v) = f
+            .split_once('=')
+            .ok_or_else(|| miette!("--force {f}: expected MODE=AMPLITUDE, e.g. q1=3.5"))?;
+        let n = model
+            .mode_names
+            .iter()
+            .position(|x| x == m.trim())
+            .ok_or_else(|| {
+                miette!(
+                    "--force {f}: `{m}` is not a mode ({})",
+                    model.mode_names.join(", ")
+                )
+            })?;
+        let a: f64 = v
+            .trim()
+            .parse()
+            .map_err(|_| miette!("--force {f}: `{v}` is not a number"))?;
+        force[n] = Complex64::new(a, 0.0);
+    }
+    let s = SweepSettings {
+        f_start_hz: args.from,
+        f_stop_hz: args.to,
+        points: args.points,
+        harmonics: args.harmonics,
+        ..SweepSettings::default()
+    };
+    let r = sim::sweep(&model, &force, &s).into_diagnostic()?;
+    let mut csv = String::from("f_hz,stable");
+    for n in &model.mode_names {
+        for &h in &r.harmonics {
+            let _ = write!(csv, ",{n}_h{h}_re,{n}_h{h}_im,{n}_h{h}_abs");
+        }
+    }
+    csv.push('\n');
+    for p in &r.points {
+        let _ = write!(csv, "{:.9},{}", p.f_hz, p.stable as u8);
+        for row in &p.amplitudes {
+            for z in row {
+                let _ = write!(csv, ",{:e},{:e},{:e}", z.re, z.im, z.norm());
+            }
+        }
+        csv.push('\n');
+    }
+    let (up, down) = r.jumps();
+    eprintln!(
+        "{} points; folds: up-sweep jumps at {:?} Hz, down-sweep jumps at {:?} Hz{}",
+        r.points.len(),
+        up,
+        down,
+        if r.complete {
+            ""
+        } else {
+            "; the curve stopped before the end of the range (Newton failed: try a smaller drive or more --harmonics)"
+        }
+    );
+    match &args.out {
+        Some(p) => super::common::write_atomic(p, csv.as_bytes()),
+        None => {
+            use std::io::Write;
+            let _ = std::io::stdout().lock().write_all(csv.as_bytes());
+            Ok(())
+        }
+    }
 }
