@@ -1,10 +1,97 @@
-//! `harmonid identify` (being built).
+//! `harmonid identify MODEL DATASET --out result.json`: identify the model's unknowns from a
+//! measured dataset (sequential stages by default), print a summary table, write the result.
+
+use crate::cli::common::write_atomic;
+use harmonid_ident::{Dataset, ForceModel, Problem, Report, Settings};
+use miette::miette;
+use std::collections::BTreeMap;
+use std::path::PathBuf;
 
 /// Arguments of `harmonid identify`.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// The model file (`*.hb`), e.g. examples/nanostring_2mode/model.hb.
+    pub model: PathBuf,
+    /// The dataset folder (with dataset.toml; layout in DATA_FORMAT.md).
+    pub dataset: PathBuf,
+    /// Where to write the result (JSON, `harmonid-result/1`); written atomically.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Write every shot's estimates to this CSV (for histograms).
+    #[arg(long, value_name = "FILE.csv")]
+    pub per_shot: Option<PathBuf>,
+    /// Fit everything in one problem instead of the sequential stages (for comparison).
+    #[arg(long)]
+    pub joint: bool,
+    /// Leave every drive tone's force a free complex unknown (the paper's model), even when the
+    /// manifest gives drive levels and phases.
+    #[arg(long, conflicts_with = "gain_per_mode")]
+    pub free_forces: bool,
+    /// With drive levels: one actuator gain per mode for the whole dataset (default: one per
+    /// mode and measurement).
+    #[arg(long)]
+    pub gain_per_mode: bool,
+    /// Nominal resonance frequency of a mode, overriding the dataset's and the model's:
+    /// `--nominal q1=207.58e3` (Hz). Repeatable.
+    #[arg(long, value_name = "MODE=HZ")]
+    pub nominal: Vec<String>,
+    /// A drive tone must lie within this relative distance of a nominal resonance.
+    #[arg(long, default_value_t = 0.05)]
+    pub near_rel: f64,
+    /// Do not weight rows by the noise estimated from the scatter across shots.
+    #[arg(long)]
+    pub unweighted: bool,
+}
 
 /// Runs the subcommand.
-pub fn run(_args: Args) -> miette::Result<()> {
-    Err(miette::miette!("`harmonid identify` is not available yet"))
+pub fn run(args: Args) -> miette::Result<()> {
+    let model = harmonid_model::load(&args.model).map_err(miette::Report::new)?;
+    let ds = Dataset::load(&args.dataset).map_err(|e| miette!("{e}"))?;
+    let mut nominal_hz = BTreeMap::new();
+    for s in &args.nominal {
+        let (name, hz) = s.split_once('=').ok_or_else(|| {
+            miette!("--nominal {s}: expected MODE=HZ, e.g. --nominal q1=207.58e3")
+        })?;
+        let hz: f64 = hz
+            .trim()
+            .parse()
+            .ok()
+            .filter(|f: &f64| f.is_finite() && *f > 0.0)
+            .ok_or_else(|| miette!("--nominal {s}: \"{hz}\" is not a positive frequency in Hz"))?;
+        if model.mode_index(name.trim()).is_none() {
+            return Err(miette!(
+                "--nominal {s}: the model declares no mode \"{}\" (modes: {})",
+                name.trim(),
+                model.mode_names().join(", ")
+            ));
+        }
+        nominal_hz.insert(name.trim().to_string(), hz);
+    }
+    let settings = Settings {
+        force_model: if args.free_forces {
+            ForceModel::Free
+        } else if args.gain_per_mode {
+            ForceModel::GainPerMode
+        } else {
+            ForceModel::Auto
+        },
+        joint: args.joint,
+        nominal_hz,
+        near_rel: args.near_rel,
+        min_shots_for_weights: if args.unweighted { 0 } else { 5 },
+        ..Settings::default()
+    };
+    let prob = Problem::new(&model, &ds, &settings).map_err(|e| miette!("{e}"))?;
+    let fit = prob.fit(&ds, &settings);
+    let report = Report::new(&args.model.display().to_string(), &ds, &prob, &fit);
+    print!("{}", report.summary(ds.truth.as_ref()));
+    if let Some(out) = &args.out {
+        write_atomic(out, report.to_json().as_bytes())?;
+        println!("wrote {}", out.display());
+    }
+    if let Some(path) = &args.per_shot {
+        write_atomic(path, report.per_shot_csv().as_bytes())?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
 }

@@ -76,6 +76,9 @@ pub struct Settings {
     /// Relative singular value below which a fit's matrix is considered rank deficient (default
     /// 1e-9): the unknown dominating the weakest direction is reported as not identifiable.
     pub rank_tol: f64,
+    /// Shrinkage of the off-diagonal row covariance estimated from shots towards zero, in
+    /// `[0, 1]` (default 0.2; 1 = rows weighted by their own noise only).
+    pub shrinkage: f64,
 }
 
 impl Default for Settings {
@@ -87,6 +90,7 @@ impl Default for Settings {
             near_rel: 0.05,
             min_shots_for_weights: 5,
             rank_tol: 1e-9,
+            shrinkage: 0.2,
         }
     }
 }
@@ -678,8 +682,7 @@ impl Problem {
                     let (a, _, _) = self.assemble(&shot0, &measurements, &unknowns, &values, None);
                     let rows = a.nrows();
                     if rows < unknowns.len() {
-                        let names: Vec<String> =
-                            unknowns.iter().map(|&u| self.label(u)).collect();
+                        let names: Vec<String> = unknowns.iter().map(|&u| self.label(u)).collect();
                         return Err(IdentError::TooFewFrequencies {
                             file: self.manifest_path.clone(),
                             what: self.meas_names(ds, &measurements),
@@ -694,7 +697,10 @@ impl Problem {
                     let smax = sol.singular_values.first().copied().unwrap_or(0.0);
                     let smin = sol.singular_values.last().copied().unwrap_or(0.0);
                     let drop = if let Some(&z) = sol.zero_columns.first() {
-                        Some((z, "its regressor column is zero at the measured frequencies".to_string()))
+                        Some((
+                            z,
+                            "its regressor column is zero at the measured frequencies".to_string(),
+                        ))
                     } else if smin <= settings.rank_tol * smax {
                         let w = &sol.weakest_direction;
                         let j = (0..w.len())
@@ -865,7 +871,14 @@ impl Problem {
                             } else {
                                 Complex64::new(0.0, -1.0)
                             };
-                            coefs.push((Unknown::Force { meas: mi, tone, quad }, c));
+                            coefs.push((
+                                Unknown::Force {
+                                    meas: mi,
+                                    tone,
+                                    quad,
+                                },
+                                c,
+                            ));
                         }
                     }
                     ForceModel::GainPerMeasurement | ForceModel::GainPerMode => {
@@ -878,7 +891,11 @@ impl Problem {
                             (self.force_model == ForceModel::GainPerMeasurement).then_some(mi);
                         for quad in 0..2u8 {
                             let c = if quad == 0 { -d } else { -d * Complex64::i() };
-                            let u = Unknown::Gain { meas, mode: n, quad };
+                            let u = Unknown::Gain {
+                                meas,
+                                mode: n,
+                                quad,
+                            };
                             match coefs.iter_mut().find(|(x, _)| *x == u) {
                                 Some(e) => e.1 += c,
                                 None => coefs.push((u, c)),
@@ -951,8 +968,7 @@ impl Problem {
     pub fn fit(&self, ds: &Dataset, settings: &Settings) -> Fit {
         let nshots = ds.measurements.iter().map(|m| m.n_shots).max().unwrap_or(1);
         let nu = self.unknowns.len();
-        let mut scratch: Vec<ProductScratch> =
-            self.meas.iter().map(|m| m.plan.scratch()).collect();
+        let mut scratch: Vec<ProductScratch> = self.meas.iter().map(|m| m.plan.scratch()).collect();
         let rows: Vec<Vec<MeasRows>> = (0..nshots)
             .map(|s| {
                 (0..self.meas.len())
@@ -964,11 +980,13 @@ impl Problem {
         let mut cov_diag = vec![vec![f64::NAN; nu]; nshots];
         let mut cov_lin: Vec<BTreeMap<usize, [f64; 4]>> = vec![BTreeMap::new(); nshots];
         let mut groups = Vec::new();
-        let weighted = settings.min_shots_for_weights > 0 && nshots >= settings.min_shots_for_weights;
+        let weighted =
+            settings.min_shots_for_weights > 0 && nshots >= settings.min_shots_for_weights;
         for g in &self.groups {
             let lower: Vec<Option<f64>> = g.unknowns.iter().map(|&u| self.bounds[u].0).collect();
             let upper: Vec<Option<f64>> = g.unknowns.iter().map(|&u| self.bounds[u].1).collect();
-            let mut weights: Option<Vec<Vec<f64>>> = None;
+            // Whitening matrix of the group's real rows (GLS), from the scatter across shots.
+            let mut whiten: Option<DMatrix<f64>> = None;
             let passes = if weighted { 3 } else { 1 };
             let mut diag = GroupDiagnostics {
                 stage: g.stage,
@@ -982,30 +1000,34 @@ impl Problem {
                 rows: 0,
             };
             for pass in 0..passes {
-                let mut residuals: Vec<Vec<Vec<Complex64>>> = Vec::new();
                 let mut conds = Vec::new();
                 let (mut rss_sum, mut rhs_sum) = (0.0, 0.0);
                 diag.status_bounds = 0;
                 for s in 0..nshots {
                     // Fixed-Q modes: iterate γ = ω/Q with the fitted ω.
-                    let iters = if self.fixed_q.iter().any(Option::is_some) { 3 } else { 1 };
+                    let iters = if self.fixed_q.iter().any(Option::is_some) {
+                        3
+                    } else {
+                        1
+                    };
                     let mut sol = None;
                     for _ in 0..iters {
-                        let (a, b, which) = self.assemble(
-                            &rows[s],
-                            &g.measurements,
-                            &g.unknowns,
-                            &values[s],
-                            weights.as_deref(),
-                        );
+                        let (mut a, mut b, _) =
+                            self.assemble(&rows[s], &g.measurements, &g.unknowns, &values[s], None);
+                        if let Some(w) = &whiten {
+                            a = w * a;
+                            b = w * b;
+                        }
                         let so = solve_ls(&a, &b, &lower, &upper);
                         for (j, &u) in g.unknowns.iter().enumerate() {
                             values[s][u] = so.x[j];
                         }
                         self.update_fixed_q(&mut values[s]);
-                        sol = Some((so, a, b, which));
+                        sol = Some((so, a.nrows(), b.norm_squared()));
                     }
-                    let Some((so, a, b, which)) = sol else { continue };
+                    let Some((so, nrows, bnorm2)) = sol else {
+                        continue;
+                    };
                     if so.status != FitStatus::Solved {
                         diag.status_bounds += 1;
                     }
@@ -1028,86 +1050,15 @@ impl Problem {
                     }
                     conds.push(so.cond);
                     rss_sum += so.rss;
-                    rhs_sum += b.norm_squared();
-                    diag.rows = a.nrows();
-                    // Complex residual per equation, unweighted.
-                    let xv = DVector::from_column_slice(&so.x);
-                    let r = &a * &xv - &b;
-                    let mut res: Vec<Vec<Complex64>> = g
-                        .measurements
-                        .iter()
-                        .map(|&m| vec![Complex64::new(0.0, 0.0); rows[s][m].rows.len()])
-                        .collect();
-                    for (i, &(m, fr)) in which.iter().enumerate() {
-                        let w = weights.as_ref().map_or(1.0, |w| w[m][fr]);
-                        let gi = g.measurements.iter().position(|&x| x == m).unwrap_or(0);
-                        res[gi][fr] = Complex64::new(r[2 * i], r[2 * i + 1]) / w;
-                    }
-                    residuals.push(res);
+                    rhs_sum += bnorm2;
+                    diag.rows = nrows;
                 }
                 conds.sort_by(f64::total_cmp);
                 diag.cond = conds.get(conds.len() / 2).copied().unwrap_or(f64::NAN);
                 diag.rms_residual = (rss_sum / rhs_sum.max(f64::MIN_POSITIVE)).sqrt();
                 diag.rms_rhs = rhs_sum;
                 if pass + 1 < passes {
-                    // Row noise: scatter across shots of each equation's residual evaluated at
-                    // the median estimate (fixed), i.e. the equation error the data noise makes.
-                    // (Residuals of per-shot fits would understate it where a row's own unknowns
-                    // absorb it.)
-                    let mut xbar = values[0].clone();
-                    for &u in &g.unknowns {
-                        let mut v: Vec<f64> = values.iter().map(|x| x[u]).collect();
-                        v.sort_by(f64::total_cmp);
-                        xbar[u] = v[v.len() / 2];
-                    }
-                    let mut residuals: Vec<Vec<Vec<Complex64>>> = Vec::with_capacity(nshots);
-                    for shot_rows in &rows {
-                        let mut base = values[0].clone();
-                        base.copy_from_slice(&xbar);
-                        let (a, b, which) =
-                            self.assemble(shot_rows, &g.measurements, &g.unknowns, &base, None);
-                        let xv = DVector::from_iterator(
-                            g.unknowns.len(),
-                            g.unknowns.iter().map(|&u| xbar[u]),
-                        );
-                        let r = &a * &xv - &b;
-                        let mut res: Vec<Vec<Complex64>> = g
-                            .measurements
-                            .iter()
-                            .map(|&m| vec![Complex64::new(0.0, 0.0); shot_rows[m].rows.len()])
-                            .collect();
-                        for (i, &(m, fr)) in which.iter().enumerate() {
-                            let gi = g.measurements.iter().position(|&x| x == m).unwrap_or(0);
-                            res[gi][fr] = Complex64::new(r[2 * i], r[2 * i + 1]);
-                        }
-                        residuals.push(res);
-                    }
-                    let mut w = vec![Vec::new(); self.meas.len()];
-                    for (gi, &m) in g.measurements.iter().enumerate() {
-                        let nr = rows[0][m].rows.len();
-                        let mut wm = vec![1.0; nr];
-                        let mut sig = vec![0.0; nr];
-                        for (r, sg) in sig.iter_mut().enumerate() {
-                            let mean: Complex64 = residuals.iter().map(|x| x[gi][r]).sum::<Complex64>()
-                                / residuals.len() as f64;
-                            let var: f64 = residuals
-                                .iter()
-                                .map(|x| (x[gi][r] - mean).norm_sqr())
-                                .sum::<f64>()
-                                / (2.0 * (residuals.len() as f64 - 1.0).max(1.0));
-                            *sg = var.sqrt();
-                        }
-                        let positive: Vec<f64> = sig.iter().copied().filter(|&x| x > 0.0).collect();
-                        let floor = positive.iter().copied().fold(f64::INFINITY, f64::min);
-                        for (r, wr) in wm.iter_mut().enumerate() {
-                            let sgm = if sig[r] > 0.0 { sig[r] } else { floor };
-                            if sgm.is_finite() && sgm > 0.0 {
-                                *wr = 1.0 / sgm;
-                            }
-                        }
-                        w[m] = wm;
-                    }
-                    weights = Some(w);
+                    whiten = self.whitening(&rows, g, &values, settings.shrinkage);
                 }
             }
             groups.push(diag);
@@ -1118,6 +1069,60 @@ impl Problem {
             cov_lin,
             groups,
         }
+    }
+
+    /// Whitening matrix `W` (`Wᵀ W = Σ⁻¹`) of the group's real rows, where `Σ` is the covariance
+    /// across shots of the equation residuals evaluated at the median estimate (held fixed):
+    /// the equation error the data noise makes, correlations between rows included (the same
+    /// noisy amplitude enters several rows through the products). `Σ` is shrunk towards its
+    /// diagonal by `shrinkage` (the sample covariance of few shots is noisy). Residuals of
+    /// per-shot fits would understate the noise where a row's own unknowns absorb it.
+    fn whitening(
+        &self,
+        rows: &[Vec<MeasRows>],
+        g: &FitGroup,
+        values: &[Vec<f64>],
+        shrinkage: f64,
+    ) -> Option<DMatrix<f64>> {
+        let nshots = rows.len();
+        let mut xbar = values.first()?.clone();
+        for &u in &g.unknowns {
+            let mut v: Vec<f64> = values.iter().map(|x| x[u]).collect();
+            v.sort_by(f64::total_cmp);
+            xbar[u] = v[v.len() / 2];
+        }
+        let xv = DVector::from_iterator(g.unknowns.len(), g.unknowns.iter().map(|&u| xbar[u]));
+        let mut res: Vec<DVector<f64>> = Vec::with_capacity(nshots);
+        for shot_rows in rows {
+            let (a, b, _) = self.assemble(shot_rows, &g.measurements, &g.unknowns, &xbar, None);
+            res.push(&a * &xv - &b);
+        }
+        let m = res.first()?.len();
+        let mean = res.iter().fold(DVector::zeros(m), |acc, r| acc + r) / nshots as f64;
+        let mut cov = DMatrix::<f64>::zeros(m, m);
+        for r in &res {
+            let d = r - &mean;
+            cov += &d * d.transpose();
+        }
+        cov /= (nshots as f64 - 1.0).max(1.0);
+        let dmax = cov.diagonal().max();
+        if !(dmax > 0.0 && dmax.is_finite()) {
+            return None;
+        }
+        for i in 0..m {
+            // Floor: rows whose residual never moves get the smallest nonzero variance.
+            if cov[(i, i)] <= 1e-300 {
+                cov[(i, i)] = dmax * 1e-12;
+            }
+            for j in 0..m {
+                if i != j {
+                    cov[(i, j)] *= 1.0 - shrinkage;
+                }
+            }
+        }
+        let chol = cov.cholesky()?;
+        // W = L⁻¹.
+        chol.l().try_inverse()
     }
 
     fn update_fixed_q(&self, values: &mut [f64]) {
@@ -1165,15 +1170,31 @@ impl Problem {
                 let get = |u: Unknown| self.index_of(&u).map_or(f64::NAN, |j| values[j]);
                 let f = match self.force_model {
                     ForceModel::Free | ForceModel::Auto => Complex64::new(
-                        get(Unknown::Force { meas: mi, tone, quad: 0 }),
-                        get(Unknown::Force { meas: mi, tone, quad: 1 }),
+                        get(Unknown::Force {
+                            meas: mi,
+                            tone,
+                            quad: 0,
+                        }),
+                        get(Unknown::Force {
+                            meas: mi,
+                            tone,
+                            quad: 1,
+                        }),
                     ),
                     ForceModel::GainPerMeasurement | ForceModel::GainPerMode => {
                         let meas =
                             (self.force_model == ForceModel::GainPerMeasurement).then_some(mi);
                         let gain = Complex64::new(
-                            get(Unknown::Gain { meas, mode: n, quad: 0 }),
-                            get(Unknown::Gain { meas, mode: n, quad: 1 }),
+                            get(Unknown::Gain {
+                                meas,
+                                mode: n,
+                                quad: 0,
+                            }),
+                            get(Unknown::Gain {
+                                meas,
+                                mode: n,
+                                quad: 1,
+                            }),
                         );
                         gain * prep
                             .drive_c

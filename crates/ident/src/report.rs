@@ -197,7 +197,11 @@ fn estimate(per_shot: Vec<f64>, single_var: f64) -> Estimate {
     let (value, std, stderr) = if n <= 1 {
         (st.median, single, single)
     } else {
-        (st.median, st.std, 1.2533 * st.std / (st.n_used.max(1) as f64).sqrt())
+        (
+            st.median,
+            st.std,
+            1.2533 * st.std / (st.n_used.max(1) as f64).sqrt(),
+        )
     };
     let identifiable = value.is_finite() && std.is_finite() && std <= value.abs();
     Estimate {
@@ -205,9 +209,8 @@ fn estimate(per_shot: Vec<f64>, single_var: f64) -> Estimate {
         std,
         stderr,
         identifiable,
-        reason: (!identifiable).then(|| {
-            "the data do not determine it (relative std above 1)".to_string()
-        }),
+        reason: (!identifiable)
+            .then(|| "the data do not determine it (relative std above 1)".to_string()),
         outlier_shots: if n > 1 { st.outliers } else { Vec::new() },
         single_shot_std: single,
         per_shot,
@@ -251,6 +254,16 @@ impl Report {
             };
             let mut fe = estimate(f, var_f);
             let mut qe = estimate(q, var_q);
+            // Q's distribution is skewed (Q = ω/γ): the data determine Q only when they also
+            // determine the damping rate γ = ω/Q itself.
+            let ge = estimate(g.clone(), fit.cov_diag[0][ig]);
+            if qe.identifiable && !ge.identifiable {
+                qe.identifiable = false;
+                qe.reason = Some(format!(
+                    "the damping rate ω/Q is not determined (relative std {:.2})",
+                    ge.std / ge.value.abs()
+                ));
+            }
             if prob.fixed[iw].is_finite() {
                 fe.std = 0.0;
                 fe.stderr = 0.0;
@@ -354,7 +367,12 @@ impl Report {
         }
         let mut gains: BTreeMap<String, BTreeMap<String, GainResult>> = BTreeMap::new();
         for (i, u) in prob.unknowns.iter().enumerate() {
-            if let Unknown::Gain { meas, mode, quad: 0 } = u {
+            if let Unknown::Gain {
+                meas,
+                mode,
+                quad: 0,
+            } = u
+            {
                 let Some(j) = prob.index_of(&Unknown::Gain {
                     meas: *meas,
                     mode: *mode,
@@ -477,7 +495,11 @@ impl Report {
         for shot in 0..self.shots {
             let _ = write!(s, "{shot}");
             for (_, e) in &cols {
-                let _ = write!(s, ",{:e}", e.per_shot.get(shot).copied().unwrap_or(f64::NAN));
+                let _ = write!(
+                    s,
+                    ",{:e}",
+                    e.per_shot.get(shot).copied().unwrap_or(f64::NAN)
+                );
             }
             let _ = writeln!(s, ",{}", u8::from(self.outlier_shots.contains(&shot)));
         }
@@ -510,10 +532,17 @@ impl Report {
         let mut line = |name: String, e: &Estimate, t: Option<f64>| {
             let rel = e.std / e.value.abs();
             let (tt, dev) = match t {
-                Some(t) => (format!("{t:.10e}"), format!("{:+.2}", (e.value - t) / e.std)),
+                Some(t) => (
+                    format!("{t:.10e}"),
+                    format!("{:+.2}", (e.value - t) / e.std),
+                ),
                 None => (String::new(), String::new()),
             };
-            let flag = if e.identifiable { "" } else { "  NOT DETERMINED" };
+            let flag = if e.identifiable {
+                ""
+            } else {
+                "  NOT DETERMINED"
+            };
             let _ = writeln!(
                 s,
                 "{name:<14} {:>18.10e} {:>12.3e} {:>10.2e} {tt:>18} {dev:>9}{flag}",

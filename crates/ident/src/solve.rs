@@ -89,7 +89,11 @@ pub fn solve_ls(
         // With fewer rows than columns the missing singular values are zero.
         sorted.resize(nz, 0.0);
         let smin = sorted[nz - 1];
-        cond = if smin > 0.0 { smax / smin } else { f64::INFINITY };
+        cond = if smin > 0.0 {
+            smax / smin
+        } else {
+            f64::INFINITY
+        };
         if sv.len() == nz {
             let weakest = order[nz - 1];
             for (c, &j) in cols.iter().enumerate() {
@@ -135,7 +139,11 @@ pub fn solve_ls(
     let xv = DVector::from_column_slice(&x);
     let r = a * &xv - b;
     let rss = r.norm_squared();
-    let sigma2 = if m > nz { rss / (m - nz) as f64 } else { f64::NAN };
+    let sigma2 = if m > nz {
+        rss / (m - nz) as f64
+    } else {
+        f64::NAN
+    };
     let mut cov_unit = vec![0.0; k * k];
     for i in 0..k {
         for j in 0..k {
@@ -205,7 +213,9 @@ fn bounded_qp(
             rhs.push(u / scale[j] / bn);
         }
     }
-    let p_rows: Vec<Vec<f64>> = (0..k).map(|i| (0..k).map(|j| p[(i, j)]).collect()).collect();
+    let p_rows: Vec<Vec<f64>> = (0..k)
+        .map(|i| (0..k).map(|j| p[(i, j)]).collect())
+        .collect();
     let P = CscMatrix::from(&p_rows).to_triu();
     let A = CscMatrix::from(&rows);
     let cones = [NonnegativeConeT(rows.len())];
@@ -247,7 +257,12 @@ mod tests {
             let (a, b, x) = random_problem(m, k, seed);
             let s = solve_ls(&a, &b, &vec![None; k], &vec![None; k]);
             for j in 0..k {
-                assert!(((s.x[j] - x[j]) / x[j]).abs() < 1e-10, "{j}: {} vs {}", s.x[j], x[j]);
+                assert!(
+                    ((s.x[j] - x[j]) / x[j]).abs() < 1e-10,
+                    "{j}: {} vs {}",
+                    s.x[j],
+                    x[j]
+                );
             }
             assert!(s.cond < 1e3, "equilibrated condition {}", s.cond);
             assert_eq!(s.status, FitStatus::Solved);
