@@ -1,10 +1,542 @@
-//! `harmonid mix` (being built).
+//! `harmonid mix MODEL --drives q1:207572,207592 --drives q2:415842`: for every term of every
+//! equation, the lines it generates near each resonance and off resonance, with exact
+//! coefficients in the tone amplitudes (Supplementary Note II, Table S1).
+
+use harmonid_ident::Manifest;
+use harmonid_model::Model;
+use harmonid_poly::PowerProduct;
+use harmonid_spectral::{
+    mixing_table, ComponentKind, Line, MixingTable, SpectralError, ToneAssignment, Window,
+};
+use miette::{miette, IntoDiagnostic, WrapErr};
+use std::fmt::Write as _;
+use std::io::Write as _;
+use std::path::PathBuf;
 
 /// Arguments of `harmonid mix`.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// The model file (`*.hb`), e.g. examples/nanostring_2mode/model.hb.
+    pub model: PathBuf,
+    /// Tones in a mode's motion, `MODE:HZ[,HZ...]`, e.g. `--drives q1:207572,207592
+    /// --drives q2:415842`. Tones are numbered f1, f2, ... in the order given; tone d's real
+    /// amplitude is the symbol Xd.
+    #[arg(long, value_name = "MODE:HZ,...", conflicts_with = "dataset")]
+    pub drives: Vec<String>,
+    /// Read the tones from a dataset folder's `dataset.toml` (with --measurement); each tone goes
+    /// to the mode whose nominal resonance is closest.
+    #[arg(long, value_name = "DIR", requires = "measurement")]
+    pub dataset: Option<PathBuf>,
+    /// The `[[measurement]]` of the dataset whose `drives_hz` to use.
+    #[arg(long, value_name = "NAME", requires = "dataset")]
+    pub measurement: Option<String>,
+    /// Nominal resonance of a mode, `MODE=HZ` (wins over the dataset's and the model's).
+    #[arg(long, value_name = "MODE=HZ")]
+    pub nominal: Vec<String>,
+    /// Let every mode with two or more tones carry its own sidebands up to this intermodulation
+    /// order (3: ω1 ± 3δ; 5: also ω1 ± 5δ), each with its own amplitude Yj.
+    #[arg(long, value_name = "ORDER")]
+    pub sidebands: Option<u32>,
+    /// A line counts as near a resonance within this many Hz of it (default: 1 % of the
+    /// resonance frequency).
+    #[arg(long, value_name = "HZ")]
+    pub window: Option<f64>,
+    /// Markdown tables.
+    #[arg(long, conflicts_with_all = ["latex", "json"])]
+    pub markdown: bool,
+    /// LaTeX tables.
+    #[arg(long, conflicts_with = "json")]
+    pub latex: bool,
+    /// JSON: one entry per equation and monomial, each line with `combination`, `freq_hz`,
+    /// `coefficient` and `near`.
+    #[arg(long)]
+    pub json: bool,
+    /// Write to this file (atomically) instead of standard output.
+    #[arg(long, short, value_name = "FILE")]
+    pub output: Option<PathBuf>,
+}
+
+/// One term of one equation with its table.
+struct Term {
+    equation: usize,
+    monomial: PowerProduct,
+    coefficient: harmonid_poly::Coeff,
+    table: MixingTable,
+}
+
+/// Everything the printers need.
+struct Report {
+    model_path: String,
+    mode_names: Vec<String>,
+    param_names: Vec<String>,
+    nominal: Vec<Option<f64>>,
+    assignment: ToneAssignment,
+    window: Option<f64>,
+    terms: Vec<Term>,
+}
+
+fn spectral_err(e: SpectralError) -> miette::Report {
+    miette!(
+        help = "check the --drives / --dataset tones and --sidebands order",
+        "{e}"
+    )
+}
+
+fn parse_drive(s: &str) -> miette::Result<(String, Vec<f64>)> {
+    let usage = || {
+        miette!(
+            help = "write MODE:HZ[,HZ...], e.g. --drives q1:207572,207592",
+            "cannot read --drives `{s}`"
+        )
+    };
+    let (mode, list) = s.split_once(':').ok_or_else(usage)?;
+    let mode = mode.trim();
+    if mode.is_empty() {
+        return Err(usage());
+    }
+    let mut hz = Vec::new();
+    for part in list.split(',') {
+        let v: f64 = part.trim().parse().map_err(|_| {
+            miette!(
+                help = "frequencies are plain numbers in Hz, e.g. 207572 or 2.07572e5",
+                "--drives `{s}`: `{}` is not a frequency",
+                part.trim()
+            )
+        })?;
+        hz.push(v);
+    }
+    Ok((mode.to_string(), hz))
+}
+
+fn parse_nominal(s: &str) -> miette::Result<(String, f64)> {
+    let bad = || {
+        miette!(
+            help = "write MODE=HZ, e.g. --nominal q1=207582",
+            "cannot read --nominal `{s}`"
+        )
+    };
+    let (m, v) = s.split_once('=').ok_or_else(bad)?;
+    let v: f64 = v.trim().parse().map_err(|_| bad())?;
+    if !(v.is_finite() && v > 0.0) {
+        return Err(miette!("--nominal `{s}`: the frequency must be > 0 Hz"));
+    }
+    Ok((m.trim().to_string(), v))
+}
 
 /// Runs the subcommand.
-pub fn run(_args: Args) -> miette::Result<()> {
-    Err(miette::miette!("`harmonid mix` is not available yet"))
+pub fn run(args: Args) -> miette::Result<()> {
+    let model = harmonid_model::load(&args.model).map_err(miette::Report::new)?;
+    let report = build(&args, &model)?;
+    let text = if args.json {
+        to_json(&report)
+    } else if args.latex {
+        to_latex(&report)
+    } else if args.markdown {
+        to_markdown(&report)
+    } else {
+        to_text(&report)
+    };
+    match &args.output {
+        Some(path) => super::common::write_atomic(path, text.as_bytes()),
+        None => {
+            let mut out = std::io::stdout().lock();
+            let _ = out.write_all(text.as_bytes()).and_then(|()| out.flush());
+            Ok(())
+        }
+    }
+}
+
+fn build(args: &Args, model: &Model) -> miette::Result<Report> {
+    let mode_names: Vec<String> = model.modes.iter().map(|m| m.name.clone()).collect();
+    // Nominal resonances: model, then dataset, then command line.
+    let mut nominal: Vec<Option<f64>> = model
+        .modes
+        .iter()
+        .map(|m| {
+            m.nominal_hz.or(match m.f_hz {
+                harmonid_model::Linear::Fixed(f) => Some(f),
+                harmonid_model::Linear::Unknown => None,
+            })
+        })
+        .collect();
+    let set_nominal =
+        |nominal: &mut Vec<Option<f64>>, name: &str, hz: f64, source: &str| match mode_names
+            .iter()
+            .position(|m| m == name)
+        {
+            Some(n) => {
+                nominal[n] = Some(hz);
+                Ok(())
+            }
+            None => Err(miette!(
+                help = format!("the model declares: {}", mode_names.join(", ")),
+                "{source} gives a nominal frequency for `{name}`, which the model does not declare"
+            )),
+        };
+    let mut drives: Vec<(String, Vec<f64>)> = Vec::new();
+    if let (Some(dir), Some(name)) = (&args.dataset, &args.measurement) {
+        let path = dir.join("dataset.toml");
+        let text = std::fs::read_to_string(&path)
+            .into_diagnostic()
+            .wrap_err_with(|| format!("cannot read {}", path.display()))?;
+        let manifest: Manifest =
+            toml::from_str(&text).map_err(|e| miette!("{}: {e}", path.display()))?;
+        for (m, &hz) in &manifest.nominal_hz {
+            set_nominal(&mut nominal, m, hz, &path.display().to_string())?;
+        }
+        for s in &args.nominal {
+            let (m, hz) = parse_nominal(s)?;
+            set_nominal(&mut nominal, &m, hz, "--nominal")?;
+        }
+        let spec = manifest
+            .measurements
+            .iter()
+            .find(|m| &m.name == name)
+            .ok_or_else(|| {
+                let names: Vec<&str> = manifest
+                    .measurements
+                    .iter()
+                    .map(|m| m.name.as_str())
+                    .collect();
+                miette!(
+                    help = format!("its measurements are: {}", names.join(", ")),
+                    "{} has no [[measurement]] named `{name}`",
+                    path.display()
+                )
+            })?;
+        for (d, &hz) in spec.drives_hz.iter().enumerate() {
+            let near = harmonid_spectral::nearest_mode(hz, &nominal).ok_or_else(|| {
+                miette!(
+                    help = "give nominal frequencies in the model, the dataset's [nominal_hz] or --nominal MODE=HZ",
+                    "cannot attribute drive tone #{d} ({hz} Hz) to a mode: no mode has a nominal frequency"
+                )
+            })?;
+            let mode = &mode_names[near.0];
+            match drives.iter_mut().find(|(m, _)| m == mode) {
+                Some((_, v)) => v.push(hz),
+                None => drives.push((mode.clone(), vec![hz])),
+            }
+        }
+    } else {
+        for s in &args.nominal {
+            let (m, hz) = parse_nominal(s)?;
+            set_nominal(&mut nominal, &m, hz, "--nominal")?;
+        }
+        for s in &args.drives {
+            drives.push(parse_drive(s)?);
+        }
+    }
+    if drives.is_empty() {
+        return Err(miette!(
+            help = "e.g. --drives q1:207572,207592 --drives q2:415842, or --dataset DIR --measurement NAME",
+            "no tones given"
+        ));
+    }
+    let mut assignment = ToneAssignment::from_drives(&mode_names, &drives).map_err(spectral_err)?;
+    if let Some(order) = args.sidebands {
+        if order > 15 {
+            return Err(miette!(
+                help = "orders 3, 5, 7 give ω ± 3δ, ± 5δ, ± 7δ",
+                "--sidebands {order} is too high (at most 15)"
+            ));
+        }
+        assignment.add_own_sidebands(order).map_err(spectral_err)?;
+    }
+    // A mode without a nominal frequency sits at the mean of its own tones.
+    for (n, f) in nominal.iter_mut().enumerate() {
+        if f.is_none() {
+            let own: Vec<f64> = assignment
+                .components()
+                .iter()
+                .filter(|c| c.mode == n && matches!(c.kind, ComponentKind::Drive(_)))
+                .map(|c| c.combination.hz(assignment.tones()))
+                .collect();
+            if !own.is_empty() {
+                *f = Some(own.iter().sum::<f64>() / own.len() as f64);
+            }
+        }
+    }
+    let window = match args.window {
+        Some(w) if w.is_finite() && w >= 0.0 => Window::Hz(w),
+        Some(w) => return Err(miette!("--window {w}: the window must be a number ≥ 0 Hz")),
+        None => Window::default(),
+    };
+    let param_names: Vec<String> = model.params.iter().map(|p| p.name.clone()).collect();
+    let mut terms = Vec::new();
+    for (n, eq) in model.eom.iter().enumerate() {
+        for (m, c) in eq.terms() {
+            let table = mixing_table(m, &assignment, &nominal, window).map_err(spectral_err)?;
+            terms.push(Term {
+                equation: n,
+                monomial: m.clone(),
+                coefficient: c.clone(),
+                table,
+            });
+        }
+    }
+    Ok(Report {
+        model_path: args.model.display().to_string(),
+        mode_names,
+        param_names,
+        nominal,
+        assignment,
+        window: args.window,
+        terms,
+    })
+}
+
+/// Group title and lines: near each mode (in mode order), then off resonance.
+fn groups<'a>(r: &'a Report, t: &'a MixingTable) -> Vec<(String, Vec<&'a Line>)> {
+    let mut out = Vec::new();
+    for (n, name) in r.mode_names.iter().enumerate() {
+        let lines: Vec<&Line> = t.near(n).collect();
+        if !lines.is_empty() {
+            let at = r.nominal[n].map_or(String::new(), |f| format!(" ({f} Hz)"));
+            out.push((format!("near {name}{at}"), lines));
+        }
+    }
+    let off: Vec<&Line> = t.off_resonance().collect();
+    if !off.is_empty() {
+        out.push(("off resonance".to_string(), off));
+    }
+    out
+}
+
+fn window_text(r: &Report) -> String {
+    match r.window {
+        Some(w) => format!("within {w} Hz of a resonance"),
+        None => "within 1 % of a resonance (--window HZ to change)".to_string(),
+    }
+}
+
+fn tone_lines(r: &Report) -> Vec<String> {
+    let a = &r.assignment;
+    let labels = a.tones().labels();
+    a.components()
+        .iter()
+        .map(|c| {
+            let hz = c.combination.hz(a.tones());
+            let what = match c.kind {
+                ComponentKind::Drive(_) => "tone",
+                ComponentKind::Sideband => "sideband",
+            };
+            format!(
+                "{} = {} = {} Hz in {} ({what})",
+                c.symbol,
+                c.combination.display_with(labels),
+                hz,
+                r.mode_names[c.mode]
+            )
+        })
+        .collect()
+}
+
+fn to_text(r: &Report) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "harmonid mix {}", r.model_path);
+    let _ = writeln!(s, "amplitudes (each component is X·cos(2π f t)):");
+    for l in tone_lines(r) {
+        let _ = writeln!(s, "  {l}");
+    }
+    let _ = writeln!(s, "near: {}", window_text(r));
+    let _ = writeln!(
+        s,
+        "each line: combination, frequency, amplitude of cos(2π f t) in the monomial (DC value at 0 Hz)"
+    );
+    let labels = r.assignment.tones().labels();
+    let symbols = r.assignment.symbols();
+    let mut last_eq = usize::MAX;
+    for t in &r.terms {
+        if t.equation != last_eq {
+            let _ = writeln!(s, "\nequation of {}", r.mode_names[t.equation]);
+            last_eq = t.equation;
+        }
+        let _ = writeln!(
+            s,
+            "  ({}) · {}",
+            t.coefficient.to_string_with(&r.param_names),
+            t.monomial.name(&r.mode_names)
+        );
+        let gs = groups(r, &t.table);
+        if gs.is_empty() {
+            let _ = writeln!(s, "    no lines (a factor's mode has no tone)");
+        }
+        for (title, lines) in gs {
+            let _ = writeln!(s, "    {title}:");
+            for l in lines {
+                let _ = writeln!(
+                    s,
+                    "      {:<24} {:>16.3} Hz   {}",
+                    l.combination.display_with(labels),
+                    l.hz,
+                    l.coefficient.to_string_with(&symbols)
+                );
+            }
+        }
+    }
+    s
+}
+
+fn to_markdown(r: &Report) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "# Mixing table: `{}`\n", r.model_path);
+    for l in tone_lines(r) {
+        let _ = writeln!(s, "- {l}");
+    }
+    let _ = writeln!(
+        s,
+        "\nNear means {}. Coefficients are amplitudes of cos(2π f t).",
+        window_text(r)
+    );
+    let labels = r.assignment.tones().labels();
+    let symbols = r.assignment.symbols();
+    for t in &r.terms {
+        let _ = writeln!(
+            s,
+            "\n## Equation of {}: `({}) * {}`\n",
+            r.mode_names[t.equation],
+            t.coefficient.to_string_with(&r.param_names),
+            t.monomial.name(&r.mode_names)
+        );
+        let _ = writeln!(s, "| where | combination | frequency (Hz) | coefficient |");
+        let _ = writeln!(s, "|---|---|---:|---|");
+        for (title, lines) in groups(r, &t.table) {
+            for l in lines {
+                let _ = writeln!(
+                    s,
+                    "| {title} | {} | {:.3} | `{}` |",
+                    l.combination.display_with(labels),
+                    l.hz,
+                    l.coefficient.to_string_with(&symbols)
+                );
+            }
+        }
+    }
+    s
+}
+
+/// `X1 → X_{1}`, `X3_q2 → X_{3,q2}`, `Y1 → Y_{1}`.
+fn latex_symbol(s: &str) -> String {
+    let (head, rest) = s.split_at(1);
+    format!("{head}_{{{}}}", rest.replace('_', ","))
+}
+
+fn to_latex(r: &Report) -> String {
+    let mut s = String::new();
+    let labels: Vec<String> = (1..=r.assignment.tones().len())
+        .map(|d| format!("\\Omega_{{{d}}}"))
+        .collect();
+    let symbols: Vec<String> = r
+        .assignment
+        .symbols()
+        .iter()
+        .map(|x| latex_symbol(x))
+        .collect();
+    let params: Vec<String> = r
+        .param_names
+        .iter()
+        .map(|p| harmonid_model::latex_name(p))
+        .collect();
+    let modes: Vec<String> = r
+        .mode_names
+        .iter()
+        .map(|m| harmonid_model::latex_name(m))
+        .collect();
+    let _ = writeln!(s, "% harmonid mix {}", r.model_path);
+    for c in r.assignment.components() {
+        let _ = writeln!(
+            s,
+            "% {} = {} ({} Hz) in {}",
+            c.symbol,
+            c.combination.display_with(r.assignment.tones().labels()),
+            c.combination.hz(r.assignment.tones()),
+            r.mode_names[c.mode]
+        );
+    }
+    for t in &r.terms {
+        let coeff = t.coefficient.to_latex_with(&params);
+        let _ = writeln!(
+            s,
+            "\n% equation of {}\n\\begin{{tabular}}{{llrl}}\n\\multicolumn{{4}}{{l}}{{$({coeff})\\,{}$}} \\\\\n\\hline",
+            r.mode_names[t.equation],
+            t.monomial.join(&modes, " ", |k| format!("^{{{k}}}"))
+        );
+        for (title, lines) in groups(r, &t.table) {
+            for l in lines {
+                let _ = writeln!(
+                    s,
+                    "{title} & ${}$ & {:.3} Hz & ${}$ \\\\",
+                    l.combination.latex_with(&labels),
+                    l.hz,
+                    l.coefficient.to_latex_with(&symbols)
+                );
+            }
+        }
+        let _ = writeln!(s, "\\end{{tabular}}");
+    }
+    s
+}
+
+fn to_json(r: &Report) -> String {
+    use serde_json::{json, Value};
+    let a = &r.assignment;
+    let components: Vec<Value> = a
+        .components()
+        .iter()
+        .map(|c| {
+            json!({
+                "symbol": c.symbol,
+                "mode": r.mode_names[c.mode],
+                "combination": c.combination.coeffs(),
+                "freq_hz": c.combination.hz(a.tones()),
+                "kind": match c.kind { ComponentKind::Drive(_) => "tone", ComponentKind::Sideband => "sideband" },
+            })
+        })
+        .collect();
+    let symbols = a.symbols();
+    let labels = a.tones().labels();
+    let terms: Vec<Value> = r
+        .terms
+        .iter()
+        .map(|t| {
+            let lines: Vec<Value> = t
+                .table
+                .lines
+                .iter()
+                .map(|l| {
+                    json!({
+                        "combination": l.combination.coeffs(),
+                        "label": l.combination.display_with(labels),
+                        "freq_hz": l.hz,
+                        "coefficient": l.coefficient.to_string_with(&symbols),
+                        "near": l.near_mode().map(|n| r.mode_names[n].clone()),
+                    })
+                })
+                .collect();
+            json!({
+                "equation": r.mode_names[t.equation],
+                "monomial": t.monomial.name(&r.mode_names),
+                "term_coefficient": t.coefficient.to_string_with(&r.param_names),
+                "lines": lines,
+            })
+        })
+        .collect();
+    let nominal: serde_json::Map<String, Value> = r
+        .mode_names
+        .iter()
+        .zip(&r.nominal)
+        .map(|(m, f)| (m.clone(), json!(f)))
+        .collect();
+    let v = json!({
+        "format": "harmonid-mix/1",
+        "model": r.model_path,
+        "tones_hz": a.tones().hz(),
+        "components": components,
+        "nominal_hz": nominal,
+        "window_hz": r.window,
+        "terms": terms,
+    });
+    let mut s = serde_json::to_string_pretty(&v).unwrap_or_default();
+    s.push('\n');
+    s
 }
