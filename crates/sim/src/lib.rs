@@ -17,6 +17,9 @@
 //!   [`backbone`]).
 
 #![warn(missing_docs)]
+// Numeric kernels index several parallel arrays with one loop variable; iterator chains would
+// obscure the math.
+#![allow(clippy::needless_range_loop)]
 
 mod error;
 mod excitation;

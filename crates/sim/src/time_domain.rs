@@ -490,9 +490,7 @@ fn run(
             if demod && (j + 1) % m_dec as u64 == 0 {
                 // Sample at the end of this step: t = (win * n_win + j + 1) h; the phasor zk
                 // refers to that time.
-                for d in 0..nd {
-                    zst[d] = z[d];
-                }
+                zst[..nd].copy_from_slice(&z[..nd]);
                 for n in 0..nm {
                     let mut ql = 0.0;
                     for d in 0..nd {
