@@ -145,3 +145,6 @@ pub fn load(path: &Path) -> Result<Model, ModelErrors> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests;

@@ -146,12 +146,7 @@ fn syntax_error(source: &str, e: pest::error::Error<Rule>) -> ModelDiagnostic {
         [one] => (*one).to_string(),
         [init @ .., last] => format!("{} or {}", init.join(", "), last),
     };
-    let end = pos
-        + found
-            .len()
-            .max(1)
-            .min(source.len().saturating_sub(pos))
-            .max(0);
+    let end = pos + found.len().max(1).min(source.len().saturating_sub(pos));
     let found_words = if found.is_empty() {
         "the end of the file".to_string()
     } else {
@@ -588,11 +583,7 @@ impl Builder {
                         }
                     }
                 }
-                Rule::lower_op => {
-                    if name.is_none() {
-                        lower = pending_before;
-                    }
-                }
+                Rule::lower_op if name.is_none() => lower = pending_before,
                 Rule::upper_op | Rule::lower_op_after | Rule::fix_op => {
                     op_after = Some(q.as_rule())
                 }

@@ -1,0 +1,294 @@
+//! Unit tests of the language: names, families, declarations, lowering, robustness.
+
+use crate::{parse_str, Bounds, Code, Linear, Model, ParamKind};
+use harmonid_poly::{Poly, VarId};
+use proptest::prelude::*;
+
+fn ok(src: &str) -> Model {
+    match parse_str(src, "test.hb") {
+        Ok(m) => m,
+        Err(e) => panic!("{}", e.render_plain(100)),
+    }
+}
+
+fn err_codes(src: &str) -> Vec<Code> {
+    match parse_str(src, "test.hb") {
+        Ok(_) => panic!("expected an error for {src}"),
+        Err(e) => e.diagnostics().iter().map(|d| d.code).collect(),
+    }
+}
+
+/// The equation of `mode` as `monomial -> coefficient` text.
+fn eq(m: &Model, mode: &str) -> Vec<(String, String)> {
+    let n = m.mode_index(mode).expect("mode exists");
+    let params = m.param_names();
+    m.eom[n]
+        .terms()
+        .map(|(mono, c)| (m.monomial_name(mono), c.to_string_with(&params)))
+        .collect()
+}
+
+fn pairs(v: &[(&str, &str)]) -> Vec<(String, String)> {
+    v.iter()
+        .map(|(a, b)| (a.to_string(), b.to_string()))
+        .collect()
+}
+
+#[test]
+fn indexed_and_plain_names_are_the_same() {
+    let m = ok("mode q[1]\nmode q2\nparam beta[1], g12\neom q1 += beta1*q[1]^3 + g[1,2]*q1*q[2]^2");
+    assert_eq!(m.mode_names(), ["q1", "q2"]);
+    assert_eq!(m.param_names(), ["beta1", "g12"]);
+    assert_eq!(
+        eq(&m, "q1"),
+        pairs(&[("q1^3", "beta1"), ("q1*q2^2", "g12")])
+    );
+}
+
+#[test]
+fn families_of_ten_or_more_modes_join_indices_with_underscores() {
+    let m = ok(
+        "for i in 1..12: mode q[i]\nfor i<j in 1..12: param g[i,j]\n\
+                for i<j in 1..12: potential: g[i,j]/2*q[i]^2*q[j]^2\n\
+                eom q1 += g1_12 * q1^5",
+    );
+    assert_eq!(m.modes.len(), 12);
+    assert_eq!(m.params.len(), 66);
+    assert_eq!(m.params[0].name, "g1_2");
+    assert_eq!(m.params[10].name, "g1_12");
+    assert_eq!(m.params[65].name, "g11_12");
+    let q1 = eq(&m, "q1");
+    assert!(q1.contains(&("q1*q12^2".to_string(), "g1_12".to_string())));
+    assert!(q1.contains(&("q1^5".to_string(), "g1_12".to_string())));
+}
+
+#[test]
+fn family_relations_count_tuples() {
+    for (head, count) in [
+        ("i in 1..3", 3),
+        ("i<j in 1..3", 3),
+        ("i<=j in 1..3", 6),
+        ("i!=j in 1..3", 6),
+        ("i,j in 1..3", 9),
+        ("i<j<k in 1..4", 4),
+        ("i<=j<=k<=l in 1..3", 15),
+    ] {
+        let vars = head.split(" in ").next().unwrap_or("");
+        let idx: Vec<&str> = vars
+            .split(['<', '=', '!', ','])
+            .filter(|s| !s.is_empty())
+            .collect();
+        let src = format!("mode q1\nfor {head}: param c[{}]", idx.join(","));
+        assert_eq!(ok(&src).params.len(), count, "{head}");
+    }
+}
+
+#[test]
+fn nearest_neighbour_chain_with_index_shift_and_block() {
+    let m = ok("for i in 1..4: mode q[i]\n\
+                for i in 1..3 {\n  param c[i]\n  potential: c[i] * q[i] * q[i+1]\n}");
+    assert_eq!(eq(&m, "q2"), pairs(&[("q1", "c1"), ("q3", "c2")]));
+    assert_eq!(eq(&m, "q4"), pairs(&[("q3", "c3")]));
+}
+
+#[test]
+fn declarations_with_values_bounds_and_linear_parts() {
+    let m = ok(
+        "mode q1 at 207.58 kHz, Q = 116232, f = 207.582 kHz\nmode q2, f = 1.5 GHz\nmodes q3, q4\n\
+                param 0 < eta < 1e5, k = -2.5e3, g >= 0, h <= 1\n\
+                eom q1 += eta*q1^3 + k*q2 + g*q3 + h*q4",
+    );
+    assert_eq!(m.modes[0].nominal_hz, Some(207_580.0));
+    assert_eq!(m.modes[0].f_hz, Linear::Fixed(207_582.0));
+    assert_eq!(m.modes[0].q_factor, Linear::Fixed(116_232.0));
+    assert_eq!(
+        m.modes[1].nominal_hz,
+        Some(1.5e9),
+        "f doubles as the nominal frequency"
+    );
+    assert_eq!(m.modes[2].f_hz, Linear::Unknown);
+    assert_eq!(
+        m.params[0].bounds,
+        Bounds {
+            lower: Some(0.0),
+            upper: Some(1e5)
+        }
+    );
+    assert_eq!(m.params[1].kind, ParamKind::Fixed(-2500.0));
+    assert_eq!(
+        m.params[2].bounds,
+        Bounds {
+            lower: Some(0.0),
+            upper: None
+        }
+    );
+    assert_eq!(
+        m.params[3].bounds,
+        Bounds {
+            lower: None,
+            upper: Some(1.0)
+        }
+    );
+}
+
+#[test]
+fn expressions_expand_exactly() {
+    let m = ok("modes q1, q2  # two modes\nparam a, b\n\
+                potential: 3/4*a*(q1 + q2)^2   # a comment\n\
+                  - b*q1*q2/2\n\
+                eom q1 -= 0.5*a*q1 - 2.5e-1*b*q2\n\
+                for i in 2..2: eom q2 += a*q2^(i+1)/i");
+    // dU/dq1 = 3/2 a (q1 + q2) - b/2 q2; minus (1/2 a q1 - 1/4 b q2).
+    assert_eq!(eq(&m, "q1"), pairs(&[("q1", "a"), ("q2", "3/2*a - 1/4*b")]));
+    // dU/dq2 = 3/2 a (q1 + q2) - b/2 q1; plus a q2^3 / 2.
+    assert_eq!(
+        eq(&m, "q2"),
+        pairs(&[("q1", "3/2*a - 1/2*b"), ("q2", "3/2*a"), ("q2^3", "1/2*a")])
+    );
+    assert_eq!(m.potential.len(), 3);
+}
+
+#[test]
+fn index_variables_are_numbers_outside_brackets() {
+    let m = ok("mode q1\nfor i in 1..3: param c[i]\nfor i in 1..3: potential: c[i]/(i+1)*q1^(i+1)");
+    assert_eq!(
+        eq(&m, "q1"),
+        pairs(&[("q1", "c1"), ("q1^2", "c2"), ("q1^3", "c3")])
+    );
+}
+
+#[test]
+fn potential_derivative_agrees_with_poly_derivative() -> Result<(), harmonid_poly::Overflow> {
+    let m = ok("modes q1, q2, q3\nparam a, b, c\n\
+                potential: a*q1^3*q2 + b/3*(q1 + q2 - q3)^3 + c*q1*q2*q3 + a*b*q3^4");
+    let eqs = crate::equations_from_potential(&m.potential, 3)?;
+    for (n, e) in eqs.iter().enumerate() {
+        assert_eq!(*e, m.potential.derivative(VarId(n as u32))?);
+        assert_eq!(m.eom[n], *e);
+    }
+    assert!(m.check_identifiable().is_err(), "a*b is not affine");
+    Ok(())
+}
+
+#[test]
+fn linear_model_without_terms_is_fine() {
+    let m = ok("mode q1 at 1 MHz");
+    assert_eq!(m.eom, vec![Poly::zero()]);
+    assert_eq!(m.equation_text(0), "q1'' + (w1/Q1) q1' + w1^2 q1 = F1(t)");
+}
+
+#[test]
+fn semantic_errors_are_all_collected() {
+    let codes = err_codes("mode q1\nmode q1\neom q9 += x*q1\npotential: q1^-2 + q1/q1");
+    assert_eq!(
+        codes,
+        [
+            Code::Duplicate,
+            Code::UndeclaredMode,
+            Code::UnknownName,
+            Code::NotPolynomial,
+            Code::NotPolynomial
+        ]
+    );
+    assert_eq!(err_codes("param a"), [Code::EmptyModel]);
+    assert_eq!(err_codes("mode q1\npotential: q1 q1"), [Code::Syntax]);
+    assert_eq!(
+        err_codes("mode q1\nparam a\npotential: (a+q1)^40*(a+q1)^40"),
+        [Code::TooLarge]
+    );
+}
+
+#[test]
+fn latex_names() {
+    assert_eq!(crate::latex_name("beta1"), "\\beta_{1}");
+    assert_eq!(crate::latex_name("g1_12"), "g_{1,12}");
+    assert_eq!(crate::latex_name("kappa"), "\\kappa");
+    assert_eq!(crate::latex_name("b122"), "b_{122}");
+    assert_eq!(crate::latex_name("eta_nl"), "\\eta_{nl}");
+    assert_eq!(crate::latex_name("xy"), "\\mathrm{xy}");
+}
+
+const TOKENS: &[&str] = &[
+    "mode ",
+    "modes ",
+    "param ",
+    "eom ",
+    "potential",
+    ":",
+    "for ",
+    " in ",
+    "at ",
+    "q1",
+    "q2",
+    "q[i]",
+    "g[i,j]",
+    "beta",
+    "i",
+    "j",
+    "<",
+    "<=",
+    ">=",
+    "!=",
+    ",",
+    "=",
+    "+=",
+    "-=",
+    "+",
+    "-",
+    "*",
+    "/",
+    "^",
+    "(",
+    ")",
+    "[",
+    "]",
+    "{",
+    "}",
+    "1",
+    "2",
+    "0",
+    "2.5",
+    "1e40",
+    "..",
+    "kHz",
+    " ",
+    "\n",
+    "# c\n",
+    "sin",
+    "é",
+    "\u{0}",
+];
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 512, ..ProptestConfig::default() })]
+
+    /// No token soup makes the parser panic; every failure carries a diagnostic.
+    #[test]
+    fn token_soup_never_panics(picks in prop::collection::vec(0..TOKENS.len(), 0..40)) {
+        let src: String = picks.iter().map(|&i| TOKENS[i]).collect();
+        if let Err(e) = parse_str(&src, "soup.hb") {
+            prop_assert!(!e.diagnostics().is_empty());
+            let _ = e.render_plain(80);
+        }
+    }
+
+    /// Cutting and splicing the examples never panics.
+    #[test]
+    fn mutated_examples_never_panic(which in 0usize..4, cut in 0usize..2000, len in 0usize..40, ins in 0..TOKENS.len()) {
+        let src = [
+            include_str!("../../../examples/nanostring_2mode/model.hb"),
+            include_str!("../../../examples/nanostring_5mode/model.hb"),
+            include_str!("../../../examples/three_wave/model.hb"),
+            include_str!("../../../examples/cubic_3mode/model.hb"),
+        ][which];
+        let mut bytes = src.as_bytes().to_vec();
+        let at = cut.min(bytes.len());
+        let end = (at + len).min(bytes.len());
+        bytes.splice(at..end, TOKENS[ins].bytes());
+        if let Ok(text) = String::from_utf8(bytes) {
+            if let Err(e) = parse_str(&text, "mutated.hb") {
+                let _ = e.render_plain(80);
+            }
+        }
+    }
+}
