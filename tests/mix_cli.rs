@@ -1,0 +1,209 @@
+//! End-to-end checks of `harmonid mix` on the two-mode nanostring example (the issue's
+//! "done when": Table S1 of the method's paper).
+
+use serde_json::Value;
+use std::path::Path;
+use std::process::Command;
+
+const MODEL: &str = "examples/nanostring_2mode/model.hb";
+
+fn mix(args: &[&str]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_harmonid"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .arg("mix")
+        .args(args)
+        .output()
+        .expect("the harmonid binary runs");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn json(args: &[&str]) -> Value {
+    let (ok, stdout, stderr) = mix(args);
+    assert!(ok, "harmonid mix failed: {stderr}");
+    serde_json::from_str(&stdout).expect("valid JSON")
+}
+
+/// Frequencies (Hz) of the lines of `monomial` in the equation of `eq` near `mode`.
+fn near(v: &Value, eq: &str, monomial: &str, mode: &str) -> Vec<f64> {
+    let term = v["terms"]
+        .as_array()
+        .expect("terms")
+        .iter()
+        .find(|t| t["equation"] == eq && t["monomial"] == monomial)
+        .unwrap_or_else(|| panic!("no term {monomial} in the equation of {eq}"));
+    term["lines"]
+        .as_array()
+        .expect("lines")
+        .iter()
+        .filter(|l| l["near"] == mode)
+        .map(|l| l["freq_hz"].as_f64().expect("number"))
+        .collect()
+}
+
+const W1: f64 = 207582.0;
+const W2: f64 = 415842.0;
+const D: f64 = 10.0;
+
+fn offsets(hz: &[f64], centre: f64) -> Vec<i64> {
+    hz.iter()
+        .map(|f| ((f - centre) / D).round() as i64)
+        .collect()
+}
+
+#[test]
+fn table_s1_from_the_command_line() {
+    let q1 = format!("q1:{},{}", W1 - D, W1 + D);
+    let q2 = format!("q2:{W2}");
+    let v = json(&[MODEL, "--drives", &q1, "--drives", &q2, "--json"]);
+    // Near ω2: q1²·q2 at ω2 and ω2 ± 2δ; nothing of q1·q2² there.
+    assert_eq!(
+        offsets(&near(&v, "q2", "q1^2*q2", "q2"), W2),
+        vec![-2, 0, 2]
+    );
+    assert!(near(&v, "q1", "q1*q2^2", "q2").is_empty());
+    // Near ω1: q1·q2² at ω1 ± δ; nothing of q1²·q2 there.
+    assert_eq!(offsets(&near(&v, "q1", "q1*q2^2", "q1"), W1), vec![-1, 1]);
+    assert!(near(&v, "q2", "q1^2*q2", "q1").is_empty());
+    // Exact coefficients and combinations as the issue specifies.
+    let term = v["terms"]
+        .as_array()
+        .expect("terms")
+        .iter()
+        .find(|t| t["monomial"] == "q1^3")
+        .expect("q1^3");
+    let line = term["lines"]
+        .as_array()
+        .expect("lines")
+        .iter()
+        .find(|l| l["combination"] == serde_json::json!([1, 0, 0]))
+        .expect("line at f1");
+    assert_eq!(line["coefficient"], "3/4*X1^3 + 3/2*X1*X2^2");
+    assert_eq!(line["near"], "q1");
+    assert_eq!(line["freq_hz"], W1 - D);
+
+    // With q1's own sidebands (ω1 ± 3δ, ± 5δ) the further lines of Table S1 appear.
+    let v = json(&[
+        MODEL,
+        "--drives",
+        &q1,
+        "--drives",
+        &q2,
+        "--sidebands",
+        "5",
+        "--json",
+    ]);
+    assert_eq!(
+        offsets(&near(&v, "q1", "q1*q2^2", "q1"), W1),
+        vec![-5, -3, -1, 1, 3, 5]
+    );
+    let n2 = offsets(&near(&v, "q2", "q1^2*q2", "q2"), W2);
+    assert!(n2.contains(&4) && n2.contains(&-4) && n2.contains(&0));
+    assert!(near(&v, "q1", "q1*q2^2", "q2").is_empty());
+    assert!(near(&v, "q2", "q1^2*q2", "q1").is_empty());
+}
+
+#[test]
+fn text_markdown_and_latex_render() {
+    let base = [
+        MODEL,
+        "--drives",
+        "q1:207572,207592",
+        "--drives",
+        "q2:415842",
+    ];
+    let (ok, text, _) = mix(&base);
+    assert!(ok);
+    assert!(text.contains("f1 + f3 − f2"), "{text}");
+    assert!(text.contains("3/4*X1^3 + 3/2*X1*X2^2"));
+    let (ok, md, _) = mix(&[&base[..], &["--markdown"]].concat());
+    assert!(
+        ok && md.contains("| near q1 (207580 Hz) | f1 | 207572.000 | `3/4*X1^3 + 3/2*X1*X2^2` |"),
+        "{md}"
+    );
+    let (ok, tex, _) = mix(&[&base[..], &["--latex"]].concat());
+    assert!(
+        ok && tex.contains("\\frac{3}{4} X_{1}^{3} + \\frac{3}{2} X_{1} X_{2}^{2}"),
+        "{tex}"
+    );
+    // A narrow window moves everything off resonance.
+    let v = json(&[&base[..], &["--window", "1", "--json"]].concat());
+    assert!(near(&v, "q1", "q1^3", "q1")
+        .iter()
+        .all(|f| (f - 207580.0).abs() <= 1.0));
+}
+
+#[test]
+fn tones_from_a_dataset_measurement() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let manifest = r#"format = "harmonid-dataset/1"
+[nominal_hz]
+q1 = 207582.0
+q2 = 415842.0
+
+[[measurement]]
+name = "couple"
+drives_hz = [207572.0, 207592.0, 415842.0]
+"#;
+    std::fs::write(dir.path().join("dataset.toml"), manifest).expect("write");
+    let d = dir.path().to_str().expect("utf-8 path");
+    let v = json(&[MODEL, "--dataset", d, "--measurement", "couple", "--json"]);
+    assert_eq!(
+        offsets(&near(&v, "q2", "q1^2*q2", "q2"), W2),
+        vec![-2, 0, 2]
+    );
+    assert_eq!(v["nominal_hz"]["q1"], 207582.0);
+    let (ok, _, err) = mix(&[MODEL, "--dataset", d, "--measurement", "nope"]);
+    assert!(
+        !ok && err.contains("no [[measurement]] named `nope`"),
+        "{err}"
+    );
+}
+
+#[test]
+fn shared_dataset_if_present() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/nanostring_ls50_2mode");
+    if !dir.join("dataset.toml").exists() {
+        eprintln!(
+            "skipped: {} not found (only in the shared workspace)",
+            dir.display()
+        );
+        return;
+    }
+    let d = dir.to_str().expect("utf-8 path");
+    let v = json(&[
+        MODEL,
+        "--dataset",
+        d,
+        "--measurement",
+        "couple_q1_q2",
+        "--json",
+    ]);
+    assert_eq!(near(&v, "q2", "q1^2*q2", "q2").len(), 3);
+}
+
+#[test]
+fn bad_input_gives_clear_errors() {
+    for (args, want) in [
+        (vec!["--drives", "q3:1000"], "`q3`, which is not declared"),
+        (vec!["--drives", "q1:0"], "must be a finite number > 0 Hz"),
+        (vec!["--drives", "q1:5,5"], "coincide"),
+        (vec!["--drives", "q1"], "cannot read --drives"),
+        (vec!["--drives", "q1:1e3,x"], "`x` is not a frequency"),
+        (vec![], "no tones given"),
+        (vec!["--drives", "q1:1,2", "--window=-1"], "window"),
+        (vec!["--drives", "q1:1,2", "--sidebands", "99"], "too high"),
+    ] {
+        let (ok, _, err) = mix(&[&[MODEL][..], &args].concat());
+        assert!(!ok, "{args:?} should fail");
+        assert!(err.contains(want), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+    }
+    let many: Vec<String> = (1..=70).map(|i| (1000 * i).to_string()).collect();
+    let arg = format!("q1:{}", many.join(","));
+    let (ok, _, err) = mix(&[MODEL, "--drives", &arg]);
+    assert!(!ok && err.contains("at most 64 are supported"), "{err}");
+}
