@@ -59,6 +59,11 @@ impl<C: Ring> SparsePoly<C> {
         self.terms.is_empty()
     }
 
+    /// Whether there are no terms (the same as [`Self::is_zero`]).
+    pub fn is_empty(&self) -> bool {
+        self.terms.is_empty()
+    }
+
     /// Highest total degree of a term (0 for constants and for zero).
     pub fn degree(&self) -> u32 {
         self.terms.keys().map(PowerProduct::degree).max().unwrap_or(0)
