@@ -2,7 +2,7 @@
 //! symbolic mixing table.
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use harmonid_poly::PowerProduct;
-use harmonid_spectral::{monomial_amplitudes, ProductPlan};
+use harmonid_spectral::{mixing_table, monomial_amplitudes, ProductPlan, ToneAssignment, Window};
 use num_complex::Complex64;
 use std::hint::black_box;
 
@@ -55,5 +55,33 @@ fn products(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, products);
+fn symbolic(c: &mut Criterion) {
+    let mut group = c.benchmark_group("mixing_table");
+    let nominal = [Some(207582.0), Some(415842.0)];
+    let cases: [(&str, Vec<(String, Vec<f64>)>, [u32; 2]); 2] = [
+        (
+            "q1^3 (4 tones on q1)",
+            vec![("q1".into(), vec![207562.0, 207572.0, 207592.0, 207602.0])],
+            [3, 0],
+        ),
+        (
+            "q1*q2^2 (2+2 tones)",
+            vec![
+                ("q1".into(), vec![207572.0, 207592.0]),
+                ("q2".into(), vec![415832.0, 415852.0]),
+            ],
+            [1, 2],
+        ),
+    ];
+    for (name, drives, exps) in cases {
+        let a = ToneAssignment::from_drives(&["q1", "q2"], &drives).expect("tones");
+        let m = PowerProduct::from_exponents(&exps);
+        group.bench_function(name, |b| {
+            b.iter(|| black_box(mixing_table(&m, &a, &nominal, Window::default()).expect("small")))
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, products, symbolic);
 criterion_main!(benches);
