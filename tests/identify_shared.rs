@@ -45,7 +45,9 @@ fn noise_free_nanostring_meets_the_accuracy_targets() {
     for mode in ["q1", "q2"] {
         let (m, tm) = (&r.modes[mode], &t.modes[mode]);
         let (ef, eq) = (rel(&m.f_hz, tm.f_hz), rel(&m.q, tm.q));
-        println!("{mode}: f rel. error {ef:.2e} (target 1e-7), Q rel. error {eq:.2e} (target 5e-3)");
+        println!(
+            "{mode}: f rel. error {ef:.2e} (target 1e-7), Q rel. error {eq:.2e} (target 5e-3)"
+        );
         assert!(ef < 1e-7, "f of {mode}: relative error {ef:.3e}");
         assert!(eq < 5e-3, "Q of {mode}: relative error {eq:.3e}");
     }
@@ -85,10 +87,18 @@ fn noisy_nanostring_medians_and_scatter() {
             e.value,
             e.std / e.value.abs()
         );
-        assert!(dev.abs() <= 2.0, "{name}: median {} is {dev:.2} std from {truth}", e.value);
+        assert!(
+            dev.abs() <= 2.0,
+            "{name}: median {} is {dev:.2} std from {truth}",
+            e.value
+        );
     };
     for mode in ["q1", "q2"] {
-        check(&format!("f_{mode}"), &r.modes[mode].f_hz, t.modes[mode].f_hz);
+        check(
+            &format!("f_{mode}"),
+            &r.modes[mode].f_hz,
+            t.modes[mode].f_hz,
+        );
         check(&format!("Q_{mode}"), &r.modes[mode].q, t.modes[mode].q);
     }
     check("beta1", &r.parameters["beta1"], t.eom["q1"]["q1^3"]);
@@ -112,7 +122,13 @@ fn noisy_nanostring_medians_and_scatter() {
             q.identifiable,
             q.std / q.value.abs()
         );
-        assert!(!q.identifiable, "Q of {mode} should be reported as not determined");
+        assert!(
+            !q.identifiable,
+            "Q of {mode} should be reported as not determined"
+        );
     }
-    assert!(r.warnings.iter().any(|w| w.contains("Q of q1 is not determined")));
+    assert!(r
+        .warnings
+        .iter()
+        .any(|w| w.contains("Q of q1 is not determined")));
 }

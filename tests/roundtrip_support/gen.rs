@@ -1,0 +1,225 @@
+//! A small dataset generator for round-trip tests and benches: harmonic-balance steady states
+//! (harmonid-sim) under designed multi-tone drives, measured at one point, written as a
+//! [`Dataset`] in memory.
+#![allow(dead_code)]
+
+use harmonid_ident::{Dataset, Manifest, Measurement, MeasurementSpec, Point, Truth, TruthMode};
+use harmonid_model::Model;
+use harmonid_sim::{
+    steady_state, Excitation, HbSettings, ModeValues, ModelValues, NoiseGen, NumericModel,
+};
+use num_complex::Complex64;
+use std::collections::BTreeMap;
+
+/// One designed measurement: tones as (frequency Hz, mode index, force N/kg).
+#[derive(Debug, Clone)]
+pub struct Design {
+    pub name: String,
+    pub tones: Vec<(f64, usize, f64)>,
+    /// Modes observed besides the driven ones (their resonance region is measured too).
+    pub observe: Vec<usize>,
+}
+
+/// True values: f (Hz), Q per mode; parameters by name.
+#[derive(Debug, Clone)]
+pub struct Values {
+    pub f_hz: Vec<f64>,
+    pub q: Vec<f64>,
+    pub params: BTreeMap<String, f64>,
+}
+
+/// Standard designs: one two-tone measurement per mode (tones at f_n ∓ `detune_lw` linewidths),
+/// one three-tone measurement per pair `(n, m)` in `pairs` (two tones near n, one at f_m +
+/// `detune_lw/2` linewidths), and `extra` designs as given.
+pub fn designs(
+    v: &Values,
+    names: &[String],
+    force: &[f64],
+    detune_lw: f64,
+    pairs: &[(usize, usize)],
+) -> Vec<Design> {
+    let mut out = Vec::new();
+    for n in 0..v.f_hz.len() {
+        let d = detune_lw * v.f_hz[n] / v.q[n];
+        out.push(Design {
+            name: format!("single_{}", names[n]),
+            tones: vec![(v.f_hz[n] - d, n, force[n]), (v.f_hz[n] + d, n, force[n])],
+            observe: Vec::new(),
+        });
+    }
+    for &(n, m) in pairs {
+        let d = detune_lw * v.f_hz[n] / v.q[n];
+        let e = 0.5 * detune_lw * v.f_hz[m] / v.q[m];
+        out.push(Design {
+            name: format!("couple_{}_{}", names[n], names[m]),
+            tones: vec![
+                (v.f_hz[n] - d, n, force[n]),
+                (v.f_hz[n] + d, n, force[n]),
+                (v.f_hz[m] + e, m, 0.5 * force[m]),
+            ],
+            observe: Vec::new(),
+        });
+    }
+    out
+}
+
+/// Simulates every design and returns the dataset (one point with `shape`, `shots` shots with
+/// Gaussian noise `sigma` per quadrature, metres). Measured: the drive tones and every lattice
+/// frequency within 0.4 % of the resonance of a driven or observed mode whose amplitude at the
+/// point exceeds 1e-7 of the largest (the sideband clusters a lock-in would record).
+pub fn simulate(
+    model: &Model,
+    v: &Values,
+    designs: &[Design],
+    shape: &[f64],
+    sigma: f64,
+    shots: usize,
+    seed: u64,
+) -> Dataset {
+    let names: Vec<String> = model.modes.iter().map(|m| m.name.clone()).collect();
+    let mut mv = ModelValues::default();
+    for (n, name) in names.iter().enumerate() {
+        mv.modes.insert(
+            name.clone(),
+            ModeValues {
+                f_hz: Some(v.f_hz[n]),
+                q: Some(v.q[n]),
+            },
+        );
+    }
+    mv.parameters = v.params.clone();
+    let num = NumericModel::from_model(model, &mv).expect("numeric model");
+    let mut manifest = Manifest::new("synthetic round trip");
+    manifest.points.push(Point {
+        name: "p0".into(),
+        shape: names.iter().cloned().zip(shape.iter().copied()).collect(),
+    });
+    for (n, name) in names.iter().enumerate() {
+        manifest
+            .nominal_hz
+            .insert(name.clone(), model.modes[n].nominal_hz.unwrap_or(v.f_hz[n]));
+    }
+    let mut rng = NoiseGen::new(seed);
+    let mut measurements = Vec::new();
+    for d in designs {
+        let nm = names.len();
+        let mut force = vec![vec![Complex64::new(0.0, 0.0); d.tones.len()]; nm];
+        for (k, &(_, n, f)) in d.tones.iter().enumerate() {
+            force[n][k] = Complex64::new(f, 0.0);
+        }
+        let exc = Excitation {
+            tones_hz: d.tones.iter().map(|t| t.0).collect(),
+            force,
+        };
+        let ss = steady_state(&num, &exc, &HbSettings::default()).expect("steady state");
+        assert!(
+            ss.converged(),
+            "{}: harmonic balance did not converge: {:?}",
+            d.name,
+            ss.status
+        );
+        let x: Vec<Complex64> = ss
+            .lattice_hz
+            .iter()
+            .map(|&f| ss.at_point(shape, f))
+            .collect();
+        let xmax = x.iter().map(|z| z.norm()).fold(0.0, f64::max);
+        let mut freqs = Vec::new();
+        let mut vals = Vec::new();
+        for (r, &f) in ss.lattice_hz.iter().enumerate() {
+            let near = d
+                .tones
+                .iter()
+                .map(|t| t.1)
+                .chain(d.observe.iter().copied())
+                .any(|n| (f - v.f_hz[n]).abs() <= 0.004 * v.f_hz[n]);
+            let drive = d.tones.iter().any(|t| (t.0 - f).abs() < 1e-6);
+            if drive || (near && x[r].norm() > 1e-7 * xmax) {
+                freqs.push(f);
+                vals.push(x[r]);
+            }
+        }
+        let spec = MeasurementSpec {
+            name: d.name.clone(),
+            file: None,
+            drives_hz: exc.tones_hz.clone(),
+            drive_levels_v: Some(d.tones.iter().map(|t| t.2).collect()),
+            drive_phases_rad: Some(vec![0.0; d.tones.len()]),
+            bandwidth_hz: None,
+        };
+        let nf = freqs.len();
+        let mut m = Measurement::zeros(spec, freqs, vec![0], shots);
+        for s in 0..shots {
+            for (r, val) in vals.iter().enumerate().take(nf) {
+                let noise = if sigma > 0.0 {
+                    rng.complex(sigma)
+                } else {
+                    Complex64::new(0.0, 0.0)
+                };
+                *m.amplitude_mut(s, r, 0) = val + noise;
+            }
+        }
+        measurements.push(m);
+    }
+    let mut truth = Truth::default();
+    for (n, name) in names.iter().enumerate() {
+        truth.modes.insert(
+            name.clone(),
+            TruthMode {
+                f_hz: v.f_hz[n],
+                q: v.q[n],
+            },
+        );
+    }
+    Dataset {
+        dir: std::path::PathBuf::from("synthetic"),
+        manifest,
+        measurements,
+        truth: Some(truth),
+    }
+}
+
+/// Mode shapes of a string at x = L/10 for modes 1..5: sin(nπ/10).
+pub const NANOSTRING_SHAPE: [f64; 5] = [
+    0.309_016_994_374_947_45,
+    0.587_785_252_292_473_1,
+    0.809_016_994_374_947_5,
+    0.951_056_516_295_153_5,
+    1.0,
+];
+
+/// Values and the 15-measurement drive plan (5 single, 10 pairs) for the five-mode nanostring
+/// example: Duffing terms scaling as n⁴ (tension), couplings as n²m².
+pub fn nanostring_5mode_plan() -> (Values, Vec<Design>) {
+    let f1 = 207582.0;
+    let f_hz: Vec<f64> = [1.0, 2.0033, 3.0075, 4.0139, 5.0226]
+        .iter()
+        .map(|k| k * f1)
+        .collect();
+    let q = vec![116232.0, 99173.0, 87000.0, 76000.0, 65000.0];
+    let beta1 = 2.68e22;
+    let mut params = BTreeMap::new();
+    for n in 1..=5 {
+        params.insert(format!("beta{n}"), beta1 * f64::from(n).powi(4));
+    }
+    for n in 1..=5 {
+        for m in n + 1..=5 {
+            params.insert(
+                format!("g{n}{m}"),
+                3.2 * beta1 * f64::from(n * n * m * m) / 3.0 * 0.25,
+            );
+        }
+    }
+    let v = Values { f_hz, q, params };
+    let names: Vec<String> = (1..=5).map(|n| format!("q{n}")).collect();
+    // Forces so that each mode's drive-tone response is ~ the same fraction of its fold.
+    let force: Vec<f64> = (1..=5).map(|n| 3.5 / f64::from(n).powi(0)).collect();
+    let mut pairs = Vec::new();
+    for n in 0..5 {
+        for m in n + 1..5 {
+            pairs.push((n, m));
+        }
+    }
+    let d = designs(&v, &names, &force, 5.5, &pairs);
+    (v, d)
+}
