@@ -1,5 +1,6 @@
 //! Criterion benches for harmonid-spectral: the numeric product of measured spectra and the
 //! symbolic mixing table.
+#![allow(missing_docs)] // criterion_group! generates undocumented items
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use harmonid_poly::PowerProduct;
 use harmonid_spectral::{mixing_table, monomial_amplitudes, ProductPlan, ToneAssignment, Window};
@@ -55,10 +56,13 @@ fn products(c: &mut Criterion) {
     group.finish();
 }
 
+/// Bench name, tones per mode, exponents of (q1, q2).
+type SymbolicCase = (&'static str, Vec<(String, Vec<f64>)>, [u32; 2]);
+
 fn symbolic(c: &mut Criterion) {
     let mut group = c.benchmark_group("mixing_table");
     let nominal = [Some(207582.0), Some(415842.0)];
-    let cases: [(&str, Vec<(String, Vec<f64>)>, [u32; 2]); 2] = [
+    let cases: [SymbolicCase; 2] = [
         (
             "q1^3 (4 tones on q1)",
             vec![("q1".into(), vec![207562.0, 207572.0, 207592.0, 207602.0])],

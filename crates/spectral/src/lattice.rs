@@ -165,16 +165,14 @@ impl ToneSet {
 /// Number of integer vectors of dimension `d` with `Σ|k| ≤ n` (saturating).
 fn lattice_count(d: usize, n: u32) -> usize {
     // Σ_i 2^i C(d,i) C(n,i).
-    let mut total: usize = 0;
+    let mut total: usize = 1; // i = 0
     let mut cd: usize = 1; // C(d, i)
     let mut cn: usize = 1; // C(n, i)
     let mut p2: usize = 1;
-    for i in 0..=d.min(n as usize) {
-        if i > 0 {
-            cd = cd.saturating_mul(d - i + 1) / i;
-            cn = cn.saturating_mul(n as usize - i + 1) / i;
-            p2 = p2.saturating_mul(2);
-        }
+    for i in 1..=d.min(n as usize) {
+        cd = cd.saturating_mul(d - i + 1) / i;
+        cn = cn.saturating_mul(n as usize - i + 1) / i;
+        p2 = p2.saturating_mul(2);
         total = total.saturating_add(p2.saturating_mul(cd).saturating_mul(cn));
     }
     total
