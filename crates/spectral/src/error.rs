@@ -17,6 +17,17 @@ pub enum SpectralError {
         /// The offending value, Hz.
         hz: f64,
     },
+    /// An input frequency of a product is negative or not finite.
+    #[error(
+        "input frequency #{index} is {hz} Hz; it must be a finite number ≥ 0 Hz \
+         (0 Hz is the static offset; list each line once at its positive frequency)"
+    )]
+    NegativeInputFrequency {
+        /// Position in the input list (0-based).
+        index: usize,
+        /// The offending value, Hz.
+        hz: f64,
+    },
     /// An output frequency is negative or not finite.
     #[error(
         "output frequency #{index} is {hz} Hz; it must be a finite number ≥ 0 Hz \

@@ -2,7 +2,8 @@
 //! chosen output frequencies (the ĝ of Eq. 2 and S9 of the method's paper).
 //!
 //! Each factor is a real signal `x_k(t) = Σ_r Re[X_kr e^{i2π f_r t}]` on a common set of input
-//! frequencies `f_r > 0`. Writing `Re[X e^{iωt}] = ½(X e^{iωt} + X̄ e^{-iωt})`, the product is a
+//! frequencies `f_r ≥ 0`; an input at 0 Hz is the static offset `Re X_k0` (its imaginary part
+//! has no effect, and the Jacobian with respect to it is zero). Writing `Re[X e^{iωt}] = ½(X e^{iωt} + X̄ e^{-iωt})`, the product is a
 //! sum over every choice of one signed component per factor; a choice whose frequency
 //! `Σ ±f_r` lands on an output line contributes `2^{-K} Π (X or X̄)` to the two-sided coefficient
 //! there. The complex amplitude at `f > 0` is twice the two-sided coefficient; at `f = 0` it is
@@ -102,11 +103,12 @@ pub struct ProductScratch {
 impl ProductPlan {
     /// Plans products of up to `max_degree` factors.
     ///
-    /// `input_hz`: frequencies (> 0, distinct) where the factor signals have components;
+    /// `input_hz`: frequencies (≥ 0, distinct) where the factor signals have components; an
+    /// input at 0 Hz carries the static offset `Re X` (DC), needed by even-degree terms;
     /// `output_hz`: frequencies (≥ 0, repeats allowed) where product amplitudes are wanted;
     /// `max_degree`: largest product degree to support (at most [`MAX_PRODUCT_DEGREE`]).
     ///
-    /// Errors: non-positive or non-finite inputs, inputs closer than [`FREQ_TOLERANCE_HZ`],
+    /// Errors: negative or non-finite inputs, inputs closer than [`FREQ_TOLERANCE_HZ`],
     /// negative outputs, or tables beyond the memory bound ([`SpectralError::TooLarge`]).
     pub fn new(
         input_hz: &[f64],
@@ -114,12 +116,8 @@ impl ProductPlan {
         max_degree: usize,
     ) -> Result<Self, SpectralError> {
         for (index, &hz) in input_hz.iter().enumerate() {
-            if !(hz.is_finite() && hz > 0.0) {
-                return Err(SpectralError::NonPositiveFrequency {
-                    what: "input",
-                    index,
-                    hz,
-                });
+            if !(hz.is_finite() && hz >= 0.0) {
+                return Err(SpectralError::NegativeInputFrequency { index, hz });
             }
         }
         let mut order: Vec<usize> = (0..input_hz.len()).collect();
@@ -693,6 +691,42 @@ mod tests {
     }
 
     #[test]
+    fn static_offset_input() {
+        // x = c + A cos ωt with c = 3, A = 2:  x² = (c² + A²/2) + 2cA cos ωt + A²/2 cos 2ωt.
+        let plan = ProductPlan::new(&[0.0, 100.0], &[0.0, 100.0, 200.0], 2).expect("plan");
+        let mut s = plan.scratch();
+        let x = [Complex64::new(3.0, 0.0), Complex64::new(2.0, 0.0)];
+        let mut out = [Complex64::new(0.0, 0.0); 3];
+        plan.eval(&[&x, &x], &mut out, &mut s);
+        let want = [11.0, 12.0, 2.0];
+        for (o, w) in out.iter().zip(want) {
+            assert!((o - Complex64::new(w, 0.0)).norm() < 1e-13, "{o} vs {w}");
+        }
+        // Against brute force with DC among random multi-tone inputs, degrees 1..=4.
+        let mut rng = Rng(77);
+        let input = [0.0, 10.0, 12.0, 21.0];
+        let output = [0.0, 10.0, 12.0, 2.0, 22.0, 31.0, 33.0];
+        let plan = ProductPlan::new(&input, &output, 4).expect("plan");
+        let mut s = plan.scratch();
+        for k in 1..=4 {
+            let xs: Vec<Vec<Complex64>> = (0..k)
+                .map(|_| {
+                    let mut v: Vec<Complex64> = input.iter().map(|_| rng.c()).collect();
+                    v[0].im = 0.0; // a static offset is real
+                    v
+                })
+                .collect();
+            let refs: Vec<&[Complex64]> = xs.iter().map(|v| v.as_slice()).collect();
+            let mut out = vec![Complex64::new(0.0, 0.0); output.len()];
+            plan.eval(&refs, &mut out, &mut s);
+            let want = brute_force(&input, &output, &refs);
+            for (a, b) in out.iter().zip(&want) {
+                assert!((a - b).norm() <= 1e-12, "k={k}: {a} vs {b}");
+            }
+        }
+    }
+
+    #[test]
     fn jacobian_matches_finite_differences() {
         let mut rng = Rng(12345);
         let input = [10.0, 12.0, 21.0, 31.0];
@@ -737,12 +771,12 @@ mod tests {
     #[test]
     fn bad_input_is_an_error() {
         assert!(matches!(
-            ProductPlan::new(&[1.0, 0.0], &[1.0], 2),
-            Err(SpectralError::NonPositiveFrequency { index: 1, .. })
+            ProductPlan::new(&[1.0, -2.0], &[1.0], 2),
+            Err(SpectralError::NegativeInputFrequency { index: 1, .. })
         ));
         assert!(matches!(
             ProductPlan::new(&[1.0, f64::NAN], &[1.0], 2),
-            Err(SpectralError::NonPositiveFrequency { index: 1, .. })
+            Err(SpectralError::NegativeInputFrequency { index: 1, .. })
         ));
         assert!(matches!(
             ProductPlan::new(&[5.0, 1.0, 5.0 + 1e-7], &[1.0], 2),
