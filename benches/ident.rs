@@ -1,7 +1,40 @@
-//! Criterion benches for harmonid-ident (being built).
-use criterion::{criterion_group, criterion_main, Criterion};
+//! Criterion benches for harmonid-ident: identification of the five-mode nanostring from 15
+//! measurements (5 two-tone, 10 three-tone), per shot.
+//!
+//! `fit_1shot`: all 15 fits of one shot (products, regressors, equilibrated SVD solves).
+//! `fit_20shots`: 20 shots with row weights from shot scatter (three passes), reported per
+//! shot through criterion's throughput.
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use harmonid_ident::{Problem, Settings};
+use std::hint::black_box;
+use std::path::PathBuf;
 
-fn placeholder(_c: &mut Criterion) {}
+#[path = "../tests/roundtrip_support/gen.rs"]
+mod gen;
 
-criterion_group!(benches, placeholder);
+fn bench_identify(c: &mut Criterion) {
+    let model = harmonid_model::load(
+        &PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples/nanostring_5mode/model.hb"),
+    )
+    .expect("example model");
+    let (v, d) = gen::nanostring_5mode_plan();
+    let settings = Settings::default();
+    let mut group = c.benchmark_group("identify/nanostring_5mode_15meas");
+    for shots in [1usize, 20] {
+        let ds = gen::simulate(&model, &v, &d, &gen::NANOSTRING_SHAPE, 1e-12, shots, 5);
+        let prob = Problem::new(&model, &ds, &settings).expect("problem");
+        group.throughput(Throughput::Elements(shots as u64));
+        group.bench_function(format!("fit_{shots}shots"), |b| {
+            b.iter(|| black_box(prob.fit(black_box(&ds), &settings)))
+        });
+        if shots == 1 {
+            group.bench_function("setup", |b| {
+                b.iter(|| black_box(Problem::new(&model, &ds, &settings).expect("problem")))
+            });
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench_identify);
 criterion_main!(benches);
