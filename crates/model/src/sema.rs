@@ -28,8 +28,12 @@ fn add_potential_derivatives(u: &Poly, eom: &mut [Poly]) -> Result<(), Overflow>
                 continue;
             };
             if let Some((k, rest)) = m.derivative(v) {
-                let k = Rational::from_integer(i128::from(k));
-                slot.add_term(rest, Ring::checked_scale(c, &k)?)?;
+                let c = if k == 1 {
+                    c.clone()
+                } else {
+                    Ring::checked_scale(c, &Rational::from_integer(i128::from(k)))?
+                };
+                slot.add_term(rest, c)?;
             }
         }
     }
