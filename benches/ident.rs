@@ -4,6 +4,8 @@
 //! `fit_1shot`: all 15 fits of one shot (products, regressors, equilibrated SVD solves).
 //! `fit_20shots`: 20 shots with row weights from shot scatter (three passes), reported per
 //! shot through criterion's throughput.
+#![allow(missing_docs)] // criterion_group! generates an undocumented pub fn
+
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use harmonid_ident::{Problem, Settings};
 use std::hint::black_box;

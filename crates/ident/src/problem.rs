@@ -753,8 +753,8 @@ impl Problem {
             }
             self.groups.extend(new_groups);
         }
-        for u in 0..nu {
-            if !determined[u] && !self.not_identifiable.iter().any(|x| x.unknown == u) {
+        for (u, &done) in determined.iter().enumerate() {
+            if !done && !self.not_identifiable.iter().any(|x| x.unknown == u) {
                 let modes = self.unknown_modes(&self.unknowns[u]);
                 let need = modes
                     .iter()

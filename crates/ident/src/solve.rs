@@ -256,13 +256,8 @@ mod tests {
         for (m, k, seed) in [(10, 3, 1), (40, 8, 2), (80, 11, 3)] {
             let (a, b, x) = random_problem(m, k, seed);
             let s = solve_ls(&a, &b, &vec![None; k], &vec![None; k]);
-            for j in 0..k {
-                assert!(
-                    ((s.x[j] - x[j]) / x[j]).abs() < 1e-10,
-                    "{j}: {} vs {}",
-                    s.x[j],
-                    x[j]
-                );
+            for (j, (&got, &want)) in s.x.iter().zip(&x).enumerate() {
+                assert!(((got - want) / want).abs() < 1e-10, "{j}: {got} vs {want}");
             }
             assert!(s.cond < 1e3, "equilibrated condition {}", s.cond);
             assert_eq!(s.status, FitStatus::Solved);
