@@ -52,19 +52,19 @@ pub struct Args {
 /// The measurement plan file.
 #[derive(Debug, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
-struct Plan {
+pub(crate) struct Plan {
     #[serde(default)]
-    description: String,
+    pub(crate) description: String,
     #[serde(default = "unit_m")]
-    displacement_unit: String,
+    pub(crate) displacement_unit: String,
     #[serde(default, rename = "point")]
-    points: Vec<Point>,
+    pub(crate) points: Vec<Point>,
     #[serde(default)]
-    nominal_hz: BTreeMap<String, f64>,
+    pub(crate) nominal_hz: BTreeMap<String, f64>,
     #[serde(default)]
     noise: PlanNoise,
     #[serde(rename = "measurement")]
-    measurements: Vec<PlanMeasurement>,
+    pub(crate) measurements: Vec<PlanMeasurement>,
 }
 
 fn unit_m() -> String {
@@ -84,9 +84,9 @@ struct PlanNoise {
 
 #[derive(Debug, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
-struct PlanMeasurement {
-    name: String,
-    drives_hz: Vec<f64>,
+pub(crate) struct PlanMeasurement {
+    pub(crate) name: String,
+    pub(crate) drives_hz: Vec<f64>,
     /// Force amplitude per tone on each mode, N/kg (`q1 = [3.5, 3.5, 0.0]`).
     force: BTreeMap<String, Vec<f64>>,
     /// Force phase per tone on each mode, rad (default 0).
@@ -94,7 +94,7 @@ struct PlanMeasurement {
     phase_rad: BTreeMap<String, Vec<f64>>,
     /// Measured frequencies, Hz; default: every lattice frequency near a resonance.
     #[serde(default)]
-    measure_hz: Option<Vec<f64>>,
+    pub(crate) measure_hz: Option<Vec<f64>>,
     #[serde(default)]
     drive_levels_v: Option<Vec<f64>>,
     #[serde(default)]
@@ -199,7 +199,7 @@ pub fn numeric_model(model: &Path, values: &Path) -> miette::Result<NumericModel
         })
 }
 
-fn excitation(model: &NumericModel, m: &PlanMeasurement) -> miette::Result<Excitation> {
+pub(crate) fn excitation(model: &NumericModel, m: &PlanMeasurement) -> miette::Result<Excitation> {
     let nd = m.drives_hz.len();
     for k in m.force.keys().chain(m.phase_rad.keys()) {
         if !model.mode_names.contains(k) {
@@ -233,34 +233,33 @@ fn excitation(model: &NumericModel, m: &PlanMeasurement) -> miette::Result<Excit
     })
 }
 
-/// Runs the subcommand.
-pub fn run(args: Args) -> miette::Result<()> {
-    let model = numeric_model(&args.model, &args.values)?;
-    let text = std::fs::read_to_string(&args.plan)
-        .into_diagnostic()
-        .wrap_err_with(|| format!("cannot read the plan {}", args.plan.display()))?;
-    let plan: Plan = toml::from_str(&text).into_diagnostic().wrap_err_with(|| {
-        format!(
-            "{}: not a valid measurement plan (see docs/simulation.md)",
-            args.plan.display()
-        )
-    })?;
-    let unit = harmonid_ident::dataset::unit_scale(&plan.displacement_unit).ok_or_else(|| {
-        miette!(
-            "{}: displacement_unit must be m, um, nm or pm",
-            args.plan.display()
-        )
-    })?;
-    let shots = plan.noise.shots.unwrap_or(1).max(1);
-    let sigma_m = plan.noise.sigma_per_quadrature * unit;
-    let shapes: Vec<Vec<f64>> = if plan.points.is_empty() {
+/// Parses a measurement plan (TOML text; `origin` names it in errors).
+pub(crate) fn parse_plan(text: &str, origin: &str) -> miette::Result<Plan> {
+    toml::from_str(text).into_diagnostic().wrap_err_with(|| {
+        format!("{origin}: not a valid measurement plan (see docs/simulation.md)")
+    })
+}
+
+/// Metres per displacement unit of the plan.
+pub(crate) fn plan_unit(plan: &Plan, origin: &str) -> miette::Result<f64> {
+    harmonid_ident::dataset::unit_scale(&plan.displacement_unit)
+        .ok_or_else(|| miette!("{origin}: displacement_unit must be m, um, nm or pm"))
+}
+
+/// Mode shapes of the plan's measurement points (one point of unit shapes when none is given).
+pub(crate) fn point_shapes(model: &NumericModel, plan: &Plan) -> Vec<Vec<f64>> {
+    if plan.points.is_empty() {
         vec![vec![1.0; model.n_modes()]]
     } else {
         plan.points
             .iter()
             .map(|p| model.mode_names.iter().map(|n| p.shape_of(n)).collect())
             .collect()
-    };
+    }
+}
+
+/// The dataset manifest of a plan (without measurements).
+pub(crate) fn plan_manifest(model: &NumericModel, plan: &Plan) -> Manifest {
     let mut manifest = Manifest::new(plan.description.clone());
     manifest.displacement_unit = plan.displacement_unit.clone();
     manifest.points = plan.points.clone();
@@ -274,6 +273,58 @@ pub fn run(args: Args) -> miette::Result<()> {
     } else {
         plan.nominal_hz.clone()
     };
+    manifest
+}
+
+/// The harmonic-balance steady state of one planned measurement (lattice of intermodulation
+/// order `order`, holding every measured frequency); an error when Newton does not converge.
+pub(crate) fn plan_steady_state(
+    model: &NumericModel,
+    pm: &PlanMeasurement,
+    order: usize,
+) -> miette::Result<sim::SteadyState> {
+    let drive = excitation(model, pm)?;
+    let mut hs = HbSettings::default();
+    hs.lattice.order = order;
+    if let Some(f) = &pm.measure_hz {
+        hs.lattice.extra_hz = f.clone();
+    }
+    let st = sim::steady_state(model, &drive, &hs)
+        .into_diagnostic()
+        .wrap_err_with(|| format!("measurement {}", pm.name))?;
+    if !st.converged() {
+        return Err(miette!(
+            "measurement {}: harmonic balance did not converge ({:?}, residual {:.2e}); try a smaller drive, a higher --order, or --time-domain",
+            pm.name, st.status, st.residual
+        ));
+    }
+    Ok(st)
+}
+
+/// The dataset spec of a planned measurement.
+pub(crate) fn plan_spec(pm: &PlanMeasurement) -> MeasurementSpec {
+    MeasurementSpec {
+        name: pm.name.clone(),
+        file: None,
+        drives_hz: pm.drives_hz.clone(),
+        drive_levels_v: pm.drive_levels_v.clone(),
+        drive_phases_rad: pm.drive_phases_rad.clone(),
+        bandwidth_hz: pm.bandwidth_hz,
+    }
+}
+
+/// Runs the subcommand.
+pub fn run(args: Args) -> miette::Result<()> {
+    let model = numeric_model(&args.model, &args.values)?;
+    let text = std::fs::read_to_string(&args.plan)
+        .into_diagnostic()
+        .wrap_err_with(|| format!("cannot read the plan {}", args.plan.display()))?;
+    let plan = parse_plan(&text, &args.plan.display().to_string())?;
+    let unit = plan_unit(&plan, &args.plan.display().to_string())?;
+    let shots = plan.noise.shots.unwrap_or(1).max(1);
+    let sigma_m = plan.noise.sigma_per_quadrature * unit;
+    let shapes = point_shapes(&model, &plan);
+    let manifest = plan_manifest(&model, &plan);
     let mut truth = Truth {
         modes: model
             .mode_names
@@ -360,14 +411,7 @@ pub fn run(args: Args) -> miette::Result<()> {
                 .map(|s| freqs.iter().map(|&f| st.at_point(s, f)).collect())
                 .collect()
         };
-        let spec = MeasurementSpec {
-            name: pm.name.clone(),
-            file: None,
-            drives_hz: pm.drives_hz.clone(),
-            drive_levels_v: pm.drive_levels_v.clone(),
-            drive_phases_rad: pm.drive_phases_rad.clone(),
-            bandwidth_hz: pm.bandwidth_hz,
-        };
+        let spec = plan_spec(pm);
         let point_idx: Vec<usize> = (0..plan.points.len()).collect();
         let mut meas = Measurement::zeros(spec, freqs.clone(), point_idx, shots);
         for s in 0..shots {
