@@ -377,12 +377,15 @@ pub fn run(args: Args) -> miette::Result<()> {
     Ok(())
 }
 
+/// One clean measurement: spec, measured frequencies, amplitudes `[point][freq]` (m).
+type Clean = (
+    harmonid_ident::MeasurementSpec,
+    Vec<f64>,
+    Vec<Vec<Complex64>>,
+);
+
 fn make_clean(
-    clean: &[(
-        harmonid_ident::MeasurementSpec,
-        Vec<f64>,
-        Vec<Vec<Complex64>>,
-    )],
+    clean: &[Clean],
     manifest: &harmonid_ident::Manifest,
     unit: f64,
     n_points: usize,
@@ -515,9 +518,9 @@ fn summary(levels: &[f64], stats: &[Vec<LevelStat>]) -> String {
             st.n > 1 && (st.mean - st.truth).abs() < 0.01 * t && 3.0 * st.std < 0.1 * t
         };
         let mut best: Option<f64> = None;
-        for l in 0..levels.len() {
+        for (l, &level) in levels.iter().enumerate() {
             if ok(l) {
-                best = Some(levels[l]);
+                best = Some(level);
             } else {
                 break;
             }
