@@ -5,7 +5,7 @@ use crate::ast::{Expr, Family, File, Index, IndexRel, ModeDecl, Name, ParamDecl,
 use crate::error::{Code, ModelDiagnostic, Span};
 use crate::model::{Bounds, Linear, Mode, Model, ParamKind, Parameter};
 use crate::{MAX_DEGREE, MAX_FAMILY_INSTANCES, MAX_PRODUCT_WORK, MAX_TERMS};
-use harmonid_poly::{Coeff, Overflow, Poly, Rational, Ring, VarId};
+use harmonid_poly::{Coeff, Overflow, Poly, PolyBuilder, Rational, Ring, VarId};
 use std::collections::HashMap;
 
 /// Values of the index variables in scope.
@@ -22,9 +22,12 @@ pub fn equations_from_potential(u: &Poly, n_modes: usize) -> Result<Vec<Poly>, O
 }
 
 fn add_potential_derivatives(u: &Poly, eom: &mut [Poly]) -> Result<(), Overflow> {
+    // The terms of ∂U/∂q_v arrive in canonical order (dividing by q_v keeps a monomial order),
+    // so each slot is built by appending, then merged once with the directly written terms.
+    let mut slots = vec![Poly::zero(); eom.len()];
     for (m, c) in u.terms() {
         for &(v, _) in m.factors() {
-            let Some(slot) = eom.get_mut(v.index()) else {
+            let Some(slot) = slots.get_mut(v.index()) else {
                 continue;
             };
             if let Some((k, rest)) = m.derivative(v) {
@@ -36,6 +39,13 @@ fn add_potential_derivatives(u: &Poly, eom: &mut [Poly]) -> Result<(), Overflow>
                 slot.add_term(rest, c)?;
             }
         }
+    }
+    for (eq, slot) in eom.iter_mut().zip(slots) {
+        *eq = if eq.is_zero() {
+            slot
+        } else {
+            eq.checked_add(&slot)?
+        };
     }
     Ok(())
 }
@@ -220,8 +230,10 @@ pub(crate) fn lower(
         table: &table,
         style: &param_style,
     };
-    let mut eom = vec![Poly::zero(); modes.len()];
-    let mut potential = Poly::zero();
+    // Terms are collected in builders and sorted once: a family can add 10^5 statements in
+    // any order, and inserting each into a sorted polynomial would be quadratic.
+    let mut eom_terms: Vec<PolyBuilder<Coeff>> = vec![PolyBuilder::new(); modes.len()];
+    let mut potential_terms = PolyBuilder::new();
     let mut first_potential: Option<Span> = None;
     for u in &decls.uses {
         let mut ev = Eval {
@@ -244,17 +256,31 @@ pub(crate) fn lower(
         let target = match target {
             None => {
                 first_potential.get_or_insert(u.expr.span());
-                &mut potential
+                &mut potential_terms
             }
-            Some(n) => &mut eom[n as usize],
+            Some(n) => &mut eom_terms[n as usize],
         };
         let negate = matches!(u.target, Some((_, true)));
-        if let Err(Overflow) = add_into(target, &p, negate) {
+        if let Err(Overflow) = target.push_poly(&p, negate) {
             overflow(&mut sink, u.expr.span());
-        } else if target.len() > MAX_TERMS {
+        } else if target.pending_len() > MAX_TERMS {
             too_many_terms(&mut sink, u.expr.span());
             break;
         }
+    }
+    let potential = match potential_terms.finish() {
+        Ok(p) => p,
+        Err(Overflow) => {
+            overflow(&mut sink, first_potential.unwrap_or_default());
+            Poly::zero()
+        }
+    };
+    let mut eom = Vec::with_capacity(eom_terms.len());
+    for terms in eom_terms {
+        eom.push(terms.finish().unwrap_or_else(|Overflow| {
+            overflow(&mut sink, Span::default());
+            Poly::zero()
+        }));
     }
     if sink.list.is_empty() {
         if let Err(Overflow) = add_potential_derivatives(&potential, &mut eom) {
@@ -271,14 +297,6 @@ pub(crate) fn lower(
         eom,
         potential,
     })
-}
-
-fn add_into(target: &mut Poly, p: &Poly, negate: bool) -> Result<(), Overflow> {
-    for (m, c) in p.terms() {
-        let c = if negate { c.checked_neg()? } else { c.clone() };
-        target.add_term(m.clone(), c)?;
-    }
-    Ok(())
 }
 
 fn overflow(sink: &mut Sink<'_>, span: Span) {
@@ -693,7 +711,7 @@ impl Eval<'_, '_, '_, '_> {
                 self.ok(a.checked_neg(), *sp)
             }
             Expr::Sum(terms, sp) => {
-                let mut acc = Poly::zero();
+                let mut acc = PolyBuilder::new();
                 let mut ok = true;
                 for (neg, t) in terms {
                     let Some(p) = self.eval(t) else {
@@ -703,16 +721,19 @@ impl Eval<'_, '_, '_, '_> {
                     if !ok {
                         continue;
                     }
-                    if add_into(&mut acc, &p, *neg).is_err() {
+                    if acc.push_poly(&p, *neg).is_err() {
                         overflow(self.sink, *sp);
                         return None;
                     }
-                    if acc.len() > MAX_TERMS {
+                    if acc.pending_len() > MAX_TERMS {
                         too_many_terms(self.sink, *sp);
                         return None;
                     }
                 }
-                ok.then_some(acc)
+                if !ok {
+                    return None;
+                }
+                self.ok(acc.finish(), *sp)
             }
             Expr::Product(factors, sp) => {
                 let mut acc = Poly::constant(Coeff::constant(Rational::from_integer(1)));

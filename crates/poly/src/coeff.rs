@@ -137,7 +137,10 @@ mod tests {
         let sq = p(0).checked_mul(&p(0)).expect("small");
         assert!(sq.affine().is_none());
         assert_eq!(sq.to_string_with(&["g"]), "g^2");
-        assert_eq!(sq.checked_neg().expect("small").to_string_with(&["g"]), "-g^2");
+        assert_eq!(
+            sq.checked_neg().expect("small").to_string_with(&["g"]),
+            "-g^2"
+        );
     }
 
     #[test]
@@ -149,7 +152,9 @@ mod tests {
         assert_eq!(c.eval(&[2.0, 3.0]), 6.25);
         assert!(c.eval(&[2.0]).is_nan());
         assert_eq!(<Coeff as Ring>::one().to_latex_with(&["a"]), "1");
-        let l = p(0).checked_scale_rational(&Rational::new(-3, 4)).expect("small");
+        let l = p(0)
+            .checked_scale_rational(&Rational::new(-3, 4))
+            .expect("small");
         assert_eq!(l.to_latex_with(&["\\beta_1"]), "-\\frac{3}{4} \\beta_1");
     }
 }

@@ -38,15 +38,15 @@
 //! ```
 
 mod coeff;
-mod sparse;
 mod poly;
 mod power_product;
 mod rational;
 mod ring;
+mod sparse;
 
 pub use coeff::{AffineForm, Coeff};
 pub use poly::Poly;
-pub use sparse::SparsePoly;
 pub use power_product::{PowerProduct, VarId};
 pub use rational::{parse_decimal, rational_to_f64, Rational};
 pub use ring::{Overflow, Ring};
+pub use sparse::{PolyBuilder, SparsePoly};

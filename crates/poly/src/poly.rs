@@ -10,7 +10,9 @@ pub type Poly = SparsePoly<Coeff>;
 impl SparsePoly<Coeff> {
     /// Evaluates every coefficient with parameter values `values[p]`, keeping the term order.
     pub fn eval_coefficients(&self, values: &[f64]) -> Vec<(PowerProduct, f64)> {
-        self.terms().map(|(m, c)| (m.clone(), c.eval(values))).collect()
+        self.terms()
+            .map(|(m, c)| (m.clone(), c.eval(values)))
+            .collect()
     }
 
     /// The terms whose coefficient is not affine in the parameters (e.g. `g^2*q1^4`).
@@ -132,8 +134,14 @@ mod tests {
             )?;
         let modes = ["q1", "q2"];
         let params = ["beta1", "g12"];
-        assert_eq!(u.derivative(VarId(0))?.to_string_with(&modes, &params), "beta1 q1^3 + g12 q1 q2^2");
-        assert_eq!(u.derivative(VarId(1))?.to_string_with(&modes, &params), "g12 q1^2 q2");
+        assert_eq!(
+            u.derivative(VarId(0))?.to_string_with(&modes, &params),
+            "beta1 q1^3 + g12 q1 q2^2"
+        );
+        assert_eq!(
+            u.derivative(VarId(1))?.to_string_with(&modes, &params),
+            "g12 q1^2 q2"
+        );
         Ok(())
     }
 
@@ -143,13 +151,25 @@ mod tests {
             .checked_add(&par(1))?
             .checked_mul(&q(0))?
             .checked_mul(&q(1))?
-            .checked_sub(&rat(3, 4).checked_mul(&par(0))?.checked_mul(&q(0).checked_pow(2)?)?)?;
-        assert_eq!(p.to_string_with(&["q1", "q2"], &["a", "b"]), "-3/4*a q1^2 + (a + b) q1 q2");
+            .checked_sub(
+                &rat(3, 4)
+                    .checked_mul(&par(0))?
+                    .checked_mul(&q(0).checked_pow(2)?)?,
+            )?;
+        assert_eq!(
+            p.to_string_with(&["q1", "q2"], &["a", "b"]),
+            "-3/4*a q1^2 + (a + b) q1 q2"
+        );
         assert_eq!(
             p.to_latex_with(&["q_1", "q_2"], &["a", "b"]),
             "-\\frac{3}{4} a q_1^{2} + (a + b) q_1 q_2"
         );
-        assert_eq!(rat(-1, 2).checked_mul(&q(1))?.to_string_with(&["q1", "q2"], &["a"]), "-1/2 q2");
+        assert_eq!(
+            rat(-1, 2)
+                .checked_mul(&q(1))?
+                .to_string_with(&["q1", "q2"], &["a"]),
+            "-1/2 q2"
+        );
         Ok(())
     }
 
@@ -168,7 +188,8 @@ mod tests {
             let mut p = Poly::zero();
             for (mexp, pexp, n, d) in terms {
                 let c = Coeff::term(PowerProduct::from_exponents(&pexp), Rational::new(n, d));
-                p.add_term(PowerProduct::from_exponents(&mexp), c).expect("small");
+                p.add_term(PowerProduct::from_exponents(&mexp), c)
+                    .expect("small");
             }
             p
         })
@@ -203,6 +224,28 @@ mod tests {
             let pnames = ["a", "b"];
             prop_assert_eq!(lhs.to_string_with(&names, &pnames), rhs.to_string_with(&names, &pnames));
             prop_assert_eq!(lhs, rhs);
+        }
+
+        #[test]
+        fn builder_equals_incremental_sum(a in arb_poly(), b in arb_poly(), seed in 0u64..1000) {
+            // Pushing the terms of a and b in a scrambled order and finishing once gives a + b.
+            let mut terms: Vec<(PowerProduct, Coeff)> = a.terms().chain(b.terms())
+                .map(|(m, c)| (m.clone(), c.clone())).collect();
+            let n = terms.len().max(1);
+            for i in 0..terms.len() {
+                terms.swap(i, (seed as usize).wrapping_mul(i + 7) % n);
+            }
+            let mut builder = crate::PolyBuilder::new();
+            for (m, c) in terms {
+                builder.push(m, c);
+            }
+            let built = builder.finish()?;
+            prop_assert_eq!(&built, &a.checked_add(&b)?);
+            let mut incremental = a.clone();
+            for (m, c) in b.terms() {
+                incremental.add_term(m.clone(), c.clone())?;
+            }
+            prop_assert_eq!(built, incremental);
         }
 
         #[test]

@@ -25,6 +25,8 @@ impl VarId {
 #[derive(Debug, Clone, PartialEq, Eq, Hash, Default)]
 pub struct PowerProduct {
     factors: SmallVec<[(VarId, u32); 4]>,
+    /// Total degree, cached: the graded order compares it first on every comparison.
+    degree: u32,
 }
 
 impl PowerProduct {
@@ -44,7 +46,7 @@ impl PowerProduct {
         if k > 0 {
             factors.push((v, k));
         }
-        Self { factors }
+        Self { factors, degree: k }
     }
 
     /// Builds a product from `(variable, exponent)` pairs in any order; repeated variables add
@@ -65,7 +67,8 @@ impl PowerProduct {
             .filter(|(_, &k)| k > 0)
             .map(|(i, &k)| (VarId(i as u32), k))
             .collect();
-        Self { factors }
+        let degree = exps.iter().fold(0u32, |a, &k| a.saturating_add(k));
+        Self { factors, degree }
     }
 
     /// The `(variable, exponent)` factors, sorted by variable, exponents ≥ 1.
@@ -75,7 +78,7 @@ impl PowerProduct {
 
     /// Total degree (sum of exponents); 0 for the empty product.
     pub fn degree(&self) -> u32 {
-        self.factors.iter().map(|&(_, k)| k).sum()
+        self.degree
     }
 
     /// Whether this is the empty product `1`.
@@ -132,7 +135,8 @@ impl PowerProduct {
                 (None, None) => break,
             }
         }
-        Ok(Self { factors })
+        let degree = self.degree.checked_add(other.degree).ok_or(Overflow)?;
+        Ok(Self { factors, degree })
     }
 
     /// `∂/∂v` of this product: `Some((k, rest))` meaning `k · rest`, or `None` if `v` is absent.
@@ -140,6 +144,7 @@ impl PowerProduct {
         let pos = self.factors.iter().position(|&(w, _)| w == v)?;
         let k = self.factors[pos].1;
         let mut rest = self.clone();
+        rest.degree -= 1;
         if k == 1 {
             rest.factors.remove(pos);
         } else {
@@ -193,8 +198,10 @@ impl PowerProduct {
 }
 
 impl Ord for PowerProduct {
+    /// Graded lexicographic order (a monomial order: `a < b` implies `a·c < b·c`, so dividing
+    /// every term of a sorted polynomial by one variable keeps it sorted).
     fn cmp(&self, other: &Self) -> Ordering {
-        self.degree().cmp(&other.degree()).then_with(|| {
+        self.degree.cmp(&other.degree).then_with(|| {
             // Same degree: walk both factor lists; the product with the earlier variable, or
             // the higher power of the same variable, comes first.
             for (&(a, ka), &(b, kb)) in self.factors.iter().zip(other.factors.iter()) {
@@ -236,9 +243,24 @@ mod tests {
 
     #[test]
     fn graded_order() {
-        let mut v = vec![pp(&[0, 3]), pp(&[1, 2]), pp(&[3, 0]), pp(&[2, 1]), pp(&[1, 0])];
+        let mut v = vec![
+            pp(&[0, 3]),
+            pp(&[1, 2]),
+            pp(&[3, 0]),
+            pp(&[2, 1]),
+            pp(&[1, 0]),
+        ];
         v.sort();
-        assert_eq!(v, vec![pp(&[1, 0]), pp(&[3, 0]), pp(&[2, 1]), pp(&[1, 2]), pp(&[0, 3])]);
+        assert_eq!(
+            v,
+            vec![
+                pp(&[1, 0]),
+                pp(&[3, 0]),
+                pp(&[2, 1]),
+                pp(&[1, 2]),
+                pp(&[0, 3])
+            ]
+        );
     }
 
     #[test]

@@ -31,12 +31,20 @@ pub fn parse_decimal(text: &str) -> Option<Rational> {
     if int_part.is_empty() && frac_part.is_empty() {
         return None;
     }
-    if !int_part.bytes().chain(frac_part.bytes()).all(|b| b.is_ascii_digit()) {
+    if !int_part
+        .bytes()
+        .chain(frac_part.bytes())
+        .all(|b| b.is_ascii_digit())
+    {
         return None;
     }
     let digits = format!("{int_part}{frac_part}");
     let digits = digits.trim_start_matches('0');
-    let mut numer: i128 = if digits.is_empty() { 0 } else { digits.parse().ok()? };
+    let mut numer: i128 = if digits.is_empty() {
+        0
+    } else {
+        digits.parse().ok()?
+    };
     let scale = exponent.checked_sub(i32::try_from(frac_part.len()).ok()?)?;
     if numer.is_zero() {
         return Some(Rational::zero());
@@ -64,7 +72,10 @@ mod tests {
         assert_eq!(parse_decimal("3"), Some(Rational::from_integer(3)));
         assert_eq!(parse_decimal("0.75"), Some(Rational::new(3, 4)));
         assert_eq!(parse_decimal(".5"), Some(Rational::new(1, 2)));
-        assert_eq!(parse_decimal("2.68e22"), Some(Rational::from_integer(268 * 10i128.pow(20))));
+        assert_eq!(
+            parse_decimal("2.68e22"),
+            Some(Rational::from_integer(268 * 10i128.pow(20)))
+        );
         assert_eq!(parse_decimal("1E-3"), Some(Rational::new(1, 1000)));
         assert_eq!(parse_decimal("0.000"), Some(Rational::zero()));
         assert_eq!(parse_decimal("1e60"), None);

@@ -1,22 +1,89 @@
 //! Sparse polynomials over a ring of coefficients, in canonical term order.
 
 use crate::{Overflow, PowerProduct, Rational, Ring, VarId};
-use std::collections::BTreeMap;
+use smallvec::SmallVec;
+use std::cmp::Ordering;
+
+/// Storage of the terms: sorted by power product, no zero coefficients. Inline room for one
+/// term, because most coefficients of an equation term are a single parameter.
+type Terms<C> = SmallVec<[(PowerProduct, C); 1]>;
 
 /// A sparse polynomial `Σ c_m · m` over [`PowerProduct`]s `m` with coefficients in a [`Ring`].
 ///
 /// Terms are kept in canonical order (see [`PowerProduct`]'s `Ord`) with no zero coefficients,
-/// so two equal polynomials have identical term lists and print identically.
+/// so two equal polynomials have identical term lists and print identically. Sums are merges
+/// and derivatives keep the order, so both are linear in the number of terms; to build a large
+/// polynomial from terms in arbitrary order use [`PolyBuilder`] (one sort at the end) rather than
+/// repeated [`SparsePoly::add_term`].
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SparsePoly<C> {
-    terms: BTreeMap<PowerProduct, C>,
+    terms: Terms<C>,
+}
+
+/// Collects terms in any order, then sorts and merges them once into a [`SparsePoly`].
+#[derive(Debug, Clone, Default)]
+pub struct PolyBuilder<C> {
+    pending: Vec<(PowerProduct, C)>,
+}
+
+impl<C: Ring> PolyBuilder<C> {
+    /// An empty builder.
+    pub fn new() -> Self {
+        Self {
+            pending: Vec::new(),
+        }
+    }
+
+    /// Adds `c · m` (merged with equal power products at [`PolyBuilder::finish`]).
+    pub fn push(&mut self, m: PowerProduct, c: C) {
+        if !c.is_zero() {
+            self.pending.push((m, c));
+        }
+    }
+
+    /// Adds every term of `p`, negated if `negate`.
+    pub fn push_poly(&mut self, p: &SparsePoly<C>, negate: bool) -> Result<(), Overflow> {
+        self.pending.reserve(p.len());
+        for (m, c) in &p.terms {
+            let c = if negate { c.checked_neg()? } else { c.clone() };
+            self.pending.push((m.clone(), c));
+        }
+        Ok(())
+    }
+
+    /// Number of terms pushed so far (an upper bound on the final number of terms).
+    pub fn pending_len(&self) -> usize {
+        self.pending.len()
+    }
+
+    /// The polynomial: terms sorted, equal power products summed, zeros dropped.
+    pub fn finish(self) -> Result<SparsePoly<C>, Overflow> {
+        let mut pending = self.pending;
+        pending.sort_by(|a, b| a.0.cmp(&b.0));
+        let mut terms: Terms<C> = SmallVec::with_capacity(pending.len());
+        for (m, c) in pending {
+            match terms.last_mut() {
+                Some((last, acc)) if *last == m => *acc = acc.checked_add(&c)?,
+                _ => {
+                    if terms.last().is_some_and(|(_, acc)| acc.is_zero()) {
+                        terms.pop();
+                    }
+                    terms.push((m, c));
+                }
+            }
+        }
+        if terms.last().is_some_and(|(_, acc)| acc.is_zero()) {
+            terms.pop();
+        }
+        Ok(SparsePoly { terms })
+    }
 }
 
 impl<C: Ring> SparsePoly<C> {
     /// The zero polynomial.
     pub fn zero() -> Self {
         Self {
-            terms: BTreeMap::new(),
+            terms: SmallVec::new(),
         }
     }
 
@@ -29,7 +96,7 @@ impl<C: Ring> SparsePoly<C> {
     pub fn term(m: PowerProduct, c: C) -> Self {
         let mut p = Self::zero();
         if !c.is_zero() {
-            p.terms.insert(m, c);
+            p.terms.push((m, c));
         }
         p
     }
@@ -40,13 +107,19 @@ impl<C: Ring> SparsePoly<C> {
     }
 
     /// Terms in canonical order, with nonzero coefficients.
-    pub fn terms(&self) -> impl ExactSizeIterator<Item = (&PowerProduct, &C)> + Clone {
-        self.terms.iter()
+    pub fn terms(
+        &self,
+    ) -> impl ExactSizeIterator<Item = (&PowerProduct, &C)> + DoubleEndedIterator + Clone {
+        self.terms.iter().map(|(m, c)| (m, c))
+    }
+
+    fn position(&self, m: &PowerProduct) -> Result<usize, usize> {
+        self.terms.binary_search_by(|(k, _)| k.cmp(m))
     }
 
     /// The coefficient of `m` (None when it is zero).
     pub fn coeff(&self, m: &PowerProduct) -> Option<&C> {
-        self.terms.get(m)
+        self.position(m).ok().map(|i| &self.terms[i].1)
     }
 
     /// Number of nonzero terms.
@@ -64,51 +137,73 @@ impl<C: Ring> SparsePoly<C> {
         self.terms.is_empty()
     }
 
-    /// Highest total degree of a term (0 for constants and for zero).
+    /// Highest total degree of a term (0 for constants and for zero). The graded order puts
+    /// the highest degree last.
     pub fn degree(&self) -> u32 {
-        self.terms.keys().map(PowerProduct::degree).max().unwrap_or(0)
+        self.terms.last().map_or(0, |(m, _)| m.degree())
     }
 
     /// The constant term, if the polynomial is a constant (or zero).
     pub fn as_constant(&self) -> Option<C> {
-        match self.terms.len() {
-            0 => Some(C::zero()),
-            1 => self
-                .terms
-                .get(&PowerProduct::one())
-                .cloned(),
+        match self.terms.as_slice() {
+            [] => Some(C::zero()),
+            [(m, c)] if m.is_one() => Some(c.clone()),
             _ => None,
         }
     }
 
     /// Adds `c · m` in place, merging with an existing term and dropping it if it cancels.
+    ///
+    /// Appending past the last term is O(1); inserting elsewhere moves the later terms, so build
+    /// large polynomials from unordered terms with [`PolyBuilder`].
     pub fn add_term(&mut self, m: PowerProduct, c: C) -> Result<(), Overflow> {
         if c.is_zero() {
             return Ok(());
         }
-        match self.terms.entry(m) {
-            std::collections::btree_map::Entry::Vacant(e) => {
-                e.insert(c);
-            }
-            std::collections::btree_map::Entry::Occupied(mut e) => {
-                let sum = e.get().checked_add(&c)?;
+        if self.terms.last().is_none_or(|(last, _)| *last < m) {
+            self.terms.push((m, c));
+            return Ok(());
+        }
+        match self.position(&m) {
+            Ok(i) => {
+                let sum = self.terms[i].1.checked_add(&c)?;
                 if sum.is_zero() {
-                    e.remove();
+                    self.terms.remove(i);
                 } else {
-                    *e.get_mut() = sum;
+                    self.terms[i].1 = sum;
                 }
             }
+            Err(i) => self.terms.insert(i, (m, c)),
         }
         Ok(())
     }
 
-    /// `self + other`.
+    /// `self + other` (a merge of the two sorted term lists).
     pub fn checked_add(&self, other: &Self) -> Result<Self, Overflow> {
-        let mut out = self.clone();
-        for (m, c) in &other.terms {
-            out.add_term(m.clone(), c.clone())?;
+        let mut terms: Terms<C> = SmallVec::with_capacity(self.len() + other.len());
+        let (mut a, mut b) = (self.terms.iter().peekable(), other.terms.iter().peekable());
+        loop {
+            let next = match (a.peek(), b.peek()) {
+                (Some((ma, ca)), Some((mb, cb))) => match ma.cmp(mb) {
+                    Ordering::Less => a.next().cloned(),
+                    Ordering::Greater => b.next().cloned(),
+                    Ordering::Equal => {
+                        let sum = ca.checked_add(cb)?;
+                        let m = ma.clone();
+                        a.next();
+                        b.next();
+                        (!sum.is_zero()).then_some((m, sum))
+                    }
+                },
+                (Some(_), None) => a.next().cloned(),
+                (None, Some(_)) => b.next().cloned(),
+                (None, None) => break,
+            };
+            if let Some(t) = next {
+                terms.push(t);
+            }
         }
-        Ok(out)
+        Ok(Self { terms })
     }
 
     /// `self - other`.
@@ -118,22 +213,35 @@ impl<C: Ring> SparsePoly<C> {
 
     /// `-self`.
     pub fn checked_neg(&self) -> Result<Self, Overflow> {
-        let mut terms = BTreeMap::new();
+        let mut terms: Terms<C> = SmallVec::with_capacity(self.len());
         for (m, c) in &self.terms {
-            terms.insert(m.clone(), c.checked_neg()?);
+            terms.push((m.clone(), c.checked_neg()?));
         }
         Ok(Self { terms })
     }
 
     /// `self * other`, expanded.
     pub fn checked_mul(&self, other: &Self) -> Result<Self, Overflow> {
-        let mut out = Self::zero();
+        if let ([(m, c)], _) | (_, [(m, c)]) = (self.terms.as_slice(), other.terms.as_slice()) {
+            // A single term times a polynomial keeps the order (monomial order), no sort.
+            let rest = if self.len() == 1 { other } else { self };
+            let mut terms: Terms<C> = SmallVec::with_capacity(rest.len());
+            for (mr, cr) in &rest.terms {
+                let prod = cr.checked_mul(c)?;
+                if !prod.is_zero() {
+                    terms.push((mr.checked_mul(m)?, prod));
+                }
+            }
+            return Ok(Self { terms });
+        }
+        let mut out = PolyBuilder::new();
+        out.pending.reserve(self.len() * other.len());
         for (ma, ca) in &self.terms {
             for (mb, cb) in &other.terms {
-                out.add_term(ma.checked_mul(mb)?, ca.checked_mul(cb)?)?;
+                out.push(ma.checked_mul(mb)?, ca.checked_mul(cb)?);
             }
         }
-        Ok(out)
+        out.finish()
     }
 
     /// `self^k`, expanded (`self^0 = 1`).
@@ -155,40 +263,51 @@ impl<C: Ring> SparsePoly<C> {
 
     /// `c · self` for a coefficient `c`.
     pub fn checked_scale(&self, c: &C) -> Result<Self, Overflow> {
-        let mut out = Self::zero();
+        let mut terms: Terms<C> = SmallVec::with_capacity(self.len());
         for (m, a) in &self.terms {
-            out.add_term(m.clone(), a.checked_mul(c)?)?;
+            let prod = a.checked_mul(c)?;
+            if !prod.is_zero() {
+                terms.push((m.clone(), prod));
+            }
         }
-        Ok(out)
+        Ok(Self { terms })
     }
 
     /// `k · self` for a rational `k`.
     pub fn checked_scale_rational(&self, k: &Rational) -> Result<Self, Overflow> {
-        let mut out = Self::zero();
+        let mut terms: Terms<C> = SmallVec::with_capacity(self.len());
         for (m, a) in &self.terms {
-            out.add_term(m.clone(), a.checked_scale(k)?)?;
-        }
-        Ok(out)
-    }
-
-    /// `∂self/∂x_v`, term by term.
-    pub fn derivative(&self, v: VarId) -> Result<Self, Overflow> {
-        let mut out = Self::zero();
-        for (m, c) in &self.terms {
-            if let Some((k, rest)) = m.derivative(v) {
-                let k = Rational::from_integer(i128::from(k));
-                out.add_term(rest, c.checked_scale(&k)?)?;
+            let prod = a.checked_scale(k)?;
+            if !prod.is_zero() {
+                terms.push((m.clone(), prod));
             }
         }
-        Ok(out)
+        Ok(Self { terms })
+    }
+
+    /// `∂self/∂x_v`, term by term. Linear in the number of terms: dividing the terms that hold
+    /// `x_v` by it keeps their order.
+    pub fn derivative(&self, v: VarId) -> Result<Self, Overflow> {
+        let mut terms: Terms<C> = SmallVec::new();
+        for (m, c) in &self.terms {
+            if let Some((k, rest)) = m.derivative(v) {
+                let c = if k == 1 {
+                    c.clone()
+                } else {
+                    c.checked_scale(&Rational::from_integer(i128::from(k)))?
+                };
+                terms.push((rest, c));
+            }
+        }
+        Ok(Self { terms })
     }
 
     /// The variables that occur in some term, sorted.
     pub fn variables(&self) -> Vec<VarId> {
         let mut vars: Vec<VarId> = self
             .terms
-            .keys()
-            .flat_map(|m| m.factors().iter().map(|&(v, _)| v))
+            .iter()
+            .flat_map(|(m, _)| m.factors().iter().map(|&(v, _)| v))
             .collect();
         vars.sort_unstable();
         vars.dedup();
