@@ -65,13 +65,16 @@ fn simulate_writes_a_dataset_matching_the_reference() {
         .arg(dir.path().join("plan.toml"))
         .arg("--out")
         .arg(&out)
+        .arg("--check-stability")
         .output()
         .expect("runs");
-    assert!(
-        st.status.success(),
-        "{}",
-        String::from_utf8_lossy(&st.stderr)
-    );
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(st.status.success(), "{err}");
+    // The three measurements of the shared dataset are stable states (its README).
+    for name in ["single_q1", "single_q2", "couple_q1_q2"] {
+        assert!(err.contains(&format!("{name}: stable")), "{err}");
+    }
+    assert!(!err.contains("UNSTABLE"), "{err}");
     let ds = Dataset::load(&out).expect("the written dataset loads");
     assert_eq!(ds.measurements.len(), 3);
     let truth = ds.truth.as_ref().expect("truth.toml");
@@ -129,4 +132,45 @@ fn simulate_refuses_missing_values() {
     let err = String::from_utf8_lossy(&st.stderr);
     assert!(err.contains("f_hz of mode q1"), "{err}");
     assert!(!dir.path().join("ds").exists());
+}
+
+#[test]
+fn check_stability_flags_the_unstable_three_tone_state() {
+    // The shared dataset's README: with 4.5 N/kg per tone on mode 1 (and 1.81 N/kg on mode 2) the
+    // three-tone steady state loses stability, the time-domain run drifting away from it about
+    // ×3.8 per 2 s (growth rate ln 3.8 / 2 s ≈ 0.67 /s). Slow-flow Hill's method must agree.
+    let dir = tempfile::tempdir().expect("tempdir");
+    std::fs::write(dir.path().join("values.toml"), VALUES).expect("write");
+    let plan = PLAN.replace("q1 = [3.5, 3.5, 0.0]", "q1 = [4.5, 4.5, 0.0]");
+    std::fs::write(dir.path().join("plan.toml"), plan).expect("write");
+    let st = Command::new(env!("CARGO_BIN_EXE_harmonid"))
+        .arg("simulate")
+        .arg(model_path())
+        .arg("--values")
+        .arg(dir.path().join("values.toml"))
+        .arg("--plan")
+        .arg(dir.path().join("plan.toml"))
+        .arg("--out")
+        .arg(dir.path().join("ds"))
+        .arg("--check-stability")
+        .output()
+        .expect("runs");
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(st.status.success(), "{err}");
+    assert!(err.contains("single_q1: stable"), "{err}");
+    let line = err
+        .lines()
+        .find(|l| l.contains("couple_q1_q2: the steady state is UNSTABLE"))
+        .unwrap_or_else(|| panic!("no instability warning: {err}"));
+    let rate: f64 = line
+        .split("grow at ")
+        .nth(1)
+        .and_then(|s| s.split_whitespace().next())
+        .and_then(|s| s.parse().ok())
+        .expect("growth rate");
+    let want = 3.8f64.ln() / 2.0;
+    assert!(
+        (rate - want).abs() < 0.2 * want,
+        "growth {rate} /s vs ≈{want} /s"
+    );
 }

@@ -47,6 +47,10 @@ pub struct Args {
     /// Seed of the noise generator.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Check each measurement's steady state for stability (Hill's method, slow-flow form)
+    /// and warn when a state is unstable.
+    #[arg(long)]
+    pub check_stability: bool,
 }
 
 /// The measurement plan file.
@@ -381,6 +385,22 @@ pub fn run(args: Args) -> miette::Result<()> {
                 "measurement {}: harmonic balance did not converge ({:?}, residual {:.2e}); try a smaller drive, a higher --order, or --time-domain",
                 pm.name, st.status, st.residual
             ));
+        }
+        if args.check_stability {
+            let v = sim::check_stability(&model, &drive, &st)
+                .into_diagnostic()
+                .wrap_err_with(|| format!("measurement {}: stability check", pm.name))?;
+            if v.stable {
+                eprintln!(
+                    "{}: stable (perturbations decay at {:.3e} 1/s; linear resonator: {:.3e} 1/s)",
+                    pm.name, -v.growth_rate, v.linear_decay_rate
+                );
+            } else {
+                eprintln!(
+                    "warning: {}: the steady state is UNSTABLE (perturbations grow at {:.3e} 1/s): an experiment would not stay on it. Try a smaller drive, the other side of the fold (sweep the drive frequency the other way), or --time-domain --from-rest to see where the motion settles",
+                    pm.name, v.growth_rate
+                );
+            }
         }
         let freqs: Vec<f64> = pm
             .measure_hz

@@ -135,6 +135,20 @@ impl SteadyState {
     }
 }
 
+/// Stability verdict of a steady state ([`check_stability`], [`HbSolver::stability`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Stability {
+    /// No perturbation grows: the largest growth rate is below `1e-6 ·` the slowest linear
+    /// decay rate.
+    pub stable: bool,
+    /// Largest real part of the eigenvalues of the linearised slow flow, 1/s (negative: small
+    /// perturbations decay at this rate; positive: they grow as `e^{growth_rate · t}`).
+    pub growth_rate: f64,
+    /// Slowest amplitude decay rate of the linear resonators, `min_n ω_n/(2 Q_n)`, 1/s (the
+    /// scale of `growth_rate`; a linear resonator has `growth_rate = −linear_decay_rate`).
+    pub linear_decay_rate: f64,
+}
+
 /// A harmonic-balance problem on a fixed lattice, with every table and buffer allocated once;
 /// [`HbSolver::solve`] can then run many times (drive levels, noise studies) without allocating.
 #[derive(Debug, Clone)]
@@ -295,6 +309,14 @@ impl HbSolver {
 
     /// Assembles the real Jacobian at `self.x` and factorises it. `false` when singular.
     fn jacobian(&mut self) -> bool {
+        self.assemble_jacobian();
+        let nu = self.unknowns();
+        lu_factor(&mut self.jac, nu, &mut self.piv)
+    }
+
+    /// Assembles the real Jacobian `∂(Re R, Im R)/∂(Re X, Im X)` at `self.x` into `self.jac`
+    /// (row-major, unknowns interleaved re/im).
+    fn assemble_jacobian(&mut self) {
         let nm = self.model.n_modes();
         let nr = self.lattice.len();
         let nu = 2 * nm * nr;
@@ -336,7 +358,65 @@ impl HbSolver {
                 }
             }
         }
-        lu_factor(&mut self.jac, nu, &mut self.piv)
+    }
+
+    /// Stability of the steady state `state` (amplitudes on this solver's lattice) by Hill's
+    /// method in its slow-flow (first-order) form: with `X_{n,r}` slowly varying,
+    /// `q̈` contributes `(2iΩ_r + γ_n) Ẋ_{n,r}` and the amplitudes obey
+    /// `(2iΩ_r + γ_n) Ẋ = −R(X)`; the state is stable when every eigenvalue of the linearised
+    /// flow `−(2iΩ + γ)⁻¹ ∂R/∂X` has a negative real part. The neglected `Ẍ` term is
+    /// `O(λ/Ω)` relative, negligible for the high-Q resonators this crate is for (`Q ≫ 1`).
+    pub fn stability(&mut self, state: &SteadyState) -> Result<Stability, SimError> {
+        let nm = self.model.n_modes();
+        let nr = self.lattice.len();
+        if state.amplitudes.len() != nm
+            || state.lattice_hz.len() != nr
+            || state
+                .lattice_hz
+                .iter()
+                .zip(&self.lattice)
+                .any(|(a, b)| (a - b).abs() > LINE_TOL_HZ)
+        {
+            return Err(SimError::Shape(
+                "the steady state was not solved on this lattice".into(),
+            ));
+        }
+        for n in 0..nm {
+            self.x[n * nr..(n + 1) * nr].copy_from_slice(&state.amplitudes[n]);
+        }
+        self.assemble_jacobian();
+        let nu = self.unknowns();
+        let mut c = vec![Z; nm * nr];
+        for n in 0..nm {
+            let g = self.model.gamma(n);
+            for (r, &f) in self.lattice.iter().enumerate() {
+                c[n * nr + r] = Complex64::new(1.0, 0.0) / Complex64::new(g, 2.0 * TAU * f);
+            }
+        }
+        // A = −C J with C the complex factors as real 2×2 blocks on the rows.
+        let a = faer::Mat::<f64>::from_fn(nu, nu, |i, j| {
+            let k = i / 2;
+            let (r0, r1) = (self.jac[(2 * k) * nu + j], self.jac[(2 * k + 1) * nu + j]);
+            let z = c[k] * Complex64::new(r0, r1);
+            -if i % 2 == 0 { z.re } else { z.im }
+        });
+        if a.col_iter().any(|col| col.iter().any(|v| !v.is_finite())) {
+            return Err(SimError::Hb(
+                "the steady state has non-finite amplitudes; no stability verdict".into(),
+            ));
+        }
+        let eig = a
+            .eigenvalues()
+            .map_err(|e| SimError::Hb(format!("eigenvalues of the slow flow: {e:?}")))?;
+        let growth = eig.iter().map(|z| z.re).fold(f64::NEG_INFINITY, f64::max);
+        let decay = (0..nm)
+            .map(|n| 0.5 * self.model.gamma(n))
+            .fold(f64::INFINITY, f64::min);
+        Ok(Stability {
+            stable: growth < 1e-6 * decay,
+            growth_rate: growth,
+            linear_decay_rate: decay,
+        })
     }
 
     /// Newton at drive fraction `s` from the current `self.x`. Returns `(converged,
@@ -516,6 +596,17 @@ pub fn steady_state(
     Ok(solver.solve(settings))
 }
 
+/// Stability of `state`, a steady state of `model` under `drive` (solved on its own lattice),
+/// by Hill's method in slow-flow form (see [`HbSolver::stability`]).
+pub fn check_stability(
+    model: &NumericModel,
+    drive: &Excitation,
+    state: &SteadyState,
+) -> Result<Stability, SimError> {
+    let mut solver = HbSolver::with_lattice(model, drive, state.lattice_hz.clone())?;
+    solver.stability(state)
+}
+
 /// What widening the lattice changes: the steady state with the given settings, the one with
 /// the order raised by 2 and the window by 1.5×, and the largest change of an amplitude at the
 /// frequencies `at_hz` (every lattice frequency of the first when empty), relative to the
@@ -620,5 +711,90 @@ mod tests {
         // Nonlinear: differs clearly from the linear response.
         let lin = linear_response(m.omega(0), m.gamma(0), 1003.0, Complex64::new(30.0, 0.0));
         assert!((x - lin).norm() > 0.05 * lin.norm());
+    }
+
+    /// Positive roots `a = |X|²` of the one-harmonic Duffing balance
+    /// `k² a³ + 2pk a² + (p² + q²) a − |F|² = 0` (`L = p + iq`, `k = 3β/4`).
+    fn duffing_roots(l: Complex64, k: f64, f: f64) -> Vec<f64> {
+        let g = |a: f64| k * k * a * a * a + 2.0 * l.re * k * a * a + l.norm_sqr() * a - f * f;
+        let grid: Vec<f64> = (0..4000)
+            .map(|i| 1e-16 * 10f64.powf(i as f64 / 250.0))
+            .collect();
+        let mut out = Vec::new();
+        for w in grid.windows(2) {
+            let (mut lo, mut hi) = (w[0], w[1]);
+            if g(lo).signum() == g(hi).signum() {
+                continue;
+            }
+            for _ in 0..200 {
+                let mid = 0.5 * (lo + hi);
+                if g(mid).signum() == g(lo).signum() {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            out.push(0.5 * (lo + hi));
+        }
+        out
+    }
+
+    #[test]
+    fn duffing_branches_stability() {
+        // Hardening Duffing, f0 = 1 kHz, Q = 100, strongly driven: three branches above resonance.
+        let beta = 4e13;
+        let m = duffing(beta);
+        let force = 300.0;
+        let k = 0.75 * beta;
+        let (w, g) = (m.omega(0), m.gamma(0));
+        let mut found = None;
+        for i in 0..400 {
+            let f = 1000.0 + 0.5 * i as f64;
+            let o = TAU * f;
+            let l = Complex64::new(w * w - o * o, o * g);
+            let roots = duffing_roots(l, k, force);
+            if roots.len() == 3 {
+                found = Some((f, l, roots));
+                break;
+            }
+        }
+        let (f, l, roots) = found.expect("a frequency with three branches");
+        let drive = Excitation {
+            tones_hz: vec![f],
+            force: vec![vec![Complex64::new(force, 0.0)]],
+        };
+        let mut solver = HbSolver::with_lattice(&m, &drive, vec![f]).expect("solver");
+        let mut verdicts = Vec::new();
+        for &a in &roots {
+            let x = Complex64::new(force, 0.0) / (l + k * a);
+            let st = solver.solve_from(&[vec![x]], &HbSettings::default());
+            assert!(st.converged());
+            assert!((st.amplitudes[0][0] - x).norm() < 1e-8 * x.norm());
+            let v = solver.stability(&st).expect("verdict");
+            verdicts.push((v, st));
+        }
+        // Lower and upper branches stable, the middle one a saddle.
+        assert!(verdicts[0].0.stable && verdicts[2].0.stable, "{verdicts:?}");
+        assert!(!verdicts[1].0.stable, "{:?}", verdicts[1].0);
+        assert!(verdicts[1].0.growth_rate > 1e-3 * verdicts[1].0.linear_decay_rate);
+        // Stable branches decay no faster than the linear resonator (rate γ/2).
+        for i in [0, 2] {
+            let v = verdicts[i].0;
+            assert!(
+                v.growth_rate < 0.0 && v.growth_rate >= -1.1 * v.linear_decay_rate,
+                "{v:?}"
+            );
+        }
+        // check_stability agrees, and a linear-regime state is stable at rate ≈ γ/2.
+        let v = check_stability(&m, &drive, &verdicts[1].1).expect("verdict");
+        assert!(!v.stable);
+        let weak = Excitation {
+            tones_hz: vec![1000.0],
+            force: vec![vec![Complex64::new(1e-3, 0.0)]],
+        };
+        let st = steady_state(&m, &weak, &HbSettings::default()).expect("solve");
+        let v = check_stability(&m, &weak, &st).expect("verdict");
+        assert!(v.stable);
+        assert!((v.growth_rate + 0.5 * g).abs() < 1e-3 * g, "{v:?}");
     }
 }

@@ -34,8 +34,8 @@ mod time_domain;
 pub use error::SimError;
 pub use excitation::{common_grid, linear_response, Excitation};
 pub use hb::{
-    convergence_report, steady_state, ConvergenceReport, HbSettings, HbSolver, HbStatus,
-    SteadyState, MAX_MODES,
+    check_stability, convergence_report, steady_state, ConvergenceReport, HbSettings, HbSolver,
+    HbStatus, Stability, SteadyState, MAX_MODES,
 };
 pub use lattice::{choose_lattice, LatticeSettings, LINE_TOL_HZ};
 pub use noise::{lockin_noise_sigma, NoiseGen};
