@@ -35,10 +35,10 @@
 //! free unknown are fitted together. `joint` fits everything in one problem.
 
 use crate::dataset::{Dataset, DatasetError};
-use crate::solve::{solve_ls, FitStatus};
+use crate::solve::{solve_ls, FitStatus, LsSolution};
 use harmonid_model::{Linear, Model, ParamKind};
 use harmonid_poly::{rational_to_f64, PowerProduct};
-use harmonid_spectral::{monomial_amplitudes, ProductPlan, ProductScratch};
+use harmonid_spectral::{monomial_amplitudes, monomial_jacobian, ProductPlan, ProductScratch};
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 use std::collections::BTreeMap;
@@ -70,15 +70,22 @@ pub struct Settings {
     /// A drive tone is "near" a resonance when `|f − f_nominal| ≤ near_rel · f_nominal`
     /// (default 0.05).
     pub near_rel: f64,
-    /// Weight rows by the noise of their equation estimated from the scatter across shots, when
-    /// there are at least this many shots (default 5; 0 disables weighting).
+    /// Take the noise of each measured amplitude from the scatter across shots when there are
+    /// at least this many shots (default 5; 0: assume equal noise on every amplitude).
     pub min_shots_for_weights: usize,
     /// Relative singular value below which a fit's matrix is considered rank deficient (default
     /// 1e-9): the unknown dominating the weakest direction is reported as not identifiable.
     pub rank_tol: f64,
-    /// Shrinkage of the off-diagonal row covariance estimated from shots towards zero, in
-    /// `[0, 1]` (default 0.2; 1 = rows weighted by their own noise only).
-    pub shrinkage: f64,
+    /// Generalised least squares (default true): after an unweighted first fit, weight the
+    /// equations by the covariance of their errors that noise on the measured amplitudes
+    /// causes (linearised, regressor noise included), twice. With at least
+    /// `min_shots_for_weights` shots the amplitudes' noise comes from the scatter across shots.
+    pub gls: bool,
+    /// With at least 20 shots (default true): weight by the sample covariance across shots of
+    /// the equation residuals at the median estimate (shrunk 20 % towards its diagonal)
+    /// instead of the linearised one. On simulated nanostring data (0.1 nm, 50 shots, four
+    /// seeds) it gave 10-25 % smaller per-shot scatter of Q1 and f1 than the linearised one.
+    pub sample_covariance: bool,
 }
 
 impl Default for Settings {
@@ -90,7 +97,8 @@ impl Default for Settings {
             near_rel: 0.05,
             min_shots_for_weights: 5,
             rank_tol: 1e-9,
-            shrinkage: 0.2,
+            gls: true,
+            sample_covariance: true,
         }
     }
 }
@@ -982,12 +990,61 @@ impl Problem {
         let mut groups = Vec::new();
         let weighted =
             settings.min_shots_for_weights > 0 && nshots >= settings.min_shots_for_weights;
+        // Noise variance of every modal amplitude (per quadrature), from the scatter across
+        // shots; relative (all 1) when there are too few shots or the data are noise-free.
+        let mut data_var: Vec<Vec<f64>> = self
+            .meas
+            .iter()
+            .map(|m| {
+                m.weights
+                    .iter()
+                    .map(|w| w.iter().map(|x| x * x).sum())
+                    .collect()
+            })
+            .collect();
+        let relative_var = data_var.clone();
+        let mut absolute = false;
+        if weighted {
+            let mut all_positive = true;
+            for (mi, dv) in data_var.iter_mut().enumerate() {
+                let spectra: Vec<Vec<Vec<Complex64>>> =
+                    (0..nshots).map(|s| self.modal_spectra(ds, mi, s)).collect();
+                for (r, v) in dv.iter_mut().enumerate() {
+                    let n = self.meas[mi].mode_of[r];
+                    let mean: Complex64 =
+                        spectra.iter().map(|x| x[n][r]).sum::<Complex64>() / nshots as f64;
+                    let var = spectra
+                        .iter()
+                        .map(|x| (x[n][r] - mean).norm_sqr())
+                        .sum::<f64>()
+                        / (2.0 * (nshots as f64 - 1.0));
+                    *v = var;
+                    all_positive &= var > 0.0;
+                }
+            }
+            if all_positive {
+                absolute = true;
+            } else {
+                data_var = relative_var;
+            }
+        }
+        let gls_iters = if settings.gls { 2 } else { 0 };
+        // The shot-averaged dataset (for linearising the noise propagation).
+        let mut mean_ds = ds.clone();
+        for m in &mut mean_ds.measurements {
+            let per = m.freqs_hz.len() * m.points.len();
+            let mut mean = vec![Complex64::new(0.0, 0.0); per];
+            for s in 0..m.n_shots {
+                for (i, x) in mean.iter_mut().enumerate() {
+                    *x += m.data[s * per + i] / m.n_shots as f64;
+                }
+            }
+            m.data = mean;
+            m.n_shots = 1;
+        }
         for g in &self.groups {
             let lower: Vec<Option<f64>> = g.unknowns.iter().map(|&u| self.bounds[u].0).collect();
             let upper: Vec<Option<f64>> = g.unknowns.iter().map(|&u| self.bounds[u].1).collect();
-            // Whitening matrix of the group's real rows (GLS), from the scatter across shots.
-            let mut whiten: Option<DMatrix<f64>> = None;
-            let passes = if weighted { 3 } else { 1 };
             let mut diag = GroupDiagnostics {
                 stage: g.stage,
                 measurements: g.measurements.clone(),
@@ -995,72 +1052,105 @@ impl Problem {
                 cond: 0.0,
                 rms_residual: 0.0,
                 rms_rhs: 0.0,
-                weighted,
+                weighted: settings.gls,
+                noise_from_shots: settings.gls && absolute,
                 status_bounds: 0,
                 rows: 0,
             };
-            for pass in 0..passes {
-                let mut conds = Vec::new();
-                let (mut rss_sum, mut rhs_sum) = (0.0, 0.0);
-                diag.status_bounds = 0;
+            let mut conds = Vec::new();
+            let (mut rss_sum, mut rhs_sum) = (0.0, 0.0);
+            // Fixed-Q modes: iterate γ = ω/Q with the fitted ω.
+            let iters = (1 + gls_iters).max(if self.fixed_q.iter().any(Option::is_some) {
+                3
+            } else {
+                1
+            });
+            let mut sols: Vec<Option<(LsSolution, usize, f64, bool)>> = vec![None; nshots];
+            for it in 0..iters {
+                let gls_now = it > 0 && it <= gls_iters;
+                // With many noisy shots: one weighting for all shots, linearised at the median
+                // estimate and the shot-averaged spectra (much less noisy than one shot's).
+                let shared_l = if gls_now && absolute && settings.sample_covariance && nshots >= 20
+                {
+                    self.whitening(&rows, g, &values, 0.2)
+                } else if gls_now && absolute {
+                    let mut xbar = values[0].clone();
+                    for (u, xb) in xbar.iter_mut().enumerate() {
+                        let mut v: Vec<f64> = values.iter().map(|x| x[u]).collect();
+                        v.sort_by(f64::total_cmp);
+                        *xb = v[v.len() / 2];
+                    }
+                    let sigma = self.equation_cov(&mean_ds, g, 0, &xbar, &data_var, &mut scratch);
+                    sigma.cholesky().map(|c| c.l())
+                } else {
+                    None
+                };
                 for s in 0..nshots {
-                    // Fixed-Q modes: iterate γ = ω/Q with the fitted ω.
-                    let iters = if self.fixed_q.iter().any(Option::is_some) {
-                        3
+                    let (mut a, mut b, _) =
+                        self.assemble(&rows[s], &g.measurements, &g.unknowns, &values[s], None);
+                    let mut whitened = false;
+                    let own_l = if gls_now && shared_l.is_none() {
+                        self.equation_cov(ds, g, s, &values[s], &data_var, &mut scratch)
+                            .cholesky()
+                            .map(|c| c.l())
                     } else {
-                        1
+                        None
                     };
-                    let mut sol = None;
-                    for _ in 0..iters {
-                        let (mut a, mut b, _) =
-                            self.assemble(&rows[s], &g.measurements, &g.unknowns, &values[s], None);
-                        if let Some(w) = &whiten {
-                            a = w * a;
-                            b = w * b;
+                    if let Some(l) = shared_l.as_ref().or(own_l.as_ref()) {
+                        if let (Some(wa), Some(wb)) =
+                            (l.solve_lower_triangular(&a), l.solve_lower_triangular(&b))
+                        {
+                            a = wa;
+                            b = wb;
+                            whitened = true;
                         }
-                        let so = solve_ls(&a, &b, &lower, &upper);
+                    }
+                    let so = solve_ls(&a, &b, &lower, &upper);
+                    if so.x.iter().all(|x| x.is_finite()) {
                         for (j, &u) in g.unknowns.iter().enumerate() {
                             values[s][u] = so.x[j];
                         }
-                        self.update_fixed_q(&mut values[s]);
-                        sol = Some((so, a.nrows(), b.norm_squared()));
                     }
-                    let Some((so, nrows, bnorm2)) = sol else {
-                        continue;
-                    };
-                    if so.status != FitStatus::Solved {
-                        diag.status_bounds += 1;
-                    }
-                    let k = g.unknowns.len();
-                    for (j, &u) in g.unknowns.iter().enumerate() {
-                        cov_diag[s][u] = so.cov_unit[j * k + j] * so.sigma2;
-                    }
-                    // ω², γ covariance per mode, for f and Q errors.
-                    for (j, &u) in g.unknowns.iter().enumerate() {
-                        if let Unknown::OmegaSq(n) = self.unknowns[u] {
-                            if let Some(j2) = g
-                                .unknowns
-                                .iter()
-                                .position(|&v| self.unknowns[v] == Unknown::Gamma(n))
-                            {
-                                let c = |x: usize, y: usize| so.cov_unit[x * k + y] * so.sigma2;
-                                cov_lin[s].insert(n, [c(j, j), c(j, j2), c(j2, j), c(j2, j2)]);
-                            }
-                        }
-                    }
-                    conds.push(so.cond);
-                    rss_sum += so.rss;
-                    rhs_sum += bnorm2;
-                    diag.rows = nrows;
-                }
-                conds.sort_by(f64::total_cmp);
-                diag.cond = conds.get(conds.len() / 2).copied().unwrap_or(f64::NAN);
-                diag.rms_residual = (rss_sum / rhs_sum.max(f64::MIN_POSITIVE)).sqrt();
-                diag.rms_rhs = rhs_sum;
-                if pass + 1 < passes {
-                    whiten = self.whitening(&rows, g, &values, settings.shrinkage);
+                    self.update_fixed_q(&mut values[s]);
+                    sols[s] = Some((so, a.nrows(), b.norm_squared(), whitened));
                 }
             }
+            for (s, sol) in sols.into_iter().enumerate() {
+                let Some((so, nrows, bnorm2, whitened)) = sol else {
+                    continue;
+                };
+                if so.status != FitStatus::Solved {
+                    diag.status_bounds += 1;
+                }
+                // With known data noise the whitened problem has unit variance; otherwise the
+                // scale comes from the residuals.
+                let scale = if whitened && absolute { 1.0 } else { so.sigma2 };
+                let k = g.unknowns.len();
+                for (j, &u) in g.unknowns.iter().enumerate() {
+                    cov_diag[s][u] = so.cov_unit[j * k + j] * scale;
+                }
+                // ω², γ covariance per mode, for f and Q errors.
+                for (j, &u) in g.unknowns.iter().enumerate() {
+                    if let Unknown::OmegaSq(n) = self.unknowns[u] {
+                        if let Some(j2) = g
+                            .unknowns
+                            .iter()
+                            .position(|&v| self.unknowns[v] == Unknown::Gamma(n))
+                        {
+                            let c = |x: usize, y: usize| so.cov_unit[x * k + y] * scale;
+                            cov_lin[s].insert(n, [c(j, j), c(j, j2), c(j2, j), c(j2, j2)]);
+                        }
+                    }
+                }
+                conds.push(so.cond);
+                rss_sum += so.rss;
+                rhs_sum += bnorm2;
+                diag.rows = nrows;
+            }
+            conds.sort_by(f64::total_cmp);
+            diag.cond = conds.get(conds.len() / 2).copied().unwrap_or(f64::NAN);
+            diag.rms_residual = (rss_sum / rhs_sum.max(f64::MIN_POSITIVE)).sqrt();
+            diag.rms_rhs = rhs_sum;
             groups.push(diag);
         }
         Fit {
@@ -1071,7 +1161,119 @@ impl Problem {
         }
     }
 
-    /// Whitening matrix `W` (`Wᵀ W = Σ⁻¹`) of the group's real rows, where `Σ` is the covariance
+    /// Covariance of the group's real equation errors caused by noise on the measured modal
+    /// amplitudes, linearised at the current estimate: `Σ = J D Jᵀ`, where `J` is the derivative
+    /// of every equation (real, imaginary rows) with respect to the real and imaginary parts of
+    /// every modal amplitude (through the linear term and, via the products ĝ, the nonlinear
+    /// terms), and `D` the amplitudes' noise variances. Row order as in `assemble`.
+    ///
+    /// Whitening with `Σ` makes the least squares a generalised (Gauss-Markov) fit that accounts
+    /// for noise in the regressors to first order, and gives covariances that match the scatter.
+    fn equation_cov(
+        &self,
+        ds: &Dataset,
+        g: &FitGroup,
+        shot: usize,
+        values: &[f64],
+        data_var: &[Vec<f64>],
+        scratch: &mut [ProductScratch],
+    ) -> DMatrix<f64> {
+        let total: usize = g
+            .measurements
+            .iter()
+            .map(|&m| self.meas[m].mode_of.len())
+            .sum();
+        let mut sigma = DMatrix::<f64>::zeros(2 * total, 2 * total);
+        let val = |u: &Unknown| -> f64 {
+            self.index_of(u).map_or(0.0, |i| {
+                if values[i].is_finite() {
+                    values[i]
+                } else if self.fixed[i].is_finite() {
+                    self.fixed[i]
+                } else {
+                    0.0
+                }
+            })
+        };
+        let mut offset = 0;
+        for &mi in &g.measurements {
+            let prep = &self.meas[mi];
+            let m = &ds.measurements[mi];
+            let nf = prep.mode_of.len();
+            let modal = self.modal_spectra(ds, mi, shot);
+            let modal_ref: Vec<&[Complex64]> = modal.iter().map(|v| v.as_slice()).collect();
+            // J[o][2s + quad], complex.
+            let mut jac = vec![Complex64::new(0.0, 0.0); nf * 2 * nf];
+            for r in 0..nf {
+                let n = prep.mode_of[r];
+                let om = 2.0 * PI * m.freqs_hz[r];
+                let lin = Complex64::new(
+                    val(&Unknown::OmegaSq(n)) - om * om,
+                    om * val(&Unknown::Gamma(n)),
+                );
+                jac[r * 2 * nf + 2 * r] += lin;
+                jac[r * 2 * nf + 2 * r + 1] += lin * Complex64::i();
+            }
+            let mut jr = vec![Complex64::new(0.0, 0.0); nf * nf];
+            let mut ji = vec![Complex64::new(0.0, 0.0); nf * nf];
+            for &n in &prep.active {
+                for t in &self.eqs[n] {
+                    let b = t.konst
+                        + t.params
+                            .iter()
+                            .map(|&(p, f)| f * val(&Unknown::Param(p)))
+                            .sum::<f64>();
+                    if b == 0.0 || !b.is_finite() {
+                        continue;
+                    }
+                    let mono = &self.monomials[t.monomial];
+                    for &(v, _) in mono.factors() {
+                        monomial_jacobian(
+                            &prep.plan,
+                            mono,
+                            &modal_ref,
+                            v,
+                            &mut jr,
+                            &mut ji,
+                            &mut scratch[mi],
+                        );
+                        for o in (0..nf).filter(|&o| prep.mode_of[o] == n) {
+                            for s in (0..nf).filter(|&s| prep.mode_of[s] == v.index()) {
+                                jac[o * 2 * nf + 2 * s] += jr[o * nf + s] * b;
+                                jac[o * 2 * nf + 2 * s + 1] += ji[o * nf + s] * b;
+                            }
+                        }
+                    }
+                }
+            }
+            // Σ_block = Jr D Jrᵀ with real rows (2o: re, 2o+1: im).
+            let real = |row: usize, c: usize| -> f64 {
+                let z = jac[(row / 2) * 2 * nf + c];
+                if row % 2 == 0 {
+                    z.re
+                } else {
+                    z.im
+                }
+            };
+            for r1 in 0..2 * nf {
+                for r2 in r1..2 * nf {
+                    let mut acc = 0.0;
+                    for c in 0..2 * nf {
+                        let a = real(r1, c);
+                        if a != 0.0 {
+                            acc += a * real(r2, c) * data_var[mi][c / 2];
+                        }
+                    }
+                    sigma[(offset + r1, offset + r2)] = acc;
+                    sigma[(offset + r2, offset + r1)] = acc;
+                }
+            }
+            offset += 2 * nf;
+        }
+        sigma
+    }
+
+    /// Cholesky factor `L` (`L Lᵀ = Σ`) of the sample covariance of the group's real rows, where `Σ` is the covariance
     /// across shots of the equation residuals evaluated at the median estimate (held fixed):
     /// the equation error the data noise makes, correlations between rows included (the same
     /// noisy amplitude enters several rows through the products). `Σ` is shrunk towards its
@@ -1084,6 +1286,7 @@ impl Problem {
         values: &[Vec<f64>],
         shrinkage: f64,
     ) -> Option<DMatrix<f64>> {
+        // Returns the Cholesky factor L of the shrunk sample covariance (whiten with L⁻¹).
         let nshots = rows.len();
         let mut xbar = values.first()?.clone();
         for &u in &g.unknowns {
@@ -1120,9 +1323,7 @@ impl Problem {
                 }
             }
         }
-        let chol = cov.cholesky()?;
-        // W = L⁻¹.
-        chol.l().try_inverse()
+        cov.cholesky().map(|c| c.l())
     }
 
     fn update_fixed_q(&self, values: &mut [f64]) {
@@ -1241,8 +1442,12 @@ pub struct GroupDiagnostics {
     pub rms_residual: f64,
     /// `Σ ‖b‖²` over shots (for reference).
     pub rms_rhs: f64,
-    /// Whether rows were weighted by the noise estimated from shot scatter.
+    /// Whether the fit is a generalised least squares (equations weighted by the covariance
+    /// of their errors).
     pub weighted: bool,
+    /// Whether the amplitudes' noise came from the scatter across shots (else: equal noise on
+    /// every measured amplitude, scale from the residuals).
+    pub noise_from_shots: bool,
     /// Number of shots in which a bound was active (or the bounded solve failed).
     pub status_bounds: usize,
     /// Real rows of the fit.

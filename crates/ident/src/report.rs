@@ -152,8 +152,11 @@ pub struct FitReport {
     pub relative_residual: f64,
     /// Real equations.
     pub rows: usize,
-    /// Whether rows were weighted by the noise estimated from the scatter across shots.
+    /// Whether the equations were weighted by the covariance of their errors (generalised
+    /// least squares).
     pub weighted: bool,
+    /// Whether the measured amplitudes' noise came from the scatter across shots.
+    pub noise_from_shots: bool,
     /// Shots in which a bound was active.
     pub shots_with_active_bounds: usize,
 }
@@ -427,6 +430,7 @@ impl Report {
                 relative_residual: g.rms_residual,
                 rows: g.rows,
                 weighted: g.weighted,
+                noise_from_shots: g.noise_from_shots,
                 shots_with_active_bounds: g.status_bounds,
             });
         }
@@ -570,10 +574,10 @@ impl Report {
                 f.rows,
                 f.condition_number,
                 f.relative_residual,
-                if f.weighted {
-                    ", rows weighted by shot scatter"
-                } else {
-                    ""
+                match (f.weighted, f.noise_from_shots) {
+                    (true, true) => ", GLS, noise from shot scatter",
+                    (true, false) => ", GLS with equal amplitude noise",
+                    _ => ", unweighted",
                 }
             );
         }
