@@ -126,3 +126,31 @@ fn weighting_experiment() {
         }
     }
 }
+
+/// One reweighting instead of two: quality check (experiment).
+#[test]
+#[ignore = "experiment"]
+fn gls_iterations_experiment() {
+    let (model, v, d) = nanostring();
+    for it in [1usize, 2] {
+        for seed in 0..3u64 {
+            let ds = simulate(&model, &v, &d, &[0.309, 0.588], 1e-11, 60, 200 + seed);
+            let settings = Settings {
+                gls_iterations: it,
+                min_shots_for_weights: 0,
+                ..Settings::default()
+            };
+            let p = Problem::new(&model, &ds, &settings).expect("problem");
+            let fit = p.fit(&ds, &settings);
+            let i = p.index_of(&Unknown::Gamma(0)).expect("g");
+            let est: Vec<f64> = fit.values.iter().map(|x| x[i]).collect();
+            let mut se: Vec<f64> = fit.cov_diag.iter().map(|c| c[i].sqrt()).collect();
+            se.sort_by(f64::total_cmp);
+            println!(
+                "iters {it} seed {seed}: gamma1 scatter {:.3e} ratio {:.2}",
+                std(&est),
+                se[30] / std(&est)
+            );
+        }
+    }
+}
