@@ -153,3 +153,54 @@ fn nanostring_5mode_round_trip() {
     assert_eq!(r.fits.len(), 15);
     check(&r, &v, &["q1", "q2", "q3", "q4", "q5"], 1e-2);
 }
+
+/// Without a measurement that drives q1 and q2 together, g12 is reported as not identifiable,
+/// naming the measurement it needs, never as a silent number; the rest is still identified.
+/// With one actuator gain per mode for the whole dataset the fits still recover everything.
+#[test]
+fn missing_measurement_is_reported_and_gain_per_mode_works() {
+    let m = model("nanostring_2mode");
+    let v = Values {
+        f_hz: vec![207582.0, 415842.0],
+        q: vec![116232.0, 599173.0],
+        params: params(&[("beta1", 2.68e22), ("beta2", 3.7e23), ("g12", 8.57e22)]),
+    };
+    let (c1, c2) = (207582.5, 415841.5);
+    let mut d = vec![
+        Design {
+            name: "single_q1".into(),
+            tones: vec![(c1 - 10.0, 0, 3.5), (c1 + 10.0, 0, 3.5)],
+            observe: vec![],
+        },
+        Design {
+            name: "single_q2".into(),
+            tones: vec![(c2 - 10.0, 1, 1.81), (c2 + 10.0, 1, 1.81)],
+            observe: vec![],
+        },
+    ];
+    let ds = simulate(&m, &v, &d, &[0.309, 0.588], 0.0, 1, 7);
+    let r = identify(&m, &ds, &Settings::default()).expect("identify");
+    let g = &r.parameters["g12"];
+    assert!(!g.identifiable);
+    assert!(g.value.is_nan(), "no silent number: {}", g.value);
+    let reason = g.reason.clone().unwrap_or_default();
+    assert!(reason.contains("q1+q2"), "{reason}");
+    assert!(r.warnings.iter().any(|w| w.contains("g12")));
+    assert!(r.parameters["beta1"].identifiable);
+    let json = r.to_json();
+    assert!(json.contains("\"identifiable\": false"), "{json}");
+
+    d.push(Design {
+        name: "couple_q1_q2".into(),
+        tones: vec![(c1 - 10.0, 0, 3.5), (c1 + 10.0, 0, 3.5), (c2, 1, 1.81)],
+        observe: vec![],
+    });
+    let ds = simulate(&m, &v, &d, &[0.309, 0.588], 0.0, 1, 7);
+    let settings = Settings {
+        force_model: harmonid_ident::ForceModel::GainPerMode,
+        ..Settings::default()
+    };
+    let r = identify(&m, &ds, &settings).expect("identify");
+    assert_eq!(r.gains.keys().collect::<Vec<_>>(), vec!["all"]);
+    check(&r, &v, &["q1", "q2"], 1e-2);
+}
