@@ -13,8 +13,10 @@
 //! - `model/lower/N`: the whole pipeline from source text (parse, expand, resolve, lower,
 //!   differentiate) to a `Model`;
 //! - `model/derive/N`: the derivative step alone, `∂U/∂q_n` for every mode from the lowered `U`.
-use criterion::{black_box, criterion_group, criterion_main, BenchmarkId, Criterion};
+#![allow(missing_docs)] // criterion_group! generates undocumented items
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use harmonid::model::{equations_from_potential, parse_str};
+use std::hint::black_box;
 
 fn full_quartic_source(n: usize) -> String {
     format!(
