@@ -20,6 +20,11 @@ use std::f64::consts::TAU;
 const Z: Complex64 = Complex64::new(0.0, 0.0);
 /// Most modes a harmonic-balance problem handles (fixed-size slice tables, no allocation).
 pub const MAX_MODES: usize = 32;
+/// A chord step (stale Jacobian) is kept when it shrinks the residual at least this much.
+const CHORD_RATE: f64 = 0.25;
+/// Residual tolerance at the intermediate levels of the drive ramp (they only serve the
+/// predictor of the next level; the full drive is solved to [`HbSettings::tol`]).
+const RAMP_TOL: f64 = 1e-7;
 
 /// Settings of a harmonic-balance solve.
 #[derive(Debug, Clone, PartialEq)]
@@ -63,7 +68,8 @@ impl Default for HbSettings {
 pub enum HbStatus {
     /// Newton converged at full drive.
     Converged {
-        /// Newton iterations at the last drive level.
+        /// Jacobian evaluations of Newton at the last drive level (0 when the Jacobian of an
+        /// earlier level served).
         iterations: usize,
     },
     /// Newton did not converge; the state is the last converged one (at `drive_fraction`).
@@ -173,6 +179,10 @@ pub struct HbSolver {
     piv: Vec<usize>,
     step: Vec<f64>,
     x_try: Vec<Complex64>,
+    /// `jac`/`piv` hold a factorised Jacobian (of some earlier state).
+    have_lu: bool,
+    /// The factorised Jacobian is that of the current `x`.
+    fresh: bool,
 }
 
 impl HbSolver {
@@ -256,6 +266,8 @@ impl HbSolver {
             piv: vec![0; nu],
             step: vec![0.0; nu],
             x_try: vec![Z; nm * nr],
+            have_lu: false,
+            fresh: false,
             lattice,
         })
     }
@@ -385,6 +397,7 @@ impl HbSolver {
             self.x[n * nr..(n + 1) * nr].copy_from_slice(&state.amplitudes[n]);
         }
         self.assemble_jacobian();
+        self.have_lu = false;
         let nu = self.unknowns();
         let mut c = vec![Z; nm * nr];
         for n in 0..nm {
@@ -419,24 +432,56 @@ impl HbSolver {
         })
     }
 
-    /// Newton at drive fraction `s` from the current `self.x`. Returns `(converged,
-    /// iterations, residual)`.
+    /// Newton at drive fraction `s` from the current `self.x`, reusing the factorised Jacobian
+    /// of an earlier state while it contracts the residual by at least [`CHORD_RATE`] per step
+    /// (chord/Shamanskii Newton: a refresh costs far more than a residual). `max_iter` bounds
+    /// the Jacobian evaluations; `4 · max_iter` the chord steps. Returns `(converged,
+    /// Jacobian evaluations, residual)`.
     fn newton(&mut self, s: f64, tol: f64, max_iter: usize) -> (bool, usize, f64) {
         let nu = self.unknowns();
         let mut r0 = self.residual(false, s);
-        for it in 0..max_iter {
+        let mut evals = 0;
+        let mut chord = 0;
+        loop {
             if r0 <= tol {
-                return (true, it, r0);
+                return (true, evals, r0);
             }
-            if !self.jacobian() {
-                return (false, it, r0);
+            if !self.have_lu {
+                if evals >= max_iter {
+                    return (false, evals, r0);
+                }
+                evals += 1;
+                if !self.jacobian() {
+                    self.residual(false, s);
+                    return (false, evals, r0);
+                }
+                self.have_lu = true;
+                self.fresh = true;
             }
             for i in 0..nu / 2 {
                 self.step[2 * i] = -self.res[i].re;
                 self.step[2 * i + 1] = -self.res[i].im;
             }
             lu_solve(&self.jac, nu, &self.piv, &mut self.step);
-            // Backtracking on the residual norm.
+            if !self.fresh {
+                // Chord step with the stale Jacobian: keep it only if it contracts well.
+                chord += 1;
+                for i in 0..nu / 2 {
+                    self.x_try[i] =
+                        self.x[i] + Complex64::new(self.step[2 * i], self.step[2 * i + 1]);
+                }
+                let r1 = self.residual(true, s);
+                if (r1 < CHORD_RATE * r0 || r1 <= tol) && chord <= 4 * max_iter {
+                    std::mem::swap(&mut self.x, &mut self.x_try);
+                    r0 = r1;
+                } else {
+                    // Refresh at the current state (restores self.res there first).
+                    self.residual(false, s);
+                    self.have_lu = false;
+                }
+                continue;
+            }
+            // Full Newton step with backtracking on the residual norm.
             let mut lam = 1.0;
             let mut accepted = false;
             for _ in 0..8 {
@@ -453,13 +498,13 @@ impl HbSolver {
                 }
                 lam *= 0.5;
             }
+            self.fresh = false;
             if !accepted {
                 self.residual(false, s);
-                return (false, it + 1, r0);
+                self.have_lu = false;
+                return (false, evals, r0);
             }
         }
-        let ok = r0 <= tol;
-        (ok, max_iter, r0)
     }
 
     /// Solves for the steady state under the full drive (ramped up from a small fraction when
@@ -476,7 +521,13 @@ impl HbSolver {
         for i in 0..nm * nr {
             self.x[i] = self.force[i] * s0 / self.lin[i];
         }
-        let (ok, mut iters, mut res) = self.newton(s0, settings.tol, settings.max_iter * 2);
+        self.have_lu = false;
+        let tol0 = if s0 < 1.0 {
+            settings.tol.max(RAMP_TOL)
+        } else {
+            settings.tol
+        };
+        let (ok, mut iters, mut res) = self.newton(s0, tol0, settings.max_iter * 2);
         let mut steps = 1;
         if !ok {
             return self.finish(
@@ -516,7 +567,13 @@ impl HbSolver {
                 let d = if s > prev_s { base - prev[i] } else { base };
                 self.x[i] = base + d * slope;
             }
-            let (ok, it, r) = self.newton(s_new, settings.tol, settings.max_iter);
+            // Intermediate levels only feed the predictor: a loose tolerance there.
+            let tol = if s_new < 1.0 {
+                settings.tol.max(RAMP_TOL)
+            } else {
+                settings.tol
+            };
+            let (ok, it, r) = self.newton(s_new, tol, settings.max_iter);
             steps += 1;
             if ok {
                 prev.copy_from_slice(&good);
@@ -544,6 +601,7 @@ impl HbSolver {
         for (n, row) in start.iter().enumerate().take(self.model.n_modes()) {
             self.x[n * nr..(n + 1) * nr].copy_from_slice(&row[..nr]);
         }
+        self.have_lu = false;
         let (ok, it, r) = self.newton(1.0, settings.tol, settings.max_iter * 2);
         let status = if ok {
             HbStatus::Converged { iterations: it }
