@@ -35,9 +35,15 @@ pub struct Args {
     /// With --time-domain: start from rest instead of from the harmonic-balance state.
     #[arg(long)]
     pub from_rest: bool,
-    /// With --time-domain: integration steps per period of the highest frequency.
-    #[arg(long, default_value_t = 32)]
+    /// With --time-domain: integration steps per period of the highest frequency (doubled
+    /// automatically until the local error meets the tolerance).
+    #[arg(long, default_value_t = 16)]
     pub steps_per_period: usize,
+    /// With --time-domain: RMS of white noise added to every sample of the measured signal, nm
+    /// (demodulated with it, as a lock-in would; every shot is then its own run). Adds to the
+    /// plan's per-quadrature [noise].
+    #[arg(long, default_value_t = 0.0, requires = "time_domain")]
+    pub noise_rms_nm: f64,
     /// Intermodulation order of the harmonic-balance lattice.
     #[arg(long, default_value_t = 9)]
     pub order: usize,
@@ -319,6 +325,12 @@ pub(crate) fn plan_spec(pm: &PlanMeasurement) -> MeasurementSpec {
 
 /// Runs the subcommand.
 pub fn run(args: Args) -> miette::Result<()> {
+    if !(args.noise_rms_nm.is_finite() && args.noise_rms_nm >= 0.0) {
+        return Err(miette!(
+            "--noise-rms-nm {}: expected a finite RMS ≥ 0 in nm",
+            args.noise_rms_nm
+        ));
+    }
     let model = numeric_model(&args.model, &args.values)?;
     let text = std::fs::read_to_string(&args.plan)
         .into_diagnostic()
@@ -355,7 +367,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     };
     let mut noise = NoiseGen::new(args.seed);
     let mut measurements = Vec::new();
-    for pm in &plan.measurements {
+    for (mi, pm) in plan.measurements.iter().enumerate() {
         let drive = excitation(&model, pm)?;
         let mut hs = HbSettings::default();
         hs.lattice.order = args.order;
@@ -406,35 +418,51 @@ pub fn run(args: Args) -> miette::Result<()> {
             .measure_hz
             .clone()
             .unwrap_or_else(|| st.lattice_hz.clone());
-        let values: Vec<Vec<Complex64>> = if args.time_domain {
-            let start = if args.from_rest {
-                Start::Rest
-            } else {
-                let (q, v) = st.state_at(0.0);
-                Start::State { q, v }
-            };
-            let ts = TdSettings {
-                steps_per_period: args.steps_per_period,
-                ..TdSettings::default()
-            };
-            let r = sim::simulate_lockin(&model, &drive, &freqs, &shapes, &start, &ts)
-                .into_diagnostic()
-                .wrap_err_with(|| format!("measurement {}", pm.name))?;
-            eprintln!(
-                "{}: time domain, {} steps, settled to {:.1e}",
-                pm.name, r.steps, r.settle_change
-            );
-            r.points
+        // With per-sample noise in the time domain every shot is its own run (own seed).
+        let runs = if args.time_domain && args.noise_rms_nm > 0.0 {
+            shots
         } else {
-            shapes
-                .iter()
-                .map(|s| freqs.iter().map(|&f| st.at_point(s, f)).collect())
-                .collect()
+            1
         };
+        let mut per_run: Vec<Vec<Vec<Complex64>>> = Vec::with_capacity(runs);
+        for run_idx in 0..runs {
+            let values: Vec<Vec<Complex64>> = if args.time_domain {
+                let start = if args.from_rest {
+                    Start::Rest
+                } else {
+                    let (q, v) = st.state_at(0.0);
+                    Start::State { q, v }
+                };
+                let ts = TdSettings {
+                    steps_per_period: args.steps_per_period,
+                    noise_rms: args.noise_rms_nm * 1e-9,
+                    seed: args
+                        .seed
+                        .wrapping_add(1 + run_idx as u64)
+                        .wrapping_add((mi as u64) << 32),
+                    ..TdSettings::default()
+                };
+                let r = sim::simulate_lockin(&model, &drive, &freqs, &shapes, &start, &ts)
+                    .into_diagnostic()
+                    .wrap_err_with(|| format!("measurement {}", pm.name))?;
+                eprintln!(
+                    "{}: time domain, {} steps, {} lock-in samples per window, settled to {:.1e}",
+                    pm.name, r.steps, r.samples, r.settle_change
+                );
+                r.points
+            } else {
+                shapes
+                    .iter()
+                    .map(|s| freqs.iter().map(|&f| st.at_point(s, f)).collect())
+                    .collect()
+            };
+            per_run.push(values);
+        }
         let spec = plan_spec(pm);
         let point_idx: Vec<usize> = (0..plan.points.len()).collect();
         let mut meas = Measurement::zeros(spec, freqs.clone(), point_idx, shots);
         for s in 0..shots {
+            let values = &per_run[s.min(per_run.len() - 1)];
             for (f, _) in freqs.iter().enumerate() {
                 for (p, row) in values.iter().enumerate() {
                     let mut z = row[f];
