@@ -99,7 +99,9 @@ pub struct Args {
     #[arg(long)]
     pub sample_rate_hz: Option<f64>,
     /// Simulate every realisation in the time domain with noise added to the samples and
-    /// demodulate (faithful to the paper, much slower; the window is then the lock-in's).
+    /// demodulate (faithful to the paper, much slower: seconds per measurement and
+    /// realisation; the window is then the lock-in's, a whole number of periods of every
+    /// frequency, not --window-s).
     #[arg(long)]
     pub time_domain: bool,
     /// Intermodulation order of the harmonic-balance lattice.
@@ -261,6 +263,7 @@ pub fn run(args: Args) -> miette::Result<()> {
                 let drive = excitation(&model, pm)?;
                 let (q, vel) = states[mi].state_at(0.0);
                 let ts = TdSettings {
+                    steps_per_period: 16,
                     noise_rms: rms_m,
                     seed: stream.wrapping_add(mi as u64),
                     ..TdSettings::default()
