@@ -10,7 +10,7 @@
 //! ```
 
 use crate::lattice::{choose_lattice, LatticeSettings, LINE_TOL_HZ};
-use crate::linalg::{lu_factor, lu_solve};
+use crate::linalg::DenseLu;
 use crate::{Excitation, NumericModel, SimError};
 use harmonid_poly::{PowerProduct, VarId};
 use harmonid_spectral::{monomial_amplitudes, monomial_jacobian, ProductPlan, ProductScratch};
@@ -176,10 +176,10 @@ pub struct HbSolver {
     jre: Vec<Complex64>,
     jim: Vec<Complex64>,
     jac: Vec<f64>,
-    piv: Vec<usize>,
+    lu: DenseLu,
     step: Vec<f64>,
     x_try: Vec<Complex64>,
-    /// `jac`/`piv` hold a factorised Jacobian (of some earlier state).
+    /// `lu` holds a factorised Jacobian (of some earlier state).
     have_lu: bool,
     /// The factorised Jacobian is that of the current `x`.
     fresh: bool,
@@ -263,7 +263,7 @@ impl HbSolver {
             jre: vec![Z; nr * nr],
             jim: vec![Z; nr * nr],
             jac: vec![0.0; nu * nu],
-            piv: vec![0; nu],
+            lu: DenseLu::new(nu),
             step: vec![0.0; nu],
             x_try: vec![Z; nm * nr],
             have_lu: false,
@@ -322,8 +322,7 @@ impl HbSolver {
     /// Assembles the real Jacobian at `self.x` and factorises it. `false` when singular.
     fn jacobian(&mut self) -> bool {
         self.assemble_jacobian();
-        let nu = self.unknowns();
-        lu_factor(&mut self.jac, nu, &mut self.piv)
+        self.lu.factor(&self.jac)
     }
 
     /// Assembles the real Jacobian `∂(Re R, Im R)/∂(Re X, Im X)` at `self.x` into `self.jac`
@@ -462,7 +461,7 @@ impl HbSolver {
                 self.step[2 * i] = -self.res[i].re;
                 self.step[2 * i + 1] = -self.res[i].im;
             }
-            lu_solve(&self.jac, nu, &self.piv, &mut self.step);
+            self.lu.solve(&mut self.step);
             if !self.fresh {
                 // Chord step with the stale Jacobian: keep it only if it contracts well.
                 chord += 1;
