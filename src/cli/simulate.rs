@@ -102,7 +102,8 @@ pub(crate) struct PlanMeasurement {
     /// Force phase per tone on each mode, rad (default 0).
     #[serde(default)]
     phase_rad: BTreeMap<String, Vec<f64>>,
-    /// Measured frequencies, Hz; default: every lattice frequency near a resonance.
+    /// Measured frequencies, Hz; default: every drive tone and lattice frequency near a
+    /// resonance (not the static offset nor far even-order lines, `sim::measured_lines`).
     #[serde(default)]
     pub(crate) measure_hz: Option<Vec<f64>>,
     #[serde(default)]
@@ -414,10 +415,9 @@ pub fn run(args: Args) -> miette::Result<()> {
                 );
             }
         }
-        let freqs: Vec<f64> = pm
-            .measure_hz
-            .clone()
-            .unwrap_or_else(|| st.lattice_hz.clone());
+        let freqs: Vec<f64> = pm.measure_hz.clone().unwrap_or_else(|| {
+            sim::measured_lines(&model, &drive, &st.lattice_hz, hs.lattice.window_rel)
+        });
         // With per-sample noise in the time domain every shot is its own run (own seed).
         let runs = if args.time_domain && args.noise_rms_nm > 0.0 {
             shots

@@ -8,6 +8,13 @@
 //! ```text
 //! R_{n,r} = (ω_n² − Ω_r² + i Ω_r ω_n/Q_n) X_{n,r} + Σ_m b_m^(n) [m(q)]_r − F_{n,r}.
 //! ```
+//!
+//! Static offset: models with even-degree terms have a 0 Hz line (see
+//! [`crate::choose_lattice`]) whose amplitude is the real offset `X_{n,0} = q̄_n` (the mean of
+//! `q_n`); there the linear part is `ω_n² X` and `[m(q)]_0` is the mean of the product. Its
+//! imaginary part has no physical meaning: the products ignore it, so its residual row is
+//! `ω_n² Im X_{n,0} = 0`, a decoupled diagonal entry that keeps the Jacobian nonsingular and
+//! Newton leaves it at zero (it is set exactly to zero in the returned state).
 
 use crate::lattice::{choose_lattice, LatticeSettings, LINE_TOL_HZ};
 use crate::linalg::DenseLu;
@@ -82,7 +89,7 @@ pub enum HbStatus {
 /// A harmonic-balance steady state.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SteadyState {
-    /// Lattice frequencies, Hz (sorted).
+    /// Lattice frequencies, Hz (sorted, ≥ 0; a 0 Hz line is the static offset).
     pub lattice_hz: Vec<f64>,
     /// `amplitudes[n][r]`: complex amplitude of mode `n` at `lattice_hz[r]`, m (peak;
     /// `q_n(t) = Σ_r Re[X e^{i2π f_r t}]`).
@@ -197,8 +204,8 @@ impl HbSolver {
         Self::with_lattice(model, drive, lattice)
     }
 
-    /// As [`HbSolver::new`] with a given lattice (sorted distinct positive frequencies, Hz,
-    /// holding every drive tone).
+    /// As [`HbSolver::new`] with a given lattice (sorted distinct frequencies ≥ 0, Hz, holding
+    /// every drive tone; a 0 Hz line is the static offset).
     pub fn with_lattice(
         model: &NumericModel,
         drive: &Excitation,
@@ -615,13 +622,18 @@ impl HbSolver {
     fn finish(&mut self, status: HbStatus, residual: f64, steps: usize, zero: bool) -> SteadyState {
         let nm = self.model.n_modes();
         let nr = self.lattice.len();
+        let lattice = &self.lattice;
         let amplitudes = (0..nm)
             .map(|n| {
                 self.x[n * nr..(n + 1) * nr]
                     .iter()
-                    .map(|&z| {
+                    .zip(lattice)
+                    .map(|(&z, &f)| {
                         if zero || !(z.re.is_finite() && z.im.is_finite()) {
                             Z
+                        } else if f <= LINE_TOL_HZ {
+                            // The static offset is real.
+                            Complex64::new(z.re, 0.0)
                         } else {
                             z
                         }

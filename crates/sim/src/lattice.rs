@@ -34,10 +34,19 @@ const MAX_CANDIDATES: usize = 2_000_000;
 /// Frequencies closer than this are one lattice line (Hz); matches the product plans.
 pub const LINE_TOL_HZ: f64 = harmonid_spectral::FREQ_TOLERANCE_HZ;
 
-/// The lattice: sorted distinct positive frequencies (Hz) where the steady state is solved for.
+/// Order of the combinations an even-degree model keeps wherever they fall: the direct
+/// second-order products of the drive (`2f_1`, `f_1 + f_2`, `|f_2 − f_1|`, DC).
+pub const EVEN_DIRECT_ORDER: i64 = 2;
+
+/// The lattice: sorted distinct frequencies (Hz, ≥ 0) where the steady state is solved for.
 ///
 /// For a model whose terms all have odd degree, only odd-order combinations can respond and
-/// even ones are left out. DC is not part of the lattice (see the crate docs).
+/// even ones are left out. A model with an even-degree term (quadratic forces, `q1*q2`, …)
+/// responds at even orders too: it gets the static offset (a 0 Hz line, first in the list) and
+/// every combination of order ≤ [`EVEN_DIRECT_ORDER`] wherever it falls, and the slow lines
+/// within `2 · window_rel · max f_n` of 0 Hz (beats of the lines kept near resonances: their
+/// response is quasi-static, as large as the offset's), besides those near a resonance. An odd model gets the 0 Hz line only when an allowed combination of commensurate
+/// tones lands on 0 Hz (e.g. `2f_1 − f_2` with `f_2 = 2f_1`).
 pub fn choose_lattice(
     model: &NumericModel,
     drive: &Excitation,
@@ -48,6 +57,10 @@ pub fn choose_lattice(
     let dmax = model.max_degree().max(1) as usize;
     let mut out: Vec<f64> = drive.tones_hz.clone();
     out.extend(s.extra_hz.iter().copied().filter(|&f| f > LINE_TOL_HZ));
+    let mut dc = !odd_only && !model.terms().is_empty();
+    // Slow lines of an even model: beats of two lines near resonances, |f_a − f_b| ≤ 2 w f_n;
+    // their response is quasi-static (like the offset), not small.
+    let slow_band = 2.0 * s.window_rel * model.f_hz.iter().copied().fold(0.0, f64::max);
     let mut k = vec![0i64; nd];
     let mut count = 0usize;
     let mut err = false;
@@ -66,14 +79,20 @@ pub fn choose_lattice(
             .zip(&drive.tones_hz)
             .map(|(&a, &b)| a as f64 * b)
             .sum();
-        if f <= LINE_TOL_HZ {
+        if f.abs() <= LINE_TOL_HZ {
+            // An allowed combination on 0 Hz: the response has a static offset.
+            dc |= !model.terms().is_empty();
+            return;
+        }
+        if f < 0.0 {
             return;
         }
         let near = model
             .f_hz
             .iter()
             .any(|&fn_| (f - fn_).abs() <= s.window_rel * fn_);
-        if near || (s.harmonics && ord as usize <= dmax) {
+        let direct = !odd_only && (ord <= EVEN_DIRECT_ORDER || f <= slow_band);
+        if near || direct || (s.harmonics && ord as usize <= dmax) {
             out.push(f);
         }
     });
@@ -82,6 +101,9 @@ pub fn choose_lattice(
             "order {} with {nd} tones gives more than {MAX_CANDIDATES} combinations; use a lower order",
             s.order
         )));
+    }
+    if dc {
+        out.push(0.0);
     }
     out.sort_by(f64::total_cmp);
     out.dedup_by(|a, b| (*a - *b).abs() <= LINE_TOL_HZ);
@@ -98,4 +120,29 @@ fn enumerate(k: &mut [i64], d: usize, budget: i64, f: &mut impl FnMut(&[i64])) {
         enumerate(k, d + 1, budget - v.abs(), f);
     }
     k[d] = 0;
+}
+
+/// The lattice lines a dataset measures by default: every drive tone and every line within
+/// `window_rel · f_n` of a resonance `f_n`, Hz (sorted). Leaves out the static offset (datasets
+/// hold positive frequencies only) and the even-order lines far from resonance that
+/// [`choose_lattice`] keeps for the physics of even-degree models. For an odd model with default
+/// settings this is the whole lattice.
+pub fn measured_lines(
+    model: &NumericModel,
+    drive: &Excitation,
+    lattice_hz: &[f64],
+    window_rel: f64,
+) -> Vec<f64> {
+    lattice_hz
+        .iter()
+        .copied()
+        .filter(|&f| {
+            f > LINE_TOL_HZ
+                && (drive.tones_hz.iter().any(|&d| (d - f).abs() <= LINE_TOL_HZ)
+                    || model
+                        .f_hz
+                        .iter()
+                        .any(|&fn_| (f - fn_).abs() <= window_rel * fn_))
+        })
+        .collect()
 }
