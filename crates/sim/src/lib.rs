@@ -29,6 +29,7 @@ mod linalg;
 mod noise;
 mod numeric;
 mod sweep;
+mod sweep_two_tone;
 mod time_domain;
 
 pub use error::SimError;
@@ -41,4 +42,8 @@ pub use lattice::{choose_lattice, measured_lines, LatticeSettings, LINE_TOL_HZ};
 pub use noise::{lockin_noise_sigma, NoiseGen};
 pub use numeric::{parse_monomial, ModeValues, ModelValues, NumericModel, Term};
 pub use sweep::{backbone, sweep, Fold, SweepPoint, SweepResult, SweepSettings};
+pub use sweep_two_tone::{
+    sweep_two_tone, TwoToneCurve, TwoToneJump, TwoTonePoint, TwoToneSettings, TwoToneStatus,
+    TwoToneSweep,
+};
 pub use time_domain::{simulate_lockin, LockinResult, Start, TdSettings};

@@ -1,0 +1,596 @@
+//! Two-tone frequency sweeps: the centre `c` of a tone pair `c ± Δ/2` (fixed spacing `Δ`) is
+//! swept by natural-parameter continuation of the multi-tone harmonic balance ([`HbSolver`]),
+//! separately upwards and downwards, with a stability verdict per point and the jumps each
+//! direction shows.
+//!
+//! The lattice is a fixed set of tone combinations `k` (pair coefficients `a, b`, extra-tone
+//! coefficients `e_j`), so its line `k` sits at `f_k(c) = (a+b)·c + (b−a)·Δ/2 + Σ_j e_j g_j` and
+//! the amplitudes of consecutive centres map one to one. The set is chosen once for the whole
+//! range: every combination of order `Σ|k| ≤ K` (odd orders only for odd models) that comes
+//! within `window_rel · f_n` of a resonance `f_n` somewhere in the range, plus the tones and the
+//! reported lines.
+//!
+//! Stepping: the centres of a grid `c_start + i·h₀` (`h₀ = range / points`) are always visited,
+//! so an up- and a down-sweep can be compared point by point. A step is halved when Newton fails
+//! or the state changes by more than `max_rel_change` (relative to the largest amplitude); at the
+//! minimum step a jump is recorded and the solver lands on the state Newton reached, or, when
+//! Newton failed, on the state a fresh drive ramp reaches at that centre.
+
+use crate::lattice::LINE_TOL_HZ;
+use crate::{Excitation, HbSettings, HbSolver, NumericModel, SimError, SteadyState};
+use num_complex::Complex64;
+
+/// Settings of a two-tone sweep ([`sweep_two_tone`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TwoToneSettings {
+    /// One end of the swept centre range, Hz.
+    pub c_start_hz: f64,
+    /// The other end, Hz (either order; both directions are swept).
+    pub c_end_hz: f64,
+    /// Spacing `Δ` of the pair, Hz (tones at `c − Δ/2` and `c + Δ/2`).
+    pub spacing_hz: f64,
+    /// Complex force (N/kg, peak) of the lower tone on each mode.
+    pub force_low: Vec<Complex64>,
+    /// Complex force (N/kg, peak) of the upper tone on each mode.
+    pub force_high: Vec<Complex64>,
+    /// Extra tones at fixed frequencies (e.g. a probe on another mode), Hz.
+    pub extra_tones_hz: Vec<f64>,
+    /// `extra_force[n][j]`: force of extra tone `j` on mode `n`, N/kg (empty when no extra tone).
+    pub extra_force: Vec<Vec<Complex64>>,
+    /// Reported lines as offsets from the centre, Hz (default: `−3Δ/2, −Δ/2, Δ/2, 3Δ/2`, the
+    /// tones and the first sidebands, when empty).
+    pub lines_offset_hz: Vec<f64>,
+    /// Number of grid steps over the range (`h₀ = range / points`).
+    pub points: usize,
+    /// Smallest step, as a fraction of `h₀`, before a jump is recorded.
+    pub min_step_rel: f64,
+    /// Largest accepted change of the state between consecutive points, relative to the largest
+    /// amplitude.
+    pub max_rel_change: f64,
+    /// Harmonic-balance settings: lattice order, window and harmonics, Newton tolerance, ramp
+    /// (for the start and the landings after jumps). `lattice.extra_hz` is ignored.
+    pub hb: HbSettings,
+}
+
+impl Default for TwoToneSettings {
+    fn default() -> Self {
+        Self {
+            c_start_hz: 0.0,
+            c_end_hz: 0.0,
+            spacing_hz: 20.0,
+            force_low: Vec::new(),
+            force_high: Vec::new(),
+            extra_tones_hz: Vec::new(),
+            extra_force: Vec::new(),
+            lines_offset_hz: Vec::new(),
+            points: 400,
+            min_step_rel: 1e-3,
+            max_rel_change: 0.25,
+            hb: HbSettings::default(),
+        }
+    }
+}
+
+/// One point of a two-tone response curve.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TwoTonePoint {
+    /// Centre of the pair, Hz.
+    pub centre_hz: f64,
+    /// `amplitudes[n][l]`: complex amplitude (m, peak) of mode `n` at `centre_hz +
+    /// lines_offset_hz[l]`.
+    pub amplitudes: Vec<Vec<Complex64>>,
+    /// Whether the steady state is stable (Hill's method, [`HbSolver::stability`]).
+    pub stable: bool,
+    /// Largest growth rate of the linearised slow flow, 1/s (negative when stable).
+    pub growth_rate: f64,
+    /// Relative residual `max |R| / max |F|` of the state.
+    pub residual: f64,
+}
+
+/// A jump of a sweep: continuation could not follow the branch beyond `from_hz`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TwoToneJump {
+    /// Centre of the last point on the branch left, Hz.
+    pub from_hz: f64,
+    /// Centre where the state landed, Hz.
+    pub to_hz: f64,
+    /// Index in [`TwoToneCurve::points`] of the landing point.
+    pub index: usize,
+    /// `max |X_after − X_before| / max |X|` over every mode and lattice line.
+    pub rel_change: f64,
+}
+
+/// How a sweep direction ended.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TwoToneStatus {
+    /// The whole range was swept.
+    Complete,
+    /// The sweep stopped early at `at_hz` (the points before are valid).
+    Stopped {
+        /// Centre where it stopped, Hz.
+        at_hz: f64,
+        /// What happened and what to try.
+        why: String,
+    },
+}
+
+/// One sweep direction.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TwoToneCurve {
+    /// `true`: increasing centre.
+    pub up: bool,
+    /// Points in sweep order.
+    pub points: Vec<TwoTonePoint>,
+    /// Jumps in sweep order.
+    pub jumps: Vec<TwoToneJump>,
+    /// Complete or stopped.
+    pub status: TwoToneStatus,
+}
+
+/// Result of [`sweep_two_tone`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct TwoToneSweep {
+    /// The reported lines, offsets from the centre, Hz.
+    pub lines_offset_hz: Vec<f64>,
+    /// Number of lattice lines (the same at every centre).
+    pub lattice_lines: usize,
+    /// Increasing centre.
+    pub up: TwoToneCurve,
+    /// Decreasing centre.
+    pub down: TwoToneCurve,
+}
+
+/// A lattice line: `f(c) = s·c + off`.
+#[derive(Debug, Clone, Copy)]
+struct Line {
+    s: f64,
+    off: f64,
+}
+
+struct Problem<'a> {
+    model: &'a NumericModel,
+    set: &'a TwoToneSettings,
+    lines: Vec<Line>,
+    /// Lattice index of each reported line.
+    report: Vec<usize>,
+}
+
+/// A solved point in line order: `x[n][i]` at line `i`.
+struct Solved {
+    x: Vec<Vec<Complex64>>,
+    converged: bool,
+    residual: f64,
+    stable: bool,
+    growth: f64,
+}
+
+impl Problem<'_> {
+    /// The solver at centre `c` and the permutation line → sorted lattice index.
+    fn solver(&self, c: f64) -> Result<(HbSolver, Vec<usize>), SimError> {
+        let set = self.set;
+        let nm = self.model.n_modes();
+        let f: Vec<f64> = self.lines.iter().map(|l| l.s * c + l.off).collect();
+        let mut order: Vec<usize> = (0..f.len()).collect();
+        order.sort_by(|&a, &b| f[a].total_cmp(&f[b]));
+        let mut perm = vec![0; f.len()];
+        for (p, &i) in order.iter().enumerate() {
+            perm[i] = p;
+        }
+        let lattice: Vec<f64> = order.iter().map(|&i| f[i]).collect();
+        if lattice[0] <= LINE_TOL_HZ || lattice.windows(2).any(|w| w[1] - w[0] <= LINE_TOL_HZ) {
+            return Err(SimError::Hb(format!(
+                "at centre {c} Hz two lattice lines coincide (or one reaches DC); move the extra tones off the swept combinations or lower the order"
+            )));
+        }
+        let mut tones = vec![c - 0.5 * set.spacing_hz, c + 0.5 * set.spacing_hz];
+        tones.extend_from_slice(&set.extra_tones_hz);
+        let force = (0..nm)
+            .map(|n| {
+                let mut r = vec![set.force_low[n], set.force_high[n]];
+                if !set.extra_tones_hz.is_empty() {
+                    r.extend_from_slice(&set.extra_force[n]);
+                }
+                r
+            })
+            .collect();
+        let drive = Excitation {
+            tones_hz: tones,
+            force,
+        };
+        Ok((HbSolver::with_lattice(self.model, &drive, lattice)?, perm))
+    }
+
+    /// Solves at `c` from `start` (line order) or by a fresh drive ramp.
+    fn solve(&self, c: f64, start: Option<&[Vec<Complex64>]>) -> Result<Solved, SimError> {
+        let (mut solver, perm) = self.solver(c)?;
+        let st: SteadyState = match start {
+            Some(x) => {
+                let init: Vec<Vec<Complex64>> = x
+                    .iter()
+                    .map(|row| {
+                        let mut r = vec![Complex64::new(0.0, 0.0); row.len()];
+                        for (i, &z) in row.iter().enumerate() {
+                            r[perm[i]] = z;
+                        }
+                        r
+                    })
+                    .collect();
+                solver.solve_from(&init, &self.set.hb)
+            }
+            None => solver.solve(&self.set.hb),
+        };
+        let x: Vec<Vec<Complex64>> = st
+            .amplitudes
+            .iter()
+            .map(|row| perm.iter().map(|&p| row[p]).collect())
+            .collect();
+        let converged = st.converged();
+        let (stable, growth) = if converged {
+            let s = solver.stability(&st)?;
+            (s.stable, s.growth_rate)
+        } else {
+            (false, f64::MAX)
+        };
+        Ok(Solved {
+            x,
+            converged,
+            residual: st.residual,
+            stable,
+            growth,
+        })
+    }
+
+    /// Where the state lands at `c` when continuation from `cur` fails at the minimum step:
+    /// the first converged and stable state among Newton's own result `s`, a fresh drive ramp,
+    /// and Newton from `cur` scaled by a few factors and phase turns (a drive ramp cannot pass a fold in the
+    /// drive, e.g. just beyond the down-sweep jump of a hardening mode). Unstable states are
+    /// only kept when nothing stable is found.
+    fn land(&self, c: f64, cur: &[Vec<Complex64>], s: Solved) -> Result<Solved, SimError> {
+        if s.converged && s.stable {
+            return Ok(s);
+        }
+        let mut fallback = if s.converged { Some(s) } else { None };
+        let ramp = self.solve(c, None)?;
+        if ramp.converged && ramp.stable {
+            return Ok(ramp);
+        }
+        if ramp.converged && fallback.is_none() {
+            fallback = Some(ramp);
+        }
+        let scales = [2.0, 0.5, 4.0, 0.25, 8.0, 0.1, 16.0];
+        let turns = [0.0, -0.25, 0.25, 0.5];
+        for (k, t) in turns
+            .iter()
+            .flat_map(|&t| scales.iter().map(move |&k| (k, t)))
+        {
+            let z = Complex64::from_polar(k, std::f64::consts::TAU * t);
+            let start: Vec<Vec<Complex64>> = cur
+                .iter()
+                .map(|r| r.iter().map(|x| x * z).collect())
+                .collect();
+            let t = self.solve(c, Some(&start))?;
+            if t.converged && t.stable {
+                return Ok(t);
+            }
+            if t.converged && fallback.is_none() {
+                fallback = Some(t);
+            }
+        }
+        Ok(fallback.unwrap_or(Solved {
+            x: cur.to_vec(),
+            converged: false,
+            residual: f64::MAX,
+            stable: false,
+            growth: f64::MAX,
+        }))
+    }
+
+    fn point(&self, c: f64, s: &Solved) -> TwoTonePoint {
+        TwoTonePoint {
+            centre_hz: c,
+            amplitudes: s
+                .x
+                .iter()
+                .map(|row| self.report.iter().map(|&i| row[i]).collect())
+                .collect(),
+            stable: s.stable,
+            growth_rate: s.growth,
+            residual: s.residual,
+        }
+    }
+
+    fn sweep(&self, up: bool) -> Result<TwoToneCurve, SimError> {
+        let set = self.set;
+        let (lo, hi) = (
+            set.c_start_hz.min(set.c_end_hz),
+            set.c_start_hz.max(set.c_end_hz),
+        );
+        let points = set.points.max(1);
+        let h0 = (hi - lo) / points as f64;
+        let h_min = h0 * set.min_step_rel;
+        let sign = if up { 1.0 } else { -1.0 };
+        let c_first = if up { lo } else { hi };
+        let grid = |i: usize| {
+            if i >= points {
+                if up {
+                    hi
+                } else {
+                    lo
+                }
+            } else {
+                c_first + sign * h0 * i as f64
+            }
+        };
+        let mut curve = TwoToneCurve {
+            up,
+            points: Vec::new(),
+            jumps: Vec::new(),
+            status: TwoToneStatus::Complete,
+        };
+        let first = self.solve(c_first, None)?;
+        if !first.converged {
+            curve.status = TwoToneStatus::Stopped {
+                at_hz: c_first,
+                why: format!(
+                    "the drive ramp did not converge at the start (residual {:.2e}); try a smaller force or a wider lattice",
+                    first.residual
+                ),
+            };
+            return Ok(curve);
+        }
+        curve.points.push(self.point(c_first, &first));
+        let mut c = c_first;
+        let mut prev: Option<(f64, Vec<Vec<Complex64>>)> = None;
+        let mut cur = first.x;
+        let mut next = 1usize;
+        let mut h = h0;
+        let tol_c = 1e-12 * hi.abs().max(1.0);
+        while next <= points && h0 > 0.0 {
+            let target = grid(next);
+            let dist = (target - c).abs();
+            let h_eff = h.min(dist);
+            let c_new = if h_eff >= dist - tol_c {
+                target
+            } else {
+                c + sign * h_eff
+            };
+            // Secant predictor from the previous point on the same branch.
+            let guess: Vec<Vec<Complex64>> = match &prev {
+                Some((cp, xp)) if (c - cp).abs() > 0.0 => {
+                    let t = (c_new - c) / (c - cp);
+                    cur.iter()
+                        .zip(xp)
+                        .map(|(a, b)| a.iter().zip(b).map(|(a, b)| a + (a - b) * t).collect())
+                        .collect()
+                }
+                _ => cur.clone(),
+            };
+            let s = self.solve(c_new, Some(&guess))?;
+            let change = rel_change(&cur, &s.x);
+            let accept = s.converged && change <= set.max_rel_change;
+            if !accept && h_eff > h_min * 1.000001 {
+                h = (h_eff * 0.5).max(h_min);
+                continue;
+            }
+            let landed = if accept {
+                s
+            } else {
+                // At the minimum step: a jump.
+                let land = self.land(c_new, &cur, s)?;
+                if !land.converged {
+                    curve.status = TwoToneStatus::Stopped {
+                        at_hz: c_new,
+                        why: format!(
+                            "continuation failed and neither a fresh drive ramp nor Newton from scaled states converged (residual {:.2e}); try a smaller force, a wider lattice (order, window) or more points",
+                            land.residual
+                        ),
+                    };
+                    return Ok(curve);
+                }
+                let ch = rel_change(&cur, &land.x);
+                if ch > set.max_rel_change {
+                    curve.jumps.push(TwoToneJump {
+                        from_hz: c,
+                        to_hz: c_new,
+                        index: curve.points.len(),
+                        rel_change: ch,
+                    });
+                    prev = None;
+                }
+                h = h0;
+                land
+            };
+            curve.points.push(self.point(c_new, &landed));
+            if accept {
+                prev = Some((c, std::mem::replace(&mut cur, landed.x)));
+                h = (h * 2.0).min(h0);
+            } else {
+                cur = landed.x;
+            }
+            c = c_new;
+            if c_new == target {
+                next += 1;
+            }
+        }
+        Ok(curve)
+    }
+}
+
+/// `max |a − b| / max(|a|, |b|)` over all entries (0 when both vanish).
+fn rel_change(a: &[Vec<Complex64>], b: &[Vec<Complex64>]) -> f64 {
+    let mut d: f64 = 0.0;
+    let mut m: f64 = 0.0;
+    for (ra, rb) in a.iter().zip(b) {
+        for (x, y) in ra.iter().zip(rb) {
+            d = d.max((x - y).norm());
+            m = m.max(x.norm()).max(y.norm());
+        }
+    }
+    if m > 0.0 {
+        d / m
+    } else {
+        0.0
+    }
+}
+
+/// Chooses the fixed combination set (see the module docs).
+fn choose_lines(model: &NumericModel, set: &TwoToneSettings, offsets: &[f64]) -> Vec<Line> {
+    let (lo, hi) = (
+        set.c_start_hz.min(set.c_end_hz),
+        set.c_start_hz.max(set.c_end_hz),
+    );
+    let odd_only = model.terms().iter().all(|t| t.degree() % 2 == 1);
+    let dmax = model.max_degree().max(1) as i64;
+    let half = 0.5 * set.spacing_hz;
+    let mut lines = vec![Line { s: 1.0, off: -half }, Line { s: 1.0, off: half }];
+    lines.extend(set.extra_tones_hz.iter().map(|&g| Line { s: 0.0, off: g }));
+    lines.extend(offsets.iter().map(|&o| Line { s: 1.0, off: o }));
+    let nd = 2 + set.extra_tones_hz.len();
+    let order = set.hb.lattice.order as i64;
+    let w = set.hb.lattice.window_rel;
+    let mut k = vec![0i64; nd];
+    enumerate(&mut k, 0, order, &mut |k| {
+        let ord: i64 = k.iter().map(|x| x.abs()).sum();
+        if ord == 0 || (odd_only && ord % 2 == 0) {
+            return;
+        }
+        let s = (k[0] + k[1]) as f64;
+        let off = (k[1] - k[0]) as f64 * half
+            + k[2..]
+                .iter()
+                .zip(&set.extra_tones_hz)
+                .map(|(&e, &g)| e as f64 * g)
+                .sum::<f64>();
+        let (f0, f1) = (s * lo + off, s * hi + off);
+        let (fmin, fmax) = (f0.min(f1), f0.max(f1));
+        if fmin <= 10.0 * LINE_TOL_HZ {
+            return;
+        }
+        let near = model
+            .f_hz
+            .iter()
+            .any(|&fnn| fmax >= fnn * (1.0 - w) && fmin <= fnn * (1.0 + w));
+        if near || (set.hb.lattice.harmonics && ord <= dmax) {
+            lines.push(Line { s, off });
+        }
+    });
+    let mut out: Vec<Line> = Vec::with_capacity(lines.len());
+    for l in lines {
+        if !out
+            .iter()
+            .any(|m| m.s == l.s && (m.off - l.off).abs() <= LINE_TOL_HZ)
+        {
+            out.push(l);
+        }
+    }
+    out
+}
+
+fn enumerate(k: &mut [i64], d: usize, budget: i64, f: &mut impl FnMut(&[i64])) {
+    if d == k.len() {
+        f(k);
+        return;
+    }
+    for v in -budget..=budget {
+        k[d] = v;
+        enumerate(k, d + 1, budget - v.abs(), f);
+    }
+    k[d] = 0;
+}
+
+/// Sweeps the centre of a tone pair up and down (see the module docs). Errors: bad settings
+/// (non-finite or non-positive range/spacing, force shapes), lattice set-up failures. Newton and
+/// ramp failures during the sweep end that direction with [`TwoToneStatus::Stopped`] and keep
+/// the points before; no amplitude is ever NaN.
+pub fn sweep_two_tone(
+    model: &NumericModel,
+    settings: &TwoToneSettings,
+) -> Result<TwoToneSweep, SimError> {
+    let nm = model.n_modes();
+    let bad = |what: &str, value: f64, why: &str| SimError::BadValue {
+        what: what.into(),
+        value,
+        why: why.into(),
+    };
+    for (what, v) in [
+        ("the sweep start", settings.c_start_hz),
+        ("the sweep end", settings.c_end_hz),
+        ("the tone spacing", settings.spacing_hz),
+    ] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(bad(what, v, "must be a finite positive frequency in Hz"));
+        }
+    }
+    let lo = settings.c_start_hz.min(settings.c_end_hz);
+    if lo - 0.5 * settings.spacing_hz <= 0.0 {
+        return Err(bad(
+            "the lower tone at the sweep start",
+            lo - 0.5 * settings.spacing_hz,
+            "must stay positive: use a spacing below twice the lowest centre",
+        ));
+    }
+    if !(settings.min_step_rel > 0.0 && settings.min_step_rel < 1.0) {
+        return Err(bad(
+            "min_step_rel",
+            settings.min_step_rel,
+            "must lie in (0, 1)",
+        ));
+    }
+    if !(settings.max_rel_change > 0.0) {
+        return Err(bad(
+            "max_rel_change",
+            settings.max_rel_change,
+            "must be positive",
+        ));
+    }
+    if settings.force_low.len() != nm || settings.force_high.len() != nm {
+        return Err(SimError::Shape(format!(
+            "the pair's forces must be given for each of the {nm} modes"
+        )));
+    }
+    if !settings.extra_tones_hz.is_empty()
+        && (settings.extra_force.len() != nm
+            || settings
+                .extra_force
+                .iter()
+                .any(|r| r.len() != settings.extra_tones_hz.len()))
+    {
+        return Err(SimError::Shape(format!(
+            "the extra tones' forces must be given for {nm} modes × {} tones",
+            settings.extra_tones_hz.len()
+        )));
+    }
+    let offsets: Vec<f64> = if settings.lines_offset_hz.is_empty() {
+        let d = settings.spacing_hz;
+        vec![-1.5 * d, -0.5 * d, 0.5 * d, 1.5 * d]
+    } else {
+        settings.lines_offset_hz.clone()
+    };
+    if let Some(&o) = offsets.iter().find(|o| !o.is_finite()) {
+        return Err(bad("a reported line offset", o, "must be finite"));
+    }
+    let lines = choose_lines(model, settings, &offsets);
+    let report = offsets
+        .iter()
+        .map(|&o| {
+            lines
+                .iter()
+                .position(|l| l.s == 1.0 && (l.off - o).abs() <= LINE_TOL_HZ)
+                .unwrap_or(0)
+        })
+        .collect();
+    let p = Problem {
+        model,
+        set: settings,
+        lines,
+        report,
+    };
+    let up = p.sweep(true)?;
+    let down = p.sweep(false)?;
+    Ok(TwoToneSweep {
+        lines_offset_hz: offsets,
+        lattice_lines: p.lines.len(),
+        up,
+        down,
+    })
+}
