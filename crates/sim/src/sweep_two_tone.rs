@@ -536,7 +536,7 @@ pub fn sweep_two_tone(
             "must lie in (0, 1)",
         ));
     }
-    if !(settings.max_rel_change > 0.0) {
+    if settings.max_rel_change.is_nan() || settings.max_rel_change <= 0.0 {
         return Err(bad(
             "max_rel_change",
             settings.max_rel_change,
