@@ -10,7 +10,12 @@ every frequency) and are compared with the harmonic-balance amplitudes (equal ac
 Run by hand (not in CI), from the workspace root, after `cargo build --release`:
 
     pip install scipy numpy
-    python3 benches/scipy_compare.py [--fraction 0.1] [--rtol 1e-10]
+    python3 benches/scipy_compare.py [--fraction 0.1] [--rtol 1e-10] [--scan 8,10,12,16]
+
+--scan also runs harmonid at each listed --steps-per-period and reports the ratio at equal
+accuracy: the fastest setting whose error vs HB is at most odeint's, timed the same way (a
+setting below what the error control accepts is refined automatically, so the coarsest one is
+not always the fastest).
 
 --fraction F integrates only the first F of the settling time with odeint and extrapolates the
 time linearly (the accuracy is then that of the shortened run and is reported as such).
@@ -102,6 +107,8 @@ def main():
     ap.add_argument("--rtol", type=float, default=1e-10)
     ap.add_argument("--steps-per-period", type=int, default=16,
                     help="harmonid's integration steps per period of the highest frequency")
+    ap.add_argument("--scan", default="",
+                    help="comma-separated steps per period to time for the equal-accuracy ratio")
     args = ap.parse_args()
 
     tmp = tempfile.mkdtemp()
@@ -110,6 +117,10 @@ def main():
     hb, t_hb, _ = harmonid(args.exe, tmp, False)
     td, t_td, log = harmonid(args.exe, tmp, True, args.steps_per_period)
     err_td = rel_error(td["q1"], hb["q1"])
+    scan = []
+    for spp in [int(x) for x in args.scan.split(",") if x.strip()]:
+        d, t, lg = harmonid(args.exe, tmp, True, spp)
+        scan.append((spp, t, rel_error(d["q1"], hb["q1"]), lg))
 
     # Same start state: the HB amplitudes at t = 0 (the HB lattice of single_q1 is the measured
     # frequencies).
@@ -160,6 +171,16 @@ def main():
     print(f"scipy odeint (rtol {args.rtol:g}):                 {t_scipy * 1e3:9.1f} ms{what}, max rel. error vs HB {err_py:.1e}")
     print(f"   odeint: settling {t_mid:.2f} s for {t_settle:.4f} s simulated, window {t_win:.2f} s for {window} s simulated")
     print(f"ratio scipy / harmonid time domain: {t_scipy / t_td:.0f}x")
+    for spp, t, e, lg in scan:
+        used = " | ".join(l for l in lg.splitlines() if "time domain" in l)
+        print(f"harmonid --steps-per-period {spp:3d}: {t * 1e3:9.1f} ms, max rel. error vs HB {e:.1e}   {used}")
+    ok = [(spp, t, e) for spp, t, e, _ in scan if e <= err_py]
+    if ok:
+        spp, t, e = min(ok, key=lambda r: r[1])
+        print(f"equal accuracy: fastest harmonid setting with error <= odeint's ({err_py:.1e}) is "
+              f"{spp} steps/period ({e:.1e}, {t * 1e3:.1f} ms): ratio {t_scipy / t:.0f}x")
+    elif scan:
+        print(f"equal accuracy: no scanned setting reaches odeint's error {err_py:.1e}")
 
 
 if __name__ == "__main__":
