@@ -11,8 +11,8 @@
 
 use crate::cli::common::write_atomic;
 use crate::cli::simulate::{
-    self, excitation, numeric_model, parse_plan, plan_manifest, plan_spec, plan_steady_state,
-    plan_unit, point_shapes, Plan,
+    self, excitation, measured_hz, numeric_model, parse_plan, plan_manifest, plan_spec,
+    plan_steady_state, plan_unit, point_shapes, Plan,
 };
 use harmonid_ident::{Dataset, ForceModel, Measurement, Problem, Report, Settings};
 use harmonid_sim::{self as sim, NoiseGen, NumericModel, Start, TdSettings};
@@ -222,10 +222,14 @@ pub fn run(args: Args) -> miette::Result<()> {
     let mut f_hi: f64 = 0.0;
     for pm in &plan.measurements {
         let st = plan_steady_state(&model, pm, args.order)?;
-        let freqs = pm
-            .measure_hz
-            .clone()
-            .unwrap_or_else(|| st.lattice_hz.clone());
+        let drive = excitation(&model, pm)?;
+        let freqs = measured_hz(
+            &model,
+            &drive,
+            pm,
+            &st,
+            sim::HbSettings::default().lattice.window_rel,
+        );
         f_hi = freqs.iter().copied().fold(f_hi, f64::max);
         let v: Vec<Vec<Complex64>> = shapes
             .iter()

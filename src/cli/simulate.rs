@@ -312,6 +312,21 @@ pub(crate) fn plan_steady_state(
     Ok(st)
 }
 
+/// The frequencies a planned measurement reads: the plan's `measure_hz`, or by default the drive
+/// tones and the lattice lines near a resonance (never the static offset, which a lock-in
+/// dataset cannot hold, nor far even-order lines; `sim::measured_lines`).
+pub(crate) fn measured_hz(
+    model: &NumericModel,
+    drive: &Excitation,
+    pm: &PlanMeasurement,
+    st: &sim::SteadyState,
+    window_rel: f64,
+) -> Vec<f64> {
+    pm.measure_hz
+        .clone()
+        .unwrap_or_else(|| sim::measured_lines(model, drive, &st.lattice_hz, window_rel))
+}
+
 /// The dataset spec of a planned measurement.
 pub(crate) fn plan_spec(pm: &PlanMeasurement) -> MeasurementSpec {
     MeasurementSpec {
@@ -415,9 +430,7 @@ pub fn run(args: Args) -> miette::Result<()> {
                 );
             }
         }
-        let freqs: Vec<f64> = pm.measure_hz.clone().unwrap_or_else(|| {
-            sim::measured_lines(&model, &drive, &st.lattice_hz, hs.lattice.window_rel)
-        });
+        let freqs = measured_hz(&model, &drive, pm, &st, hs.lattice.window_rel);
         // With per-sample noise in the time domain every shot is its own run (own seed).
         let runs = if args.time_domain && args.noise_rms_nm > 0.0 {
             shots
