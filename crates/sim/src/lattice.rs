@@ -110,7 +110,9 @@ pub fn choose_lattice(
     Ok(out)
 }
 
-fn enumerate(k: &mut [i64], d: usize, budget: i64, f: &mut impl FnMut(&[i64])) {
+/// Calls `f` with every integer vector `k` (over the tones) with `Σ_{i≥d} |k_i| ≤ budget`,
+/// entries before `d` held; the combinations `Σ k_i f_i` of intermodulation order ≤ `budget`.
+pub(crate) fn enumerate(k: &mut [i64], d: usize, budget: i64, f: &mut impl FnMut(&[i64])) {
     if d == k.len() {
         f(k);
         return;

@@ -16,7 +16,7 @@
 //! minimum step a jump is recorded and the solver lands on the state Newton reached, or, when
 //! Newton failed, on the state a fresh drive ramp reaches at that centre.
 
-use crate::lattice::LINE_TOL_HZ;
+use crate::lattice::{enumerate, LINE_TOL_HZ};
 use crate::{Excitation, HbSettings, HbSolver, NumericModel, SimError, SteadyState};
 use num_complex::Complex64;
 
@@ -484,18 +484,6 @@ fn choose_lines(model: &NumericModel, set: &TwoToneSettings, offsets: &[f64]) ->
         }
     }
     out
-}
-
-fn enumerate(k: &mut [i64], d: usize, budget: i64, f: &mut impl FnMut(&[i64])) {
-    if d == k.len() {
-        f(k);
-        return;
-    }
-    for v in -budget..=budget {
-        k[d] = v;
-        enumerate(k, d + 1, budget - v.abs(), f);
-    }
-    k[d] = 0;
 }
 
 /// Sweeps the centre of a tone pair up and down (see the module docs). Errors: bad settings
