@@ -1,6 +1,6 @@
 //! Coefficients of equation terms: polynomials in the model's parameters.
 
-use crate::{rational_to_f64, PowerProduct, Rational, SparsePoly, VarId};
+use crate::{rational_latex, rational_to_f64, PowerProduct, Rational, SparsePoly, VarId};
 use num_traits::{One, Signed, Zero};
 
 /// A coefficient `b` of an equation term: a polynomial in the parameters with rational
@@ -63,18 +63,7 @@ impl SparsePoly<Rational> {
 
     /// LaTeX form with parameter names given in LaTeX: `\frac{3}{4}\beta_1`.
     pub fn to_latex_with(&self, names: &[impl AsRef<str>]) -> String {
-        self.format(
-            names,
-            " ",
-            |k| format!("^{{{k}}}"),
-            |r| {
-                if r.is_integer() {
-                    r.numer().to_string()
-                } else {
-                    format!("\\frac{{{}}}{{{}}}", r.numer(), r.denom())
-                }
-            },
-        )
+        self.format(names, " ", |k| format!("^{{{k}}}"), rational_latex)
     }
 
     fn format(

@@ -47,6 +47,6 @@ mod sparse;
 pub use coeff::{AffineForm, Coeff};
 pub use poly::Poly;
 pub use power_product::{PowerProduct, VarId};
-pub use rational::{parse_decimal, rational_to_f64, Rational};
+pub use rational::{parse_decimal, rational_latex, rational_to_f64, Rational};
 pub use ring::{Overflow, Ring};
 pub use sparse::{PolyBuilder, SparsePoly};

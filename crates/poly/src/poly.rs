@@ -1,6 +1,6 @@
 //! Polynomials in the modal coordinates whose coefficients are polynomials in the parameters.
 
-use crate::{Coeff, PowerProduct, Rational, SparsePoly};
+use crate::{rational_latex, Coeff, PowerProduct, Rational, SparsePoly};
 use num_traits::{One, Signed};
 
 /// A polynomial in the modal coordinates (variables are mode indices in declaration order) with
@@ -46,13 +46,7 @@ impl SparsePoly<Coeff> {
         self.format(
             |c| c.to_latex_with(param_names),
             |m| m.join(mode_names, " ", |k| format!("^{{{k}}}")),
-            |r| {
-                if r.is_integer() {
-                    r.numer().to_string()
-                } else {
-                    format!("\\frac{{{}}}{{{}}}", r.numer(), r.denom())
-                }
-            },
+            rational_latex,
         )
     }
 

@@ -15,6 +15,15 @@ pub fn rational_to_f64(r: &Rational) -> f64 {
     }
 }
 
+/// LaTeX form of a rational magnitude: `3` or `\frac{3}{4}`.
+pub fn rational_latex(r: &Rational) -> String {
+    if r.is_integer() {
+        r.numer().to_string()
+    } else {
+        format!("\\frac{{{}}}{{{}}}", r.numer(), r.denom())
+    }
+}
+
 /// Parses a decimal literal such as `3`, `0.75`, `2.68e22` or `1E-3` into an exact rational.
 ///
 /// Returns `None` when the text is not a plain decimal number or its exact value does not fit a
