@@ -59,7 +59,10 @@ impl<C: Ring> PolyBuilder<C> {
     /// The polynomial: terms sorted, equal power products summed, zeros dropped.
     pub fn finish(self) -> Result<SparsePoly<C>, Overflow> {
         let mut pending = self.pending;
-        pending.sort_by(|a, b| a.0.cmp(&b.0));
+        // Families usually produce terms already in canonical order: then no sort is needed.
+        if !pending.is_sorted_by(|a, b| a.0 <= b.0) {
+            pending.sort_by(|a, b| a.0.cmp(&b.0));
+        }
         let mut terms: Terms<C> = SmallVec::with_capacity(pending.len());
         for (m, c) in pending {
             match terms.last_mut() {
