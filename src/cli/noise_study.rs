@@ -23,23 +23,12 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 
 /// Parameter values of the paper's Table S2 (the nanostring with 50 µm supports), used when no
-/// `--values` file is given.
-pub const DEFAULT_VALUES: &str = r#"
-[modes.q1]
-f_hz = 207582.0
-Q = 116232.0
+/// `--values` file is given: the two-mode example's own values file.
+pub const DEFAULT_VALUES: &str = include_str!("../../examples/nanostring_2mode/values.toml");
 
-[modes.q2]
-f_hz = 415842.0
-Q = 599173.0
-
-[parameters]
-beta1 = 2.68e22
-beta2 = 3.70e23
-g12 = 8.57e22
-"#;
-
-/// The default plan: the three measurements of Supplementary Note V (tones 20 Hz apart).
+/// The default plan: the three measurements of Supplementary Note V (tones 20 Hz apart). Unlike
+/// `examples/nanostring_2mode/plan.toml` it gives no drive levels, so every tone's force is a free
+/// unknown as in the paper's study.
 pub const DEFAULT_PLAN: &str = r#"
 description = "nanostring, three measurements of the two-mode identification (Supplementary Note V)"
 displacement_unit = "m"
