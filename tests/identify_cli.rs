@@ -5,7 +5,7 @@
 #[path = "roundtrip_support/gen.rs"]
 mod gen;
 
-use gen::{simulate, Design, Values};
+use gen::{nanostring_2mode_plan, simulate};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -20,32 +20,7 @@ fn model_path() -> PathBuf {
 /// The nanostring drive plan, simulated with `shots` noisy shots, written into `dir`.
 fn write_dataset(dir: &Path, shots: usize, sigma: f64) {
     let model = harmonid_model::load(&model_path()).expect("model");
-    let v = Values {
-        f_hz: vec![207582.0, 415842.0],
-        q: vec![116232.0, 599173.0],
-        params: [("beta1", 2.68e22), ("beta2", 3.7e23), ("g12", 8.57e22)]
-            .iter()
-            .map(|(k, x)| (k.to_string(), *x))
-            .collect(),
-    };
-    let (c1, c2) = (207582.5, 415841.5);
-    let d = vec![
-        Design {
-            name: "single_q1".into(),
-            tones: vec![(c1 - 10.0, 0, 3.5), (c1 + 10.0, 0, 3.5)],
-            observe: vec![],
-        },
-        Design {
-            name: "single_q2".into(),
-            tones: vec![(c2 - 10.0, 1, 1.81), (c2 + 10.0, 1, 1.81)],
-            observe: vec![],
-        },
-        Design {
-            name: "couple_q1_q2".into(),
-            tones: vec![(c1 - 10.0, 0, 3.5), (c1 + 10.0, 0, 3.5), (c2, 1, 1.81)],
-            observe: vec![],
-        },
-    ];
+    let (v, d) = nanostring_2mode_plan();
     let ds = simulate(&model, &v, &d, &[0.309, 0.588], sigma, shots, 11);
     ds.write(dir).expect("write dataset");
 }

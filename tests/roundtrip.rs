@@ -4,7 +4,7 @@
 #[path = "roundtrip_support/gen.rs"]
 mod gen;
 
-use gen::{designs, simulate, Design, Values};
+use gen::{designs, nanostring_2mode_plan, simulate, Design, Values};
 use harmonid_ident::{identify, Report, Settings};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -39,30 +39,7 @@ fn check(r: &Report, v: &Values, names: &[&str], tol: f64) {
 #[test]
 fn nanostring_2mode_round_trip() {
     let m = model("nanostring_2mode");
-    let v = Values {
-        f_hz: vec![207582.0, 415842.0],
-        q: vec![116232.0, 599173.0],
-        params: params(&[("beta1", 2.68e22), ("beta2", 3.7e23), ("g12", 8.57e22)]),
-    };
-    // The drive plan of the paper's Table S2 (mode 2 driven just below its hardening resonance).
-    let (c1, c2) = (207582.5, 415841.5);
-    let d = vec![
-        Design {
-            name: "single_q1".into(),
-            tones: vec![(c1 - 10.0, 0, 3.5), (c1 + 10.0, 0, 3.5)],
-            observe: vec![],
-        },
-        Design {
-            name: "single_q2".into(),
-            tones: vec![(c2 - 10.0, 1, 1.81), (c2 + 10.0, 1, 1.81)],
-            observe: vec![],
-        },
-        Design {
-            name: "couple_q1_q2".into(),
-            tones: vec![(c1 - 10.0, 0, 3.5), (c1 + 10.0, 0, 3.5), (c2, 1, 1.81)],
-            observe: vec![],
-        },
-    ];
+    let (v, d) = nanostring_2mode_plan();
     let ds = simulate(&m, &v, &d, &[0.309, 0.588], 0.0, 1, 1);
     let r = identify(&m, &ds, &Settings::default()).expect("identify");
     println!("{}", r.summary(None));
@@ -160,25 +137,10 @@ fn nanostring_5mode_round_trip() {
 #[test]
 fn missing_measurement_is_reported_and_gain_per_mode_works() {
     let m = model("nanostring_2mode");
-    let v = Values {
-        f_hz: vec![207582.0, 415842.0],
-        q: vec![116232.0, 599173.0],
-        params: params(&[("beta1", 2.68e22), ("beta2", 3.7e23), ("g12", 8.57e22)]),
-    };
-    let (c1, c2) = (207582.5, 415841.5);
-    let mut d = vec![
-        Design {
-            name: "single_q1".into(),
-            tones: vec![(c1 - 10.0, 0, 3.5), (c1 + 10.0, 0, 3.5)],
-            observe: vec![],
-        },
-        Design {
-            name: "single_q2".into(),
-            tones: vec![(c2 - 10.0, 1, 1.81), (c2 + 10.0, 1, 1.81)],
-            observe: vec![],
-        },
-    ];
-    let ds = simulate(&m, &v, &d, &[0.309, 0.588], 0.0, 1, 7);
+    // The two single-mode measurements only: the coupled one comes back below.
+    let (v, plan) = nanostring_2mode_plan();
+    let d = &plan[..2];
+    let ds = simulate(&m, &v, d, &[0.309, 0.588], 0.0, 1, 7);
     let r = identify(&m, &ds, &Settings::default()).expect("identify");
     let g = &r.parameters["g12"];
     assert!(!g.identifiable);
@@ -190,12 +152,8 @@ fn missing_measurement_is_reported_and_gain_per_mode_works() {
     let json = r.to_json();
     assert!(json.contains("\"identifiable\": false"), "{json}");
 
-    d.push(Design {
-        name: "couple_q1_q2".into(),
-        tones: vec![(c1 - 10.0, 0, 3.5), (c1 + 10.0, 0, 3.5), (c2, 1, 1.81)],
-        observe: vec![],
-    });
-    let ds = simulate(&m, &v, &d, &[0.309, 0.588], 0.0, 1, 7);
+    let d = &plan;
+    let ds = simulate(&m, &v, d, &[0.309, 0.588], 0.0, 1, 7);
     let settings = Settings {
         force_model: harmonid_ident::ForceModel::GainPerMode,
         ..Settings::default()

@@ -5,7 +5,7 @@
 #[path = "roundtrip_support/gen.rs"]
 mod gen;
 
-use gen::{simulate, Design, Values};
+use gen::{nanostring_2mode_plan, simulate, Design, Values};
 use harmonid_ident::problem::Unknown;
 use harmonid_ident::{Problem, Settings};
 use std::path::PathBuf;
@@ -15,32 +15,7 @@ fn nanostring() -> (harmonid_model::Model, Values, Vec<Design>) {
         &PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples/nanostring_2mode/model.hb"),
     )
     .expect("model");
-    let v = Values {
-        f_hz: vec![207582.0, 415842.0],
-        q: vec![116232.0, 599173.0],
-        params: [("beta1", 2.68e22), ("beta2", 3.7e23), ("g12", 8.57e22)]
-            .iter()
-            .map(|(k, x)| (k.to_string(), *x))
-            .collect(),
-    };
-    let (c1, c2) = (207582.5, 415841.5);
-    let d = vec![
-        Design {
-            name: "single_q1".into(),
-            tones: vec![(c1 - 10.0, 0, 3.5), (c1 + 10.0, 0, 3.5)],
-            observe: vec![],
-        },
-        Design {
-            name: "single_q2".into(),
-            tones: vec![(c2 - 10.0, 1, 1.81), (c2 + 10.0, 1, 1.81)],
-            observe: vec![],
-        },
-        Design {
-            name: "couple_q1_q2".into(),
-            tones: vec![(c1 - 10.0, 0, 3.5), (c1 + 10.0, 0, 3.5), (c2, 1, 1.81)],
-            observe: vec![],
-        },
-    ];
+    let (v, d) = nanostring_2mode_plan();
     (model, v, d)
 }
 

@@ -188,6 +188,39 @@ pub const NANOSTRING_SHAPE: [f64; 5] = [
     1.0,
 ];
 
+/// Values (the paper's Table S2) and the three-measurement drive plan of the two-mode nanostring
+/// example: tone pairs 20 Hz apart around each resonance (mode 2 just below its hardening
+/// resonance), then both pairs' mode-1 tones with one tone on mode 2.
+pub fn nanostring_2mode_plan() -> (Values, Vec<Design>) {
+    let v = Values {
+        f_hz: vec![207582.0, 415842.0],
+        q: vec![116232.0, 599173.0],
+        params: [("beta1", 2.68e22), ("beta2", 3.7e23), ("g12", 8.57e22)]
+            .iter()
+            .map(|(k, x)| (k.to_string(), *x))
+            .collect(),
+    };
+    let (c1, c2) = (207582.5, 415841.5);
+    let d = vec![
+        Design {
+            name: "single_q1".into(),
+            tones: vec![(c1 - 10.0, 0, 3.5), (c1 + 10.0, 0, 3.5)],
+            observe: vec![],
+        },
+        Design {
+            name: "single_q2".into(),
+            tones: vec![(c2 - 10.0, 1, 1.81), (c2 + 10.0, 1, 1.81)],
+            observe: vec![],
+        },
+        Design {
+            name: "couple_q1_q2".into(),
+            tones: vec![(c1 - 10.0, 0, 3.5), (c1 + 10.0, 0, 3.5), (c2, 1, 1.81)],
+            observe: vec![],
+        },
+    ];
+    (v, d)
+}
+
 /// Values and the 15-measurement drive plan (5 single, 10 pairs) for the five-mode nanostring
 /// example: Duffing terms scaling as n⁴ (tension), couplings as n²m².
 pub fn nanostring_5mode_plan() -> (Values, Vec<Design>) {
