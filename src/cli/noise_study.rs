@@ -210,8 +210,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     let mut states = Vec::new();
     let mut f_hi: f64 = 0.0;
     for pm in &plan.measurements {
-        let st = plan_steady_state(&model, pm, args.order)?;
-        let drive = excitation(&model, pm)?;
+        let (st, drive) = plan_steady_state(&model, pm, args.order)?;
         let freqs = measured_hz(
             &model,
             &drive,

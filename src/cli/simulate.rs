@@ -288,12 +288,13 @@ pub(crate) fn plan_manifest(model: &NumericModel, plan: &Plan) -> Manifest {
 }
 
 /// The harmonic-balance steady state of one planned measurement (lattice of intermodulation
-/// order `order`, holding every measured frequency); an error when Newton does not converge.
+/// order `order`, holding every measured frequency) with the excitation it was solved for; an
+/// error when Newton does not converge.
 pub(crate) fn plan_steady_state(
     model: &NumericModel,
     pm: &PlanMeasurement,
     order: usize,
-) -> miette::Result<sim::SteadyState> {
+) -> miette::Result<(sim::SteadyState, Excitation)> {
     let drive = excitation(model, pm)?;
     let mut hs = HbSettings::default();
     hs.lattice.order = order;
@@ -309,7 +310,7 @@ pub(crate) fn plan_steady_state(
             pm.name, st.status, st.residual
         ));
     }
-    Ok(st)
+    Ok((st, drive))
 }
 
 /// The frequencies a planned measurement reads: the plan's `measure_hz`, or by default the drive
