@@ -16,7 +16,7 @@
 //! `ω_n² Im X_{n,0} = 0`, a decoupled diagonal entry that keeps the Jacobian nonsingular and
 //! Newton leaves it at zero (it is set exactly to zero in the returned state).
 
-use crate::lattice::{choose_lattice, LatticeSettings, LINE_TOL_HZ};
+use crate::lattice::{choose_lattice, low_order_lines, LatticeSettings, LINE_TOL_HZ};
 use crate::linalg::DenseLu;
 use crate::{Excitation, NumericModel, SimError};
 use harmonid_poly::{PowerProduct, VarId};
@@ -32,6 +32,13 @@ const CHORD_RATE: f64 = 0.25;
 /// Residual tolerance at the intermediate levels of the drive ramp (they only serve the
 /// predictor of the next level; the full drive is solved to [`HbSettings::tol`]).
 const RAMP_TOL: f64 = 1e-7;
+/// Intermodulation order of the coarse lattice the drive ramp runs on (see [`HbSolver::solve`]).
+const RAMP_ORDER: usize = 5;
+/// The coarse ramp is used when it leaves out at least this fraction of the lattice's lines.
+const RAMP_MIN_SAVING: f64 = 0.25;
+/// Most drive tones for which the coarse ramp lattice is enumerated (the count of
+/// combinations grows as `tones^RAMP_ORDER`).
+const RAMP_MAX_TONES: usize = 8;
 
 /// Settings of a harmonic-balance solve.
 #[derive(Debug, Clone, PartialEq)]
@@ -190,6 +197,9 @@ pub struct HbSolver {
     have_lu: bool,
     /// The factorised Jacobian is that of the current `x`.
     fresh: bool,
+    /// The same problem on the lines of intermodulation order ≤ [`RAMP_ORDER`], where the drive
+    /// ramp runs, and the index of each of its lines in `lattice`.
+    coarse: Option<(Box<HbSolver>, Vec<usize>)>,
 }
 
 impl HbSolver {
@@ -207,6 +217,25 @@ impl HbSolver {
     /// As [`HbSolver::new`] with a given lattice (sorted distinct frequencies ≥ 0, Hz, holding
     /// every drive tone; a 0 Hz line is the static offset).
     pub fn with_lattice(
+        model: &NumericModel,
+        drive: &Excitation,
+        lattice: Vec<f64>,
+    ) -> Result<Self, SimError> {
+        let mut solver = Self::single(model, drive, lattice)?;
+        if drive.tones_hz.len() <= RAMP_MAX_TONES {
+            let lines = low_order_lines(drive, &solver.lattice, RAMP_ORDER);
+            let nr = solver.lattice.len();
+            if (lines.len() as f64) <= (1.0 - RAMP_MIN_SAVING) * nr as f64 {
+                let sub = lines.iter().map(|&i| solver.lattice[i]).collect();
+                let coarse = Self::single(model, drive, sub)?;
+                solver.coarse = Some((Box::new(coarse), lines));
+            }
+        }
+        Ok(solver)
+    }
+
+    /// The solver on exactly `lattice`, without a coarse ramp lattice.
+    fn single(
         model: &NumericModel,
         drive: &Excitation,
         lattice: Vec<f64>,
@@ -275,6 +304,7 @@ impl HbSolver {
             x_try: vec![Z; nm * nr],
             have_lu: false,
             fresh: false,
+            coarse: None,
             lattice,
         })
     }
@@ -516,7 +546,55 @@ impl HbSolver {
     /// Solves for the steady state under the full drive (ramped up from a small fraction when
     /// `settings.ramp`), starting from the linear response. Never returns NaN: a failure is an
     /// [`HbStatus::NotConverged`] status with the last converged state and its residual.
+    ///
+    /// The ramp runs on the lattice's lines of intermodulation order ≤ 5 when they are
+    /// markedly fewer: they carry the branch structure (folds, jumps), while the higher orders
+    /// are corrections of relative size ~`(nonlinear shift / linewidth)^3` smaller. Newton then
+    /// finishes at full drive on the whole lattice from the coarse state. Should that fail, the
+    /// ramp is run again on the whole lattice.
     pub fn solve(&mut self, settings: &HbSettings) -> SteadyState {
+        if settings.ramp {
+            if let Some(state) = self.solve_via_coarse(settings) {
+                return state;
+            }
+        }
+        self.solve_ramp(settings)
+    }
+
+    /// The drive ramp on the coarse lattice, then Newton at full drive on the whole lattice;
+    /// `None` when there is no coarse lattice or either step fails.
+    fn solve_via_coarse(&mut self, settings: &HbSettings) -> Option<SteadyState> {
+        let (coarse, lines) = self.coarse.as_mut()?;
+        let loose = HbSettings {
+            tol: settings.tol.max(RAMP_TOL),
+            ..settings.clone()
+        };
+        let first = coarse.solve_ramp(&loose);
+        if !first.converged() {
+            return None;
+        }
+        let nr = self.lattice.len();
+        let cr = lines.len();
+        self.x.fill(Z);
+        for n in 0..self.model.n_modes() {
+            for (i, &r) in lines.iter().enumerate() {
+                self.x[n * nr + r] = coarse.x[n * cr + i];
+            }
+        }
+        self.have_lu = false;
+        let (ok, it, res) = self.newton(1.0, settings.tol, settings.max_iter);
+        ok.then(|| {
+            self.finish(
+                HbStatus::Converged { iterations: it },
+                res,
+                first.ramp_steps + 1,
+                false,
+            )
+        })
+    }
+
+    /// The drive ramp on this solver's own lattice (see [`HbSolver::solve`]).
+    fn solve_ramp(&mut self, settings: &HbSettings) -> SteadyState {
         let nm = self.model.n_modes();
         let nr = self.lattice.len();
         let s0 = if settings.ramp {
@@ -865,5 +943,70 @@ mod tests {
         let v = check_stability(&m, &weak, &st).expect("verdict");
         assert!(v.stable);
         assert!((v.growth_rate + 0.5 * g).abs() < 1e-3 * g, "{v:?}");
+    }
+
+    /// The nanostring of the method's paper (two coupled Duffing modes).
+    fn nanostring() -> NumericModel {
+        let t = |eq, coef, factors: Vec<(usize, u32)>| Term { eq, coef, factors };
+        NumericModel::new(
+            vec!["q1".into(), "q2".into()],
+            vec![207582.0, 415842.0],
+            vec![116232.0, 599173.0],
+            vec![
+                t(0, 2.68e22, vec![(0, 3)]),
+                t(0, 8.57e22, vec![(0, 1), (1, 2)]),
+                t(1, 8.57e22, vec![(0, 2), (1, 1)]),
+                t(1, 3.70e23, vec![(1, 3)]),
+            ],
+        )
+        .expect("model")
+    }
+
+    /// Largest amplitude difference relative to the largest amplitude.
+    fn rel_change(a: &SteadyState, b: &SteadyState) -> f64 {
+        let big = a.amplitudes.iter().flatten().map(|z| z.norm()).fold(0.0, f64::max);
+        let diff = a
+            .amplitudes
+            .iter()
+            .flatten()
+            .zip(b.amplitudes.iter().flatten())
+            .map(|(x, y)| (x - y).norm())
+            .fold(0.0, f64::max);
+        diff / big
+    }
+
+    #[test]
+    fn coarse_ramp_lands_where_the_full_ramp_does() {
+        let c = |x: f64| Complex64::new(x, 0.0);
+        let model = nanostring();
+        let three_tone = Excitation {
+            tones_hz: vec![207572.5, 207592.5, 415841.5],
+            force: vec![vec![c(3.5), c(3.5), c(0.0)], vec![c(0.0), c(0.0), c(1.81)]],
+        };
+        // Two tones above resonance, strong enough for the two-tone response to be bistable:
+        // the drive-up branch is the low one, which a direct solve at full drive can miss.
+        let bistable = Excitation {
+            tones_hz: vec![207590.0, 207600.0],
+            force: vec![vec![c(4.0), c(0.4)], vec![c(0.0), c(0.0)]],
+        };
+        let settings = HbSettings::default();
+        for drive in [three_tone, bistable] {
+            let mut solver = HbSolver::new(&model, &drive, &settings.lattice).expect("solver");
+            let (coarse, lines) = solver.coarse.as_ref().expect("a coarse ramp lattice");
+            assert!(lines.len() < solver.lattice.len() && coarse.lattice.len() == lines.len());
+            let fast = solver.solve(&settings);
+            let full = solver.solve_ramp(&settings);
+            assert!(fast.converged() && full.converged(), "{fast:?} {full:?}");
+            assert!(fast.residual <= settings.tol, "{}", fast.residual);
+            let d = rel_change(&fast, &full);
+            assert!(d < 1e-9, "coarse and full ramps differ by {d:e}");
+            if drive.tones_hz[1] - drive.tones_hz[0] < 15.0 {
+                // Bistable indeed: from a large guess Newton finds another steady state.
+                let mut guess = fast.amplitudes.clone();
+                guess[0].iter_mut().for_each(|z| *z *= 2.5);
+                let other = solver.solve_from(&guess, &settings);
+                assert!(other.converged() && rel_change(&fast, &other) > 0.1);
+            }
+        }
     }
 }

@@ -124,6 +124,31 @@ pub(crate) fn enumerate(k: &mut [i64], d: usize, budget: i64, f: &mut impl FnMut
     k[d] = 0;
 }
 
+/// The lines of `lattice_hz` (sorted, Hz) that are combinations `Σ_d k_d f_d` of the drive tones
+/// of intermodulation order `Σ |k_d| ≤ order` (the static offset counts as order 0), in lattice
+/// order. The drive ramp runs on these (see [`crate::HbSolver::solve`]): the low orders carry
+/// the branch structure, the higher ones are small corrections.
+pub fn low_order_lines(drive: &Excitation, lattice_hz: &[f64], order: usize) -> Vec<usize> {
+    let mut keep = vec![false; lattice_hz.len()];
+    let mut k = vec![0i64; drive.tones_hz.len()];
+    enumerate(&mut k, 0, order as i64, &mut |k| {
+        let f: f64 = k
+            .iter()
+            .zip(&drive.tones_hz)
+            .map(|(&a, &b)| a as f64 * b)
+            .sum();
+        let f = f.abs();
+        let i = lattice_hz.partition_point(|&x| x < f - LINE_TOL_HZ);
+        if lattice_hz
+            .get(i)
+            .is_some_and(|&x| (x - f).abs() <= LINE_TOL_HZ)
+        {
+            keep[i] = true;
+        }
+    });
+    (0..lattice_hz.len()).filter(|&i| keep[i]).collect()
+}
+
 /// The lattice lines a dataset measures by default: every drive tone and every line within
 /// `window_rel · f_n` of a resonance `f_n`, Hz (sorted). Leaves out the static offset (datasets
 /// hold positive frequencies only) and the even-order lines far from resonance that
