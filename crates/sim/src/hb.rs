@@ -19,8 +19,8 @@
 use crate::lattice::{choose_lattice, low_order_lines, LatticeSettings, LINE_TOL_HZ};
 use crate::linalg::DenseLu;
 use crate::{Excitation, NumericModel, SimError};
-use harmonid_poly::{PowerProduct, VarId};
-use harmonid_spectral::{monomial_amplitudes, monomial_jacobian, ProductPlan, ProductScratch};
+use harmonid_poly::PowerProduct;
+use harmonid_spectral::{ProductPlan, SystemPlan, SystemScratch};
 use num_complex::Complex64;
 use std::f64::consts::TAU;
 
@@ -175,9 +175,9 @@ pub struct Stability {
 pub struct HbSolver {
     model: NumericModel,
     lattice: Vec<f64>,
-    plan: ProductPlan,
-    scratch: ProductScratch,
-    monos: Vec<PowerProduct>,
+    /// The nonlinear forces of all equations, sharing partial products.
+    system: SystemPlan,
+    scratch: SystemScratch,
     /// `lin[n*R + r] = ω_n² − Ω_r² + iΩ_r γ_n`.
     lin: Vec<Complex64>,
     /// Full-drive forces on the lattice, `[n*R + r]`.
@@ -251,18 +251,20 @@ impl HbSolver {
         let dmax = model.max_degree() as usize;
         let plan = ProductPlan::new(&lattice, &lattice, dmax)
             .map_err(|e| SimError::Hb(format!("cannot plan the products: {e}")))?;
-        let scratch = plan.scratch();
-        let monos = model
+        let terms: Vec<_> = model
             .terms()
             .iter()
             .map(|t| {
                 let mut e = vec![0u32; nm];
                 for &(m, k) in &t.factors {
-                    e[m] = k;
+                    e[m] += k;
                 }
-                PowerProduct::from_exponents(&e)
+                (t.eq, PowerProduct::from_exponents(&e), t.coef)
             })
             .collect();
+        let system = SystemPlan::new(plan, nm, nm, &terms)
+            .map_err(|e| SimError::Hb(format!("cannot plan the products: {e}")))?;
+        let scratch = system.scratch();
         let mut lin = vec![Z; nm * nr];
         for n in 0..nm {
             let (w, g) = (model.omega(n), model.gamma(n));
@@ -287,15 +289,14 @@ impl HbSolver {
         let nu = 2 * nm * nr;
         Ok(Self {
             model: model.clone(),
-            plan,
+            system,
             scratch,
-            monos,
             lin,
             force,
             force_max,
             x: vec![Z; nm * nr],
             res: vec![Z; nm * nr],
-            out: vec![Z; nr],
+            out: vec![Z; nm * nr],
             jre: vec![Z; nr * nr],
             jim: vec![Z; nr * nr],
             jac: vec![0.0; nu * nu],
@@ -324,25 +325,14 @@ impl HbSolver {
         let nm = self.model.n_modes();
         let nr = self.lattice.len();
         let x = if use_try { &self.x_try } else { &self.x };
-        for i in 0..nm * nr {
-            self.res[i] = self.lin[i] * x[i] - self.force[i] * s;
-        }
         let mut refs: [&[Complex64]; MAX_MODES] = [&[]; MAX_MODES];
         for n in 0..nm {
             refs[n] = &x[n * nr..(n + 1) * nr];
         }
-        for (t, term) in self.model.terms().iter().enumerate() {
-            monomial_amplitudes(
-                &self.plan,
-                &self.monos[t],
-                &refs[..nm],
-                &mut self.out,
-                &mut self.scratch,
-            );
-            let row = &mut self.res[term.eq * nr..(term.eq + 1) * nr];
-            for (r, o) in row.iter_mut().zip(&self.out) {
-                *r += o * term.coef;
-            }
+        self.system
+            .forces(&refs[..nm], &mut self.out, &mut self.scratch);
+        for i in 0..nm * nr {
+            self.res[i] = self.lin[i] * x[i] - self.force[i] * s + self.out[i];
         }
         let fm = (self.force_max * s).max(f64::MIN_POSITIVE);
         let mut m: f64 = 0.0;
@@ -380,32 +370,27 @@ impl HbSolver {
         for n in 0..nm {
             refs[n] = &self.x[n * nr..(n + 1) * nr];
         }
-        for (t, term) in self.model.terms().iter().enumerate() {
-            for &(j, _) in &term.factors {
-                monomial_jacobian(
-                    &self.plan,
-                    &self.monos[t],
-                    &refs[..nm],
-                    VarId(j as u32),
-                    &mut self.jre,
-                    &mut self.jim,
-                    &mut self.scratch,
-                );
-                let b = term.coef;
+        let jac = &mut self.jac;
+        self.system.jacobian(
+            &refs[..nm],
+            &mut self.jre,
+            &mut self.jim,
+            &mut self.scratch,
+            |eq, j, jre, jim| {
                 for o in 0..nr {
-                    let row0 = 2 * (term.eq * nr + o);
+                    let row0 = 2 * (eq * nr + o);
+                    let (top, bottom) = jac[row0 * nu..(row0 + 2) * nu].split_at_mut(nu);
                     for r in 0..nr {
                         let col0 = 2 * (j * nr + r);
-                        let a = self.jre[o * nr + r] * b;
-                        let c = self.jim[o * nr + r] * b;
-                        self.jac[row0 * nu + col0] += a.re;
-                        self.jac[(row0 + 1) * nu + col0] += a.im;
-                        self.jac[row0 * nu + col0 + 1] += c.re;
-                        self.jac[(row0 + 1) * nu + col0 + 1] += c.im;
+                        let (a, c) = (jre[o * nr + r], jim[o * nr + r]);
+                        top[col0] += a.re;
+                        bottom[col0] += a.im;
+                        top[col0 + 1] += c.re;
+                        bottom[col0 + 1] += c.im;
                     }
                 }
-            }
-        }
+            },
+        );
     }
 
     /// Stability of the steady state `state` (amplitudes on this solver's lattice) by Hill's
@@ -964,7 +949,12 @@ mod tests {
 
     /// Largest amplitude difference relative to the largest amplitude.
     fn rel_change(a: &SteadyState, b: &SteadyState) -> f64 {
-        let big = a.amplitudes.iter().flatten().map(|z| z.norm()).fold(0.0, f64::max);
+        let big = a
+            .amplitudes
+            .iter()
+            .flatten()
+            .map(|z| z.norm())
+            .fold(0.0, f64::max);
         let diff = a
             .amplitudes
             .iter()

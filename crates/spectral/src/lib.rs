@@ -18,7 +18,10 @@
 //! - [`ProductPlan`] / [`monomial_amplitudes`]: numeric complex amplitudes of a monomial's
 //!   product signal at chosen frequencies, from measured or simulated modal spectra
 //!   (`x(t) = Σ_r Re[X_r e^{i2π f_r t}]`, peak amplitudes, DATA_FORMAT conventions), with
-//!   Jacobians ([`ProductPlan::eval_jacobian`], [`monomial_jacobian`]).
+//!   Jacobians ([`ProductPlan::eval_jacobian`], [`monomial_jacobian`]);
+//! - [`SystemPlan`]: the forces `Σ c·m(x)` of a whole polynomial system and their Jacobian in
+//!   one pass, sharing partial products between monomials and equations (what a
+//!   harmonic-balance residual evaluates at every Newton step).
 //!
 //! Eq. S1 of the paper, `q1³` under tones `ω1 ± δ`:
 //!
@@ -45,6 +48,7 @@ mod error;
 mod lattice;
 mod mixing;
 mod product;
+mod system;
 
 pub use error::SpectralError;
 pub use lattice::{
@@ -58,3 +62,4 @@ pub use product::{
     monomial_amplitudes, monomial_jacobian, ProductPlan, ProductScratch, FREQ_TOLERANCE_HZ,
     MAX_PRODUCT_DEGREE,
 };
+pub use system::{SystemPlan, SystemScratch};

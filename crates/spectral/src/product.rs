@@ -52,13 +52,13 @@ fn lookup(reps: &[f64], x: f64) -> Option<usize> {
 
 /// One level of partial products, stored as in-edges per bin (compressed rows).
 #[derive(Debug, Clone, Default)]
-struct Level {
+pub(crate) struct Level {
     /// `start[d]..start[d+1]` are the edges into bin `d`.
-    start: Vec<u32>,
+    pub(crate) start: Vec<u32>,
     /// Source bin in the previous level.
-    src: Vec<u32>,
+    pub(crate) src: Vec<u32>,
     /// Component: `2r` is `X_r`, `2r+1` is `conj(X_r)`.
-    comp: Vec<u32>,
+    pub(crate) comp: Vec<u32>,
     /// `(bin, image)`: bins at `−f` whose image at `+f` is also kept. A partial product of real
     /// signals is real, so its coefficient at `−f` is the conjugate of that at `+f`: these
     /// bins have no edges and are filled by conjugation (about half of the work of a level
@@ -67,20 +67,25 @@ struct Level {
 }
 
 impl Level {
-    fn bins(&self) -> usize {
+    pub(crate) fn bins(&self) -> usize {
         self.start.len().saturating_sub(1)
+    }
+
+    /// Multiply-adds of one evaluation.
+    pub(crate) fn edges(&self) -> usize {
+        self.src.len()
     }
 }
 
 /// The plan for products of exactly `K` factors.
 #[derive(Debug, Clone, Default)]
-struct Chain {
+pub(crate) struct Chain {
     /// Levels 1..=K (level 0 is the constant 1 at 0 Hz).
-    levels: Vec<Level>,
+    pub(crate) levels: Vec<Level>,
     /// Per output: bin of the last level, or `None` if no combination lands there.
-    out_bin: Vec<Option<u32>>,
+    pub(crate) out_bin: Vec<Option<u32>>,
     /// Per output: 2^{1-K} for f > 0, 2^{-K} at DC.
-    out_scale: Vec<f64>,
+    pub(crate) out_scale: Vec<f64>,
 }
 
 /// Precomputed index tables for exact products of real multi-tone signals.
@@ -191,6 +196,16 @@ impl ProductPlan {
         self.chains
             .get(k)
             .map_or(0, |c| c.levels.iter().map(|l| l.src.len()).sum())
+    }
+
+    /// The chain for products of `degree` factors (`degree ≤ max_degree`).
+    pub(crate) fn chain_ref(&self, degree: usize) -> &Chain {
+        &self.chains[degree]
+    }
+
+    /// Largest number of bins of any level.
+    pub(crate) fn max_bins(&self) -> usize {
+        self.max_bins
     }
 
     /// Fresh buffers sized for this plan.
