@@ -42,6 +42,19 @@ pub struct NumericModel {
     eq_start: Vec<usize>,
     /// Highest exponent of each mode in any term.
     max_pow: Vec<u32>,
+    /// The terms compiled for [`NumericModel::forces`]: term `t` is
+    /// `coef[t] · Π pows[pow_idx[fac_start[t]..fac_start[t+1]]]` (indices into the power table).
+    flat: FlatTerms,
+}
+
+/// Terms as flat arrays (no per-term heap pointer to chase in the time-domain hot loop).
+#[derive(Debug, Clone, PartialEq, Default)]
+struct FlatTerms {
+    coef: Vec<f64>,
+    fac_start: Vec<u32>,
+    pow_idx: Vec<u32>,
+    /// Row length of the power table: highest exponent + 1.
+    stride: usize,
 }
 
 /// Values that turn a [`Model`] into a [`NumericModel`]: modal data and parameters by name.
@@ -171,6 +184,21 @@ impl NumericModel {
                 max_pow[m] = max_pow[m].max(k);
             }
         }
+        let stride = max_pow.iter().copied().max().unwrap_or(1) as usize + 1;
+        let mut flat = FlatTerms {
+            fac_start: vec![0],
+            stride,
+            ..FlatTerms::default()
+        };
+        for t in &terms {
+            flat.coef.push(t.coef);
+            flat.pow_idx.extend(
+                t.factors
+                    .iter()
+                    .map(|&(m, k)| (m * stride + k as usize) as u32),
+            );
+            flat.fac_start.push(flat.pow_idx.len() as u32);
+        }
         let out = Self {
             mode_names,
             f_hz,
@@ -178,6 +206,7 @@ impl NumericModel {
             terms,
             eq_start,
             max_pow,
+            flat,
         };
         out.check_bounded()?;
         Ok(out)
@@ -343,15 +372,17 @@ impl NumericModel {
 
     /// Nonlinear forces `out[n] = Σ_m b_m^(n) m(q)` at modal coordinates `q` (m). `pows` is
     /// scratch of length [`Self::pow_len`]. No allocation.
+    #[inline]
     pub fn forces(&self, q: &[f64], pows: &mut [f64], out: &mut [f64]) {
         self.fill_pows(q, pows);
-        let stride = self.pow_stride();
+        let f = &self.flat;
         for (n, o) in out.iter_mut().enumerate().take(self.n_modes()) {
             let mut s = 0.0;
-            for t in self.eq_terms(n) {
-                let mut v = t.coef;
-                for &(m, k) in &t.factors {
-                    v *= pows[m * stride + k as usize];
+            for t in self.eq_start[n]..self.eq_start[n + 1] {
+                let (lo, hi) = (f.fac_start[t] as usize, f.fac_start[t + 1] as usize);
+                let mut v = f.coef[t];
+                for &i in &f.pow_idx[lo..hi] {
+                    v *= pows[i as usize];
                 }
                 s += v;
             }
@@ -378,8 +409,9 @@ impl NumericModel {
         }
     }
 
+    #[inline]
     fn pow_stride(&self) -> usize {
-        self.max_pow.iter().copied().max().unwrap_or(1) as usize + 1
+        self.flat.stride
     }
 
     /// Length of the power table scratch used by [`Self::forces`].
@@ -387,13 +419,14 @@ impl NumericModel {
         self.n_modes() * self.pow_stride()
     }
 
+    #[inline]
     fn fill_pows(&self, q: &[f64], pows: &mut [f64]) {
         let stride = self.pow_stride();
-        for (m, &x) in q.iter().enumerate().take(self.n_modes()) {
-            let row = &mut pows[m * stride..(m + 1) * stride];
-            row[0] = 1.0;
-            for k in 1..stride {
-                row[k] = row[k - 1] * x;
+        for (row, &x) in pows.chunks_exact_mut(stride).zip(q) {
+            let mut p = 1.0;
+            for v in row.iter_mut() {
+                *v = p;
+                p *= x;
             }
         }
     }

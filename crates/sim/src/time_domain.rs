@@ -165,14 +165,14 @@ fn propagator(omega: f64, gamma: f64, s: f64) -> [f64; 4] {
     ]
 }
 
-/// Per-mode precomputed propagators of one step size.
+/// Per-mode precomputed propagators of one step size, flat (`nm` modes per row).
 struct Lawson {
-    /// `p[i][n]`: `Φ_n(c_i h)`.
-    p: Vec<Vec<[f64; 4]>>,
-    /// `acol[i][j][n]`: `h a_ij Φ_n((c_i − c_j) h) e₂`.
-    acol: Vec<Vec<Vec<[f64; 2]>>>,
-    /// `ecol[j][n]`: `h e_j Φ_n((1 − c_j) h) e₂`.
-    ecol: Vec<Vec<[f64; 2]>>,
+    /// `p[i·nm + n]`: `Φ_n(c_i h)`.
+    p: Vec<[f64; 4]>,
+    /// `acol[(i·7 + j)·nm + n]`: `h a_ij Φ_n((c_i − c_j) h) e₂` (zero for `j ≥ i`).
+    acol: Vec<[f64; 2]>,
+    /// `ecol[j·nm + n]`: `h e_j Φ_n((1 − c_j) h) e₂`.
+    ecol: Vec<[f64; 2]>,
 }
 
 impl Lawson {
@@ -182,37 +182,24 @@ impl Lawson {
             let p = propagator(model.omega(n), model.gamma(n), s);
             [p[1], p[3]]
         };
-        let p = (0..7)
-            .map(|i| {
-                (0..nm)
-                    .map(|n| propagator(model.omega(n), model.gamma(n), C[i] * h))
-                    .collect()
-            })
-            .collect();
-        let acol = (0..7)
-            .map(|i| {
-                (0..i.min(6))
-                    .map(|j| {
-                        (0..nm)
-                            .map(|n| {
-                                let c = col(n, (C[i] - C[j]) * h);
-                                [h * A[i][j] * c[0], h * A[i][j] * c[1]]
-                            })
-                            .collect()
-                    })
-                    .collect()
-            })
-            .collect();
-        let ecol = (0..7)
-            .map(|j| {
-                (0..nm)
-                    .map(|n| {
-                        let c = col(n, (1.0 - C[j]) * h);
-                        [h * E[j] * c[0], h * E[j] * c[1]]
-                    })
-                    .collect()
-            })
-            .collect();
+        let mut p = Vec::with_capacity(7 * nm);
+        let mut acol = vec![[0.0; 2]; 49 * nm];
+        let mut ecol = Vec::with_capacity(7 * nm);
+        for i in 0..7 {
+            for n in 0..nm {
+                p.push(propagator(model.omega(n), model.gamma(n), C[i] * h));
+                ecol.push({
+                    let c = col(n, (1.0 - C[i]) * h);
+                    [h * E[i] * c[0], h * E[i] * c[1]]
+                });
+            }
+            for j in 0..i.min(6) {
+                for n in 0..nm {
+                    let c = col(n, (C[i] - C[j]) * h);
+                    acol[(i * 7 + j) * nm + n] = [h * A[i][j] * c[0], h * A[i][j] * c[1]];
+                }
+            }
+        }
         Self { p, acol, ecol }
     }
 }
@@ -221,9 +208,11 @@ impl Lawson {
 /// lock-in, for the modal coordinates and for each measurement point `shapes[p]` (signal
 /// `Σ_n shapes[p][n] q_n`, plus white noise of RMS `settings.noise_rms` when nonzero).
 ///
-/// The integration runs past a settling time (`settings.settle_tau` decay times `2Q/ω`), then
-/// window after window until two consecutive windows agree to `settings.settle_tol`; the last
-/// window is reported. Errors: blow-up, not settling, no common period of the frequencies.
+/// The first demodulated window ends at the settling time (`settings.settle_tau` decay times
+/// `2Q/ω`; windows need not start at multiples of their length, since any run of whole periods
+/// of every frequency demodulates exactly); windows follow until two consecutive ones agree to
+/// `settings.settle_tol`, and the last is reported (it starts at or after the settling time).
+/// Errors: blow-up, not settling, no common period of the frequencies.
 pub fn simulate_lockin(
     model: &NumericModel,
     drive: &Excitation,
@@ -321,6 +310,7 @@ fn run(
         .iter()
         .map(|r| r.iter().map(|z| z.norm()).sum::<f64>())
         .collect();
+    let y_flat: Vec<Complex64> = y.iter().flatten().copied().collect();
     let all_scale = y_scale
         .iter()
         .copied()
@@ -328,12 +318,11 @@ fn run(
         .max(f64::MIN_POSITIVE);
     let scale: Vec<f64> = y_scale.iter().map(|&s| s.max(1e-3 * all_scale)).collect();
     let wdr: Vec<f64> = drive.tones_hz.iter().map(|&f| TAU * f).collect();
-    // Stage rotations e^{i ω_d c_i h}.
-    let rot: Vec<Vec<Complex64>> = (0..7)
-        .map(|i| {
+    // Stage rotations e^{i ω_d c_i h}, `rot[i·nd + d]`.
+    let rot: Vec<Complex64> = (0..7)
+        .flat_map(|i| {
             wdr.iter()
-                .map(|&w| Complex64::from_polar(1.0, w * C[i] * h))
-                .collect()
+                .map(move |&w| Complex64::from_polar(1.0, w * C[i] * h))
         })
         .collect();
     let lw = Lawson::new(model, h);
@@ -361,11 +350,11 @@ fn run(
     }
 
     // Scratch.
-    let mut g = vec![vec![0.0f64; nm]; 7];
+    // Stage forces, `g[j·nm + n]`.
+    let mut g = vec![0.0f64; 7 * nm];
     let mut ust = vec![[0.0f64; 2]; nm];
     let mut qtot = vec![0.0f64; nm];
     let mut pows = vec![0.0f64; model.pow_len()];
-    let mut fnl = vec![0.0f64; nm];
     let mut zst = vec![Complex64::new(0.0, 0.0); nd];
     let mut acc_modal = vec![Complex64::new(0.0, 0.0); nm * nk];
     let mut acc_point = vec![Complex64::new(0.0, 0.0); np * nk];
@@ -394,10 +383,11 @@ fn run(
         Start::Rest => 12.0,
         Start::State { .. } => 1.0,
     });
-    let settle_windows = (settle_tau * tau_max / window_s).ceil().max(0.0) as u64;
-    // First window demodulated: one before the settling time (for the comparison).
-    let first_demod = settle_windows.saturating_sub(1);
-    let last_allowed = settle_windows + st.max_windows as u64;
+    // Windows need not start at multiples of the window length: every frequency has whole
+    // periods in any `n_win` consecutive steps. The first demodulated window ends at the
+    // settling time (it is compared with the next one), after a pre-roll of `pre` steps.
+    let settle_steps = (settle_tau * tau_max / h).ceil().max(0.0) as u64;
+    let pre = settle_steps.saturating_sub(n_win);
     let err_tol: Vec<f64> = scale.iter().map(|&s| st.rtol * s).collect();
     let blow = 1e3;
 
@@ -405,57 +395,65 @@ fn run(
                   us: &[[f64; 2]],
                   qtot: &mut [f64],
                   pows: &mut [f64],
-                  fnl: &mut [f64],
                   out: &mut [f64]| {
-        for n in 0..nm {
-            let mut ql = 0.0;
-            for d in 0..nd {
-                ql += (y[n][d] * t_z[d]).re;
+        let mut k = 0;
+        for (q, un) in qtot.iter_mut().zip(us) {
+            let mut ql = un[0];
+            for b in t_z {
+                let a = y_flat[k];
+                ql += a.re * b.re - a.im * b.im;
+                k += 1;
             }
-            qtot[n] = ql + us[n][0];
+            *q = ql;
         }
-        model.forces(qtot, pows, fnl);
-        for n in 0..nm {
-            out[n] = -fnl[n];
-        }
+        model.forces(qtot, pows, out);
+        out.iter_mut().for_each(|v| *v = -*v);
     };
 
     let mut step: u64 = 0;
     let mut max_err: f64 = 0.0;
     let mut win: u64 = 0;
-    {
-        let (g0, _) = g.split_at_mut(1);
-        eval_g(&z, &u, &mut qtot, &mut pows, &mut fnl, &mut g0[0]);
-    }
+    let mut demod_windows: usize = 0;
+    eval_g(&z, &u, &mut qtot, &mut pows, &mut g[..nm]);
     let mut settle_change = f64::INFINITY;
     loop {
-        let demod = win >= first_demod;
-        for j in 0..n_win {
+        let (demod, len) = if win == 0 && pre > 0 {
+            (false, pre)
+        } else {
+            (true, n_win)
+        };
+        if demod {
+            for (k, &c) in meas_cyc.iter().enumerate() {
+                zk[k] = phasor(c, step % n_win).conj();
+            }
+        }
+        for j in 0..len {
             // Stages 1..6 (stage 0 is FSAL).
             for i in 1..7 {
-                for n in 0..nm {
-                    let p = &lw.p[i][n];
-                    let mut a = p[0] * u[n][0] + p[1] * u[n][1];
-                    let mut b = p[2] * u[n][0] + p[3] * u[n][1];
+                let (done, rest) = g.split_at_mut(i * nm);
+                let p = &lw.p[i * nm..(i + 1) * nm];
+                for (n, (us, un)) in ust.iter_mut().zip(&u).enumerate() {
+                    let pn = &p[n];
+                    let mut a = pn[0] * un[0] + pn[1] * un[1];
+                    let mut b = pn[2] * un[0] + pn[3] * un[1];
                     for jj in 0..i {
-                        let c = &lw.acol[i][jj][n];
-                        a += c[0] * g[jj][n];
-                        b += c[1] * g[jj][n];
+                        let c = &lw.acol[(i * 7 + jj) * nm + n];
+                        let gj = done[jj * nm + n];
+                        a += c[0] * gj;
+                        b += c[1] * gj;
                     }
-                    ust[n] = [a, b];
+                    *us = [a, b];
                 }
-                for d in 0..nd {
-                    zst[d] = z[d] * rot[i][d];
+                for ((zs, zd), r) in zst.iter_mut().zip(&z).zip(&rot[i * nd..(i + 1) * nd]) {
+                    *zs = zd * r;
                 }
-                let (lo, hi) = g.split_at_mut(i);
-                let _ = lo;
-                eval_g(&zst, &ust, &mut qtot, &mut pows, &mut fnl, &mut hi[0]);
+                eval_g(&zst, &ust, &mut qtot, &mut pows, &mut rest[..nm]);
             }
             // Error estimate.
             for n in 0..nm {
                 let mut e0 = 0.0;
-                for (jj, gj) in g.iter().enumerate() {
-                    e0 += lw.ecol[jj][n][0] * gj[n];
+                for jj in 0..7 {
+                    e0 += lw.ecol[jj * nm + n][0] * g[jj * nm + n];
                 }
                 let r = e0.abs() / err_tol[n];
                 if r > max_err {
@@ -463,10 +461,9 @@ fn run(
                 }
             }
             u.copy_from_slice(&ust);
-            let (first, rest) = g.split_at_mut(1);
-            first[0].copy_from_slice(&rest[5]);
+            g.copy_within(6 * nm..7 * nm, 0);
             step += 1;
-            let n_in = (j + 1) % n_win;
+            let n_in = step % n_win;
             if n_in % 256 == 0 {
                 for d in 0..nd {
                     z[d] = phasor(tone_cyc[d], n_in);
@@ -501,7 +498,7 @@ fn run(
                 let sidx = (j + 1) / m_dec as u64;
                 if sidx % 256 == 0 {
                     for (k, &c) in meas_cyc.iter().enumerate() {
-                        zk[k] = phasor(c, (j + 1) % n_win).conj();
+                        zk[k] = phasor(c, n_in).conj();
                     }
                 } else {
                     for k in 0..nk {
@@ -546,11 +543,15 @@ fn run(
                     .fold(0.0, f64::max)
                     / biggest;
             }
-            let done = win > settle_windows && settle_change <= st.settle_tol;
-            if done || win >= last_allowed {
+            let start_step = step - n_win;
+            let done = start_step >= settle_steps && settle_change <= st.settle_tol;
+            if start_step >= settle_steps {
+                demod_windows += 1;
+            }
+            if done || demod_windows > st.max_windows {
                 if !done {
                     return Err(SimError::NotSettled {
-                        t_s: win as f64 * window_s,
+                        t_s: step as f64 * h,
                         change: settle_change,
                         tol: st.settle_tol,
                     });
@@ -570,7 +571,7 @@ fn run(
                     modal,
                     points,
                     window_s,
-                    window_start_s: (win - 1) as f64 * window_s,
+                    window_start_s: start_step as f64 * h,
                     settle_change,
                     steps_per_period: st.steps_per_period,
                     samples: n_samp,
@@ -587,7 +588,7 @@ fn run(
                 .for_each(|a| *a = Complex64::new(0.0, 0.0));
         }
         // Max error counts only over the windows that matter (after the first transient).
-        if win < first_demod {
+        if !demod {
             max_err = 0.0;
         }
     }
