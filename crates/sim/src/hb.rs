@@ -248,8 +248,10 @@ impl HbSolver {
             )));
         }
         let nr = lattice.len();
-        let dmax = model.max_degree() as usize;
-        let plan = ProductPlan::new(&lattice, &lattice, dmax)
+        let mut degrees: Vec<usize> = model.terms().iter().map(|t| t.degree() as usize).collect();
+        degrees.sort_unstable();
+        degrees.dedup();
+        let plan = ProductPlan::for_degrees(&lattice, &lattice, &degrees)
             .map_err(|e| SimError::Hb(format!("cannot plan the products: {e}")))?;
         let terms: Vec<_> = model
             .terms()

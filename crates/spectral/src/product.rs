@@ -50,6 +50,36 @@ fn lookup(reps: &[f64], x: f64) -> Option<usize> {
     }
 }
 
+/// Lookups in sorted `set` of `x_c` for several shifts `c`, each shift's queries coming in
+/// ascending order: one forward-only cursor per shift instead of a binary search per query
+/// (plan building does `bins × components` of them).
+struct Cursors<'a> {
+    set: &'a [f64],
+    pos: Vec<usize>,
+}
+
+impl<'a> Cursors<'a> {
+    fn new(set: &'a [f64], shifts: usize) -> Self {
+        Self {
+            set,
+            pos: vec![0; shifts],
+        }
+    }
+
+    /// As [`lookup`]`(set, x)`; `x` must not decrease between calls with the same `c`.
+    #[inline]
+    fn find(&mut self, c: usize, x: f64) -> Option<usize> {
+        let p = &mut self.pos[c];
+        while *p < self.set.len() && self.set[*p] < x - FREQ_TOLERANCE_HZ {
+            *p += 1;
+        }
+        match self.set.get(*p) {
+            Some(&r) if r <= x + FREQ_TOLERANCE_HZ => Some(*p),
+            _ => None,
+        }
+    }
+}
+
 /// One level of partial products, stored as in-edges per bin (compressed rows).
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Level {
@@ -96,8 +126,9 @@ pub(crate) struct Chain {
 pub struct ProductPlan {
     input_hz: Vec<f64>,
     output_hz: Vec<f64>,
-    /// `chains[k]` handles products of `k` factors, `k = 0..=max_degree`.
-    chains: Vec<Chain>,
+    /// `chains[k]` handles products of `k` factors, `k = 0..=max_degree` (`None`: a degree
+    /// [`ProductPlan::for_degrees`] was not asked for).
+    chains: Vec<Option<Chain>>,
     /// Largest number of bins of any level (scratch size).
     max_bins: usize,
 }
@@ -125,6 +156,19 @@ impl ProductPlan {
         output_hz: &[f64],
         max_degree: usize,
     ) -> Result<Self, SpectralError> {
+        let all: Vec<usize> = (0..=max_degree).collect();
+        Self::for_degrees(input_hz, output_hz, &all)
+    }
+
+    /// As [`ProductPlan::new`], planning only products of the listed numbers of factors (a
+    /// cubic model needs degree 3 only; each degree's tables cost set-up time). Evaluating
+    /// another degree panics.
+    pub fn for_degrees(
+        input_hz: &[f64],
+        output_hz: &[f64],
+        degrees: &[usize],
+    ) -> Result<Self, SpectralError> {
+        let max_degree = degrees.iter().copied().max().unwrap_or(0);
         for (index, &hz) in input_hz.iter().enumerate() {
             if !(hz.is_finite() && hz >= 0.0) {
                 return Err(SpectralError::NegativeInputFrequency { index, hz });
@@ -161,11 +205,15 @@ impl ProductPlan {
         let mut total_edges = 0usize;
         let mut max_bins = 1usize;
         for k in 0..=max_degree {
+            if !degrees.contains(&k) {
+                chains.push(None);
+                continue;
+            }
             let chain = build_chain(k, &comp_hz, &outputs, output_hz, &mut total_edges)?;
             for l in &chain.levels {
                 max_bins = max_bins.max(l.bins());
             }
-            chains.push(chain);
+            chains.push(Some(chain));
         }
         Ok(Self {
             input_hz: input_hz.to_vec(),
@@ -195,12 +243,20 @@ impl ProductPlan {
     pub fn cost(&self, k: usize) -> usize {
         self.chains
             .get(k)
+            .and_then(Option::as_ref)
             .map_or(0, |c| c.levels.iter().map(|l| l.src.len()).sum())
     }
 
     /// The chain for products of `degree` factors (`degree ≤ max_degree`).
     pub(crate) fn chain_ref(&self, degree: usize) -> &Chain {
-        &self.chains[degree]
+        self.chains[degree]
+            .as_ref()
+            .expect("products of this degree were not planned")
+    }
+
+    /// Whether products of `degree` factors were planned.
+    pub fn has_degree(&self, degree: usize) -> bool {
+        self.chains.get(degree).is_some_and(Option::is_some)
     }
 
     /// Largest number of bins of any level.
@@ -384,7 +440,7 @@ impl ProductPlan {
                 && scratch.comp.len() == 2 * self.input_hz.len(),
             "scratch does not belong to this plan; make it with ProductPlan::scratch"
         );
-        &self.chains[degree]
+        self.chain_ref(degree)
     }
 }
 
@@ -494,19 +550,19 @@ fn build_chain(
         .filter(|&f| lookup(b_meet, f).is_some())
         .collect();
     for j in (0..meet).rev() {
-        let next = &kept[j + 1];
+        let mut next = Cursors::new(&kept[j + 1], comp_hz.len());
         kept[j] = fwd[j]
             .iter()
             .copied()
-            .filter(|&f| comp_hz.iter().any(|&c| lookup(next, f + c).is_some()))
+            .filter(|&f| (0..comp_hz.len()).any(|c| next.find(c, f + comp_hz[c]).is_some()))
             .collect();
     }
     for j in meet + 1..=k {
-        let prev = &kept[j - 1];
+        let mut prev = Cursors::new(&kept[j - 1], comp_hz.len());
         kept[j] = bwd[k - j]
             .iter()
             .copied()
-            .filter(|&f| comp_hz.iter().any(|&c| lookup(prev, f - c).is_some()))
+            .filter(|&f| (0..comp_hz.len()).any(|c| prev.find(c, f - comp_hz[c]).is_some()))
             .collect();
     }
     let mut levels = Vec::with_capacity(k);
@@ -516,6 +572,7 @@ fn build_chain(
             ..Level::default()
         };
         level.start.push(0);
+        let mut prev = Cursors::new(&kept[j - 1], comp_hz.len());
         for (d, &f) in kept[j].iter().enumerate() {
             if f < -FREQ_TOLERANCE_HZ {
                 if let Some(img) = lookup(&kept[j], -f) {
@@ -525,7 +582,7 @@ fn build_chain(
                 }
             }
             for (c, &fc) in comp_hz.iter().enumerate() {
-                if let Some(s) = lookup(&kept[j - 1], f - fc) {
+                if let Some(s) = prev.find(c, f - fc) {
                     level.src.push(s as u32);
                     level.comp.push(c as u32);
                 }
@@ -807,6 +864,25 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn planning_some_degrees_gives_the_same_products() {
+        let f = [0.0, 99.5, 100.0, 100.5, 201.0];
+        let full = ProductPlan::new(&f, &f, 3).expect("plan");
+        let cubic = ProductPlan::for_degrees(&f, &f, &[3]).expect("plan");
+        assert!(cubic.has_degree(3) && !cubic.has_degree(2) && !cubic.has_degree(4));
+        assert_eq!(cubic.cost(2), 0);
+        assert_eq!(cubic.cost(3), full.cost(3));
+        let mut rng = Rng(7);
+        let x: Vec<Complex64> = f.iter().map(|_| rng.c()).collect();
+        let (mut a, mut b) = (
+            vec![Complex64::new(0.0, 0.0); 5],
+            vec![Complex64::new(0.0, 0.0); 5],
+        );
+        full.eval(&[&x, &x, &x], &mut a, &mut full.scratch());
+        cubic.eval(&[&x, &x, &x], &mut b, &mut cubic.scratch());
+        assert_eq!(a, b);
     }
 
     #[test]

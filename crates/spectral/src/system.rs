@@ -85,8 +85,8 @@ pub struct SystemScratch {
 impl SystemPlan {
     /// Plans the system `F_e = Σ c · m(x)` over `n_vars` variables and `n_eqs` equations;
     /// `terms` are `(equation, monomial over variables 0..n_vars, real coefficient)`. Input
-    /// and output frequencies are those of `plan` (Hz), whose `max_degree` must cover every
-    /// monomial.
+    /// and output frequencies are those of `plan` (Hz), which must have planned the degree of
+    /// every monomial (see [`ProductPlan::for_degrees`]).
     ///
     /// Errors: an equation or variable index out of range, or a monomial above the plan's
     /// degree ([`SpectralError::TooLarge`]).
@@ -114,9 +114,9 @@ impl SystemPlan {
                 });
             }
             let d = m.degree() as usize;
-            if d > plan.max_degree() {
+            if !plan.has_degree(d) {
                 return Err(SpectralError::TooLarge {
-                    what: "a monomial degree for this product plan",
+                    what: "a monomial degree for this product plan (not planned)",
                     needed: d,
                     limit: plan.max_degree(),
                 });
