@@ -314,6 +314,13 @@ pub(crate) fn plan_steady_state(
             pm.name, st.status, st.residual
         ));
     }
+    for s in &st.drive_jumps {
+        eprintln!(
+            "note: measurement {}: the drive ramp met a fold at {:.2} % of the drive and the state jumped (slow-flow landing), as a drive-up experiment would",
+            pm.name,
+            100.0 * s
+        );
+    }
     Ok((st, drive))
 }
 

@@ -39,6 +39,11 @@ const RAMP_MIN_SAVING: f64 = 0.25;
 /// Most drive tones for which the coarse ramp lattice is enumerated (the count of
 /// combinations grows as `tones^RAMP_ORDER`).
 const RAMP_MAX_TONES: usize = 8;
+/// A ramp step this small (fraction of the full drive) that still fails marks a fold in the
+/// drive: the branch ends and the state jumps (see [`HbSolver::land`]).
+const FOLD_STEP: f64 = 1e-4;
+/// Most pseudo-time steps of a landing.
+const LAND_MAX_STEPS: usize = 400;
 
 /// Settings of a harmonic-balance solve.
 #[derive(Debug, Clone, PartialEq)]
@@ -107,6 +112,9 @@ pub struct SteadyState {
     pub residual: f64,
     /// Drive levels solved along the ramp.
     pub ramp_steps: usize,
+    /// Drive fractions where the ramp met a fold (its branch ended) and the state jumped to
+    /// the one the slow-flow dynamics reach, as a drive-up experiment would.
+    pub drive_jumps: Vec<f64>,
 }
 
 impl SteadyState {
@@ -576,6 +584,7 @@ impl HbSolver {
                 res,
                 first.ramp_steps + 1,
                 false,
+                first.drive_jumps,
             )
         })
     }
@@ -608,8 +617,10 @@ impl HbSolver {
                 res,
                 steps,
                 true,
+                Vec::new(),
             );
         }
+        let mut jumps = Vec::new();
         let mut s = s0;
         let mut ds = settings.ramp_step;
         let mut prev = self.x.clone();
@@ -624,6 +635,7 @@ impl HbSolver {
                     r,
                     steps,
                     false,
+                    jumps,
                 );
             }
             let s_new = (s + ds).min(1.0);
@@ -656,13 +668,33 @@ impl HbSolver {
                 if it <= 3 {
                     ds = (ds * 1.6).min(settings.ramp_step_max);
                 }
+            } else if ds <= FOLD_STEP {
+                // The branch ends between s and s + ds: a fold in the drive. An experiment
+                // jumps there; follow the slow flow from the last state at the next level.
+                self.x.copy_from_slice(&good);
+                if self.land(s_new, tol) {
+                    jumps.push(s);
+                    good.copy_from_slice(&self.x);
+                    prev.copy_from_slice(&self.x);
+                    s = s_new;
+                    prev_s = s;
+                    ds = settings.ramp_step;
+                } else {
+                    ds *= 0.5;
+                }
             } else {
                 ds *= 0.5;
             }
         }
         let _ = res;
         let r = self.residual(false, 1.0);
-        self.finish(HbStatus::Converged { iterations: iters }, r, steps, false)
+        self.finish(
+            HbStatus::Converged { iterations: iters },
+            r,
+            steps,
+            false,
+            jumps,
+        )
     }
 
     /// Newton at full drive from a given state (`amplitudes[n][r]` on this lattice), e.g. the
@@ -681,10 +713,74 @@ impl HbSolver {
                 drive_fraction: 1.0,
             }
         };
-        self.finish(status, r, 1, false)
+        self.finish(status, r, 1, false, Vec::new())
     }
 
-    fn finish(&mut self, status: HbStatus, residual: f64, steps: usize, zero: bool) -> SteadyState {
+    /// Lands at drive fraction `s` from the current state (beyond a fold, off any branch) the
+    /// way the resonator does: the slow flow `(2iΩ_r + γ_n) Ẋ = −R(X)` (see
+    /// [`HbSolver::stability`]) integrated by linearly implicit Euler,
+    /// `(C/Δt + J) ΔX = −R`, from `Δt` a tenth of the fastest decay time, growing as the
+    /// residual falls (switched evolution relaxation) until it is Newton. Small steps first
+    /// keep the trajectory, so the state ends in the basin the physical transient reaches.
+    /// Returns whether the residual met `tol`.
+    fn land(&mut self, s: f64, tol: f64) -> bool {
+        let nm = self.model.n_modes();
+        let nr = self.lattice.len();
+        let nu = self.unknowns();
+        let g_max = (0..nm).map(|n| self.model.gamma(n)).fold(0.0, f64::max);
+        let mut dt = 0.1 * 2.0 / g_max;
+        let mut r0 = self.residual(false, s);
+        for _ in 0..LAND_MAX_STEPS {
+            if r0 <= tol {
+                self.have_lu = false;
+                return true;
+            }
+            self.assemble_jacobian();
+            for n in 0..nm {
+                let g = self.model.gamma(n);
+                for (r, &f) in self.lattice.iter().enumerate() {
+                    let c = Complex64::new(g, 2.0 * TAU * f) / dt;
+                    let k = 2 * (n * nr + r);
+                    self.jac[k * nu + k] += c.re;
+                    self.jac[k * nu + k + 1] -= c.im;
+                    self.jac[(k + 1) * nu + k] += c.im;
+                    self.jac[(k + 1) * nu + k + 1] += c.re;
+                }
+            }
+            if !self.lu.factor(&self.jac) {
+                dt *= 0.25;
+                continue;
+            }
+            for i in 0..nu / 2 {
+                self.step[2 * i] = -self.res[i].re;
+                self.step[2 * i + 1] = -self.res[i].im;
+            }
+            self.lu.solve(&mut self.step);
+            for i in 0..nu / 2 {
+                self.x_try[i] = self.x[i] + Complex64::new(self.step[2 * i], self.step[2 * i + 1]);
+            }
+            let r1 = self.residual(true, s);
+            if r1.is_finite() {
+                std::mem::swap(&mut self.x, &mut self.x_try);
+                dt *= (r0 / r1).clamp(1.0, 2.0);
+                r0 = r1;
+            } else {
+                self.residual(false, s);
+                dt *= 0.25;
+            }
+        }
+        self.have_lu = false;
+        false
+    }
+
+    fn finish(
+        &mut self,
+        status: HbStatus,
+        residual: f64,
+        steps: usize,
+        zero: bool,
+        drive_jumps: Vec<f64>,
+    ) -> SteadyState {
         let nm = self.model.n_modes();
         let nr = self.lattice.len();
         let lattice = &self.lattice;
@@ -716,6 +812,7 @@ impl HbSolver {
                 f64::MAX
             },
             ramp_steps: steps,
+            drive_jumps,
         }
     }
 }
@@ -1000,5 +1097,49 @@ mod tests {
                 assert!(other.converged() && rel_change(&fast, &other) > 0.1);
             }
         }
+    }
+
+    #[test]
+    fn drive_ramp_jumps_at_a_fold_like_the_experiment() {
+        // Hardening Duffing above resonance: driven up at a fixed frequency, the low branch
+        // ends at a fold in the force and the state jumps to the high branch, which is the
+        // only state left beyond the fold.
+        let beta = 4e13;
+        let m = duffing(beta);
+        let k = 0.75 * beta;
+        let (w, g) = (m.omega(0), m.gamma(0));
+        let f = 1030.0;
+        let o = TAU * f;
+        let l = Complex64::new(w * w - o * o, o * g);
+        // The fold: the largest force with three branches.
+        let fold = (1..4000)
+            .map(|i| 0.5 * i as f64)
+            .filter(|&force| duffing_roots(l, k, force).len() == 3)
+            .fold(0.0, f64::max);
+        assert!(fold > 0.0, "no bistable range at {f} Hz");
+        let force = 1.25 * fold;
+        let roots = duffing_roots(l, k, force);
+        assert_eq!(
+            roots.len(),
+            1,
+            "beyond the fold only the high branch is left"
+        );
+        let want = Complex64::new(force, 0.0) / (l + k * roots[0]);
+        let drive = Excitation {
+            tones_hz: vec![f],
+            force: vec![vec![Complex64::new(force, 0.0)]],
+        };
+        let st = steady_state(&m, &drive, &HbSettings::default()).expect("solve");
+        assert!(st.converged(), "{:?}", st.status);
+        let got = st.amplitude(0, f);
+        assert!((got - want).norm() < 1e-8 * want.norm(), "{got} vs {want}");
+        // One jump, where the low branch ends (fold / force), located to the ramp's step.
+        assert_eq!(st.drive_jumps.len(), 1, "{:?}", st.drive_jumps);
+        let at = st.drive_jumps[0] * force;
+        assert!(
+            (at - fold).abs() < 0.01 * fold,
+            "jump at {at}, fold at {fold}"
+        );
+        assert!(check_stability(&m, &drive, &st).expect("verdict").stable);
     }
 }
