@@ -49,6 +49,8 @@ mod lattice;
 mod mixing;
 mod product;
 mod system;
+#[cfg(test)]
+mod test_rng;
 
 pub use error::SpectralError;
 pub use lattice::{

@@ -702,19 +702,7 @@ pub fn monomial_jacobian(
 mod tests {
     use super::*;
 
-    /// Small seeded generator (xorshift) so tests need no extra dependency.
-    struct Rng(u64);
-    impl Rng {
-        fn next(&mut self) -> f64 {
-            self.0 ^= self.0 << 13;
-            self.0 ^= self.0 >> 7;
-            self.0 ^= self.0 << 17;
-            (self.0 >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        }
-        fn c(&mut self) -> Complex64 {
-            Complex64::new(self.next(), self.next())
-        }
-    }
+    use crate::test_rng::Rng;
 
     /// Brute force over every signed component choice (independent of the plan's tables).
     fn brute_force(input: &[f64], output: &[f64], factors: &[&[Complex64]]) -> Vec<Complex64> {

@@ -476,22 +476,7 @@ mod tests {
     use crate::{monomial_amplitudes, monomial_jacobian};
     use harmonid_poly::VarId;
 
-    /// xorshift: deterministic test values.
-    struct Rng(u64);
-    impl Rng {
-        fn next(&mut self) -> f64 {
-            self.0 ^= self.0 << 13;
-            self.0 ^= self.0 >> 7;
-            self.0 ^= self.0 << 17;
-            (self.0 >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        }
-        fn c(&mut self) -> Complex64 {
-            Complex64::new(self.next(), self.next())
-        }
-        fn below(&mut self, n: usize) -> usize {
-            ((self.next() + 0.5) * n as f64) as usize % n
-        }
-    }
+    use crate::test_rng::Rng;
 
     /// A random system and lattice (with a 0 Hz line), evaluated both ways.
     fn check(seed: u64) {
