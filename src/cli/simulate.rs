@@ -51,7 +51,8 @@ pub struct Args {
     /// Intermodulation order of the harmonic-balance lattice.
     #[arg(long, default_value_t = 9)]
     pub order: usize,
-    /// Also report how much widening the lattice (order + 2, window × 1.5) changes the result.
+    /// Also report how much widening the lattice (order + 2, window × 1.5, direct harmonics
+    /// wherever they fall) changes the result.
     #[arg(long)]
     pub check_truncation: bool,
     /// Seed of the noise generator.
