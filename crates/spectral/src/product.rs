@@ -385,9 +385,6 @@ impl ProductPlan {
             "eval_jacobian: a product of 0 factors has no Jacobian"
         );
         let chain = self.chain(degree, n_out, scratch);
-        let zero = Complex64::new(0.0, 0.0);
-        jac_re.fill(zero);
-        jac_im.fill(zero);
         // Partial product of the other K-1 factors, then the last level's edges give the
         // derivative with respect to each component of the differentiated factor.
         let last = run_levels(
@@ -399,27 +396,7 @@ impl ProductPlan {
             &mut scratch.comp,
         );
         let prev: &[Complex64] = if last { &scratch.b } else { &scratch.a };
-        let level = &chain.levels[degree - 1];
-        let i = Complex64::new(0.0, 1.0);
-        for (o, (bin, &s)) in chain.out_bin.iter().zip(&chain.out_scale).enumerate() {
-            let Some(d) = bin else { continue };
-            let d = *d as usize;
-            let (lo, hi) = (level.start[d] as usize, level.start[d + 1] as usize);
-            let row_re = &mut jac_re[o * r_len..(o + 1) * r_len];
-            let row_im = &mut jac_im[o * r_len..(o + 1) * r_len];
-            for e in lo..hi {
-                let p = prev[level.src[e] as usize] * (s * mult);
-                let c = level.comp[e] as usize;
-                let r = c / 2;
-                row_re[r] += p;
-                // ∂X/∂b = i, ∂X̄/∂b = −i.
-                if c % 2 == 0 {
-                    row_im[r] += p * i;
-                } else {
-                    row_im[r] -= p * i;
-                }
-            }
-        }
+        scatter_jacobian(chain, degree, prev, mult, r_len, jac_re, jac_im);
     }
 
     /// The chain for `degree` factors, after checking shapes.
@@ -495,6 +472,45 @@ pub(crate) fn run_level(
     }
     for &(d, img) in &level.mirror {
         cur[d as usize] = cur[img as usize].conj();
+    }
+}
+
+/// The Jacobian of a degree-`degree` product through the last level of `chain`, given the
+/// partial product `prev` of the other factors (times `mult`) on that level's source bins:
+/// overwrites `jac_re[o·R + r] = ∂out[o]/∂Re X_r` and `jac_im[o·R + r] = ∂out[o]/∂Im X_r`
+/// (`R = r_len`) of the differentiated factor's amplitudes `X`.
+pub(crate) fn scatter_jacobian(
+    chain: &Chain,
+    degree: usize,
+    prev: &[Complex64],
+    mult: f64,
+    r_len: usize,
+    jac_re: &mut [Complex64],
+    jac_im: &mut [Complex64],
+) {
+    let zero = Complex64::new(0.0, 0.0);
+    jac_re.fill(zero);
+    jac_im.fill(zero);
+    let level = &chain.levels[degree - 1];
+    let i = Complex64::new(0.0, 1.0);
+    for (o, (bin, &s)) in chain.out_bin.iter().zip(&chain.out_scale).enumerate() {
+        let Some(d) = bin else { continue };
+        let d = *d as usize;
+        let (lo, hi) = (level.start[d] as usize, level.start[d + 1] as usize);
+        let row_re = &mut jac_re[o * r_len..(o + 1) * r_len];
+        let row_im = &mut jac_im[o * r_len..(o + 1) * r_len];
+        for e in lo..hi {
+            let p = prev[level.src[e] as usize] * (s * mult);
+            let c = level.comp[e] as usize;
+            let r = c / 2;
+            row_re[r] += p;
+            // ∂X/∂b = i, ∂X̄/∂b = −i.
+            if c % 2 == 0 {
+                row_im[r] += p * i;
+            } else {
+                row_im[r] -= p * i;
+            }
+        }
     }
 }
 

@@ -15,7 +15,7 @@
 //! `Σ_m c_m p_{m,j} · (m / x_j)` summed on the prefix bins, then the last level's edges as a
 //! scatter into the `(output, input)` block.
 
-use crate::product::{run_level, Chain};
+use crate::product::{run_level, scatter_jacobian, Chain};
 use crate::{ProductPlan, SpectralError};
 use harmonid_poly::PowerProduct;
 use num_complex::Complex64;
@@ -255,35 +255,13 @@ impl SystemPlan {
             "jacobian: blocks must hold output_hz.len() * input_hz.len() entries"
         );
         self.load_comps(x, s);
-        let i = Complex64::new(0.0, 1.0);
         for part in &self.parts {
             let chain = self.plan.chain_ref(part.degree);
             self.eval_nodes(part, chain, false, s);
             let prev_bins = prefix_bins(chain, part.degree);
-            let level = &chain.levels[part.degree - 1];
             for g in &part.jacobian {
                 sum_prefixes(g, part, prev_bins, s);
-                jac_re.fill(Z);
-                jac_im.fill(Z);
-                for (o, (bin, &sc)) in chain.out_bin.iter().zip(&chain.out_scale).enumerate() {
-                    let Some(d) = bin else { continue };
-                    let d = *d as usize;
-                    let (lo, hi) = (level.start[d] as usize, level.start[d + 1] as usize);
-                    let row_re = &mut jac_re[o * r_len..(o + 1) * r_len];
-                    let row_im = &mut jac_im[o * r_len..(o + 1) * r_len];
-                    for e in lo..hi {
-                        let p = s.acc[level.src[e] as usize] * sc;
-                        let c = level.comp[e] as usize;
-                        let r = c / 2;
-                        row_re[r] += p;
-                        // ∂X/∂b = i, ∂X̄/∂b = −i.
-                        if c % 2 == 0 {
-                            row_im[r] += p * i;
-                        } else {
-                            row_im[r] -= p * i;
-                        }
-                    }
-                }
+                scatter_jacobian(chain, part.degree, &s.acc, 1.0, r_len, jac_re, jac_im);
                 block(g.eq, g.var, jac_re, jac_im);
             }
         }
