@@ -318,26 +318,27 @@ fn run(
         Complex64::new(c, s)
     };
 
-    // Linear steady-state response Y[n][d] and the scale of each mode.
-    let y: Vec<Vec<Complex64>> = (0..nm)
-        .map(|n| {
-            (0..nd)
-                .map(|d| {
-                    linear_response(
-                        model.omega(n),
-                        model.gamma(n),
-                        drive.tones_hz[d],
-                        drive.force[n][d],
-                    )
-                })
-                .collect()
+    // Linear steady-state response `y[n·nd + d]` and the scale of each mode.
+    let y: Vec<Complex64> = (0..nm)
+        .flat_map(|n| {
+            (0..nd).map(move |d| {
+                linear_response(
+                    model.omega(n),
+                    model.gamma(n),
+                    drive.tones_hz[d],
+                    drive.force[n][d],
+                )
+            })
         })
         .collect();
-    let y_scale: Vec<f64> = y
-        .iter()
-        .map(|r| r.iter().map(|z| z.norm()).sum::<f64>())
+    let y_scale: Vec<f64> = (0..nm)
+        .map(|n| {
+            y[n * nd..(n + 1) * nd]
+                .iter()
+                .map(|z| z.norm())
+                .sum::<f64>()
+        })
         .collect();
-    let y_flat: Vec<Complex64> = y.iter().flatten().copied().collect();
     let all_scale = y_scale
         .iter()
         .copied()
@@ -359,7 +360,7 @@ fn run(
         let mut q = 0.0;
         let mut v = 0.0;
         for d in 0..nd {
-            let a = y[n][d] * z[d];
+            let a = y[n * nd + d] * z[d];
             q += a.re;
             v -= wdr[d] * a.im;
         }
@@ -418,21 +419,25 @@ fn run(
     let err_tol: Vec<f64> = scale.iter().map(|&s| st.rtol * s).collect();
     let blow = 1e3;
 
-    let eval_g = |t_z: &[Complex64],
-                  us: &[[f64; 2]],
-                  qtot: &mut [f64],
-                  pows: &mut [f64],
-                  out: &mut [f64]| {
+    // Total displacement: the linear response at tone phasors `t_z` plus the state `us`.
+    let q_total = |t_z: &[Complex64], us: &[[f64; 2]], qtot: &mut [f64]| {
         let mut k = 0;
         for (q, un) in qtot.iter_mut().zip(us) {
             let mut ql = un[0];
             for b in t_z {
-                let a = y_flat[k];
+                let a = y[k];
                 ql += a.re * b.re - a.im * b.im;
                 k += 1;
             }
             *q = ql;
         }
+    };
+    let eval_g = |t_z: &[Complex64],
+                  us: &[[f64; 2]],
+                  qtot: &mut [f64],
+                  pows: &mut [f64],
+                  out: &mut [f64]| {
+        q_total(t_z, us, qtot);
         model.forces(qtot, pows, out);
         out.iter_mut().for_each(|v| *v = -*v);
     };
@@ -519,14 +524,7 @@ fn run(
             if demod && (j + 1) % m_dec as u64 == 0 {
                 // Sample at the end of this step: t = (win * n_win + j + 1) h; the phasor zk
                 // refers to that time.
-                zst[..nd].copy_from_slice(&z[..nd]);
-                for n in 0..nm {
-                    let mut ql = 0.0;
-                    for d in 0..nd {
-                        ql += (y[n][d] * z[d]).re;
-                    }
-                    qtot[n] = ql + u[n][0];
-                }
+                q_total(&z, &u, &mut qtot);
                 let sidx = (j + 1) / m_dec as u64;
                 if sidx % 256 == 0 {
                     for (k, &c) in meas_cyc.iter().enumerate() {
