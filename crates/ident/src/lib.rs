@@ -33,7 +33,7 @@ pub use dataset::{
     Dataset, DatasetError, Manifest, Measurement, MeasurementSpec, Point, Truth, TruthForce,
     TruthMode, TruthNoise,
 };
-pub use problem::{ForceModel, IdentError, Problem, Settings};
+pub use problem::{ForceModel, IdentError, Problem, Settings, Unknown};
 pub use report::{Estimate, Report};
 
 /// Identifies `model`'s unknowns from dataset `ds`: sets up the [`Problem`], fits every shot,
