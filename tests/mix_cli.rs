@@ -164,15 +164,8 @@ drives_hz = [207572.0, 207592.0, 415842.0]
 }
 
 #[test]
-fn shared_dataset_if_present() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/nanostring_ls50_2mode");
-    if !dir.join("dataset.toml").exists() {
-        eprintln!(
-            "skipped: {} not found (only in the shared workspace)",
-            dir.display()
-        );
-        return;
-    }
+fn tones_from_the_independent_dataset() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/nanostring_ls50_2mode");
     let d = dir.to_str().expect("utf-8 path");
     let v = json(&[
         MODEL,
