@@ -170,3 +170,55 @@ fn check_stability_flags_the_unstable_three_tone_state() {
         "growth {rate} /s vs ≈{want} /s"
     );
 }
+
+#[test]
+fn simulate_reads_values_from_an_identification_result() {
+    // identify → result.json → simulate --values result.json: the written truth holds the
+    // result's values, read through the typed result file.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let result = dir.path().join("result.json");
+    let st = Command::new(env!("CARGO_BIN_EXE_harmonid"))
+        .arg("identify")
+        .arg(model_path())
+        .arg(root.join("examples/nanostring_2mode/data"))
+        .arg("--out")
+        .arg(&result)
+        .output()
+        .expect("runs");
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let report = harmonid::ident::Report::from_json(
+        &std::fs::read_to_string(&result).expect("result written"),
+    )
+    .expect("typed result");
+    std::fs::write(dir.path().join("plan.toml"), PLAN).expect("write");
+    let out = dir.path().join("ds");
+    let st = Command::new(env!("CARGO_BIN_EXE_harmonid"))
+        .arg("simulate")
+        .arg(model_path())
+        .arg("--values")
+        .arg(&result)
+        .arg("--plan")
+        .arg(dir.path().join("plan.toml"))
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .expect("runs");
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let truth = Dataset::load(&out).expect("loads").truth.expect("truth");
+    assert_eq!(truth.modes["q2"].f_hz, report.modes["q2"].f_hz.value);
+    assert_eq!(truth.modes["q1"].q, report.modes["q1"].q.value);
+    assert_eq!(
+        truth.eom["q1"]["q1*q2^2"], report.parameters["g12"].value,
+        "g12 from the result"
+    );
+    assert_eq!(truth.eom["q2"]["q2^3"], report.parameters["beta2"].value);
+}

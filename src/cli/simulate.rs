@@ -125,49 +125,15 @@ pub fn read_values(path: &Path) -> miette::Result<ModelValues> {
         .into_diagnostic()
         .wrap_err_with(|| format!("cannot read the values file {}", path.display()))?;
     if path.extension().is_some_and(|e| e == "json") {
-        let v: serde_json::Value = serde_json::from_str(&text)
+        let report = harmonid_ident::Report::from_json(&text)
             .into_diagnostic()
-            .wrap_err_with(|| format!("{} is not valid JSON", path.display()))?;
-        let mut out = ModelValues::default();
-        let num = |x: &serde_json::Value| {
-            x.get("value")
-                .and_then(|v| v.as_f64())
-                .or_else(|| x.as_f64())
-        };
-        if let Some(m) = v.get("modes").and_then(|m| m.as_object()) {
-            for (k, mv) in m {
-                out.modes.insert(
-                    k.clone(),
-                    ModeValues {
-                        f_hz: mv.get("f_hz").and_then(num),
-                        q: mv.get("Q").and_then(num),
-                    },
-                );
-            }
-        }
-        if let Some(p) = v.get("parameters").and_then(|m| m.as_object()) {
-            for (k, pv) in p {
-                if let Some(x) = num(pv) {
-                    out.parameters.insert(k.clone(), x);
-                }
-            }
-        }
-        if out.parameters.is_empty() {
-            if let Some(e) = v.get("eom").and_then(|m| m.as_object()) {
-                for (mode, terms) in e {
-                    let map = terms
-                        .as_object()
-                        .map(|t| {
-                            t.iter()
-                                .filter_map(|(k, x)| x.as_f64().map(|x| (k.clone(), x)))
-                                .collect()
-                        })
-                        .unwrap_or_default();
-                    out.eom.insert(mode.clone(), map);
-                }
-            }
-        }
-        Ok(out)
+            .wrap_err_with(|| {
+                format!(
+                    "{} is not an identification result (harmonid-result/1)",
+                    path.display()
+                )
+            })?;
+        Ok(values_of_report(&report))
     } else {
         // Accept a truth.toml too: keep only the keys a values file knows.
         let v: toml::Table = toml::from_str(&text)
@@ -198,6 +164,38 @@ pub fn read_values(path: &Path) -> miette::Result<ModelValues> {
                 )
             })
     }
+}
+
+/// The values of an identification result: each mode's f and Q, each parameter's value (an
+/// undetermined, NaN value is left out); when the result has no parameters, its `eom`
+/// coefficients.
+fn values_of_report(r: &harmonid_ident::Report) -> ModelValues {
+    let finite = |x: f64| x.is_finite().then_some(x);
+    let mut out = ModelValues::default();
+    for (k, m) in &r.modes {
+        out.modes.insert(
+            k.clone(),
+            ModeValues {
+                f_hz: finite(m.f_hz.value),
+                q: finite(m.q.value),
+            },
+        );
+    }
+    for (k, e) in &r.parameters {
+        if let Some(x) = finite(e.value) {
+            out.parameters.insert(k.clone(), x);
+        }
+    }
+    if out.parameters.is_empty() {
+        for (mode, terms) in &r.eom {
+            let map = terms
+                .iter()
+                .filter_map(|(k, x)| x.map(|x| (k.clone(), x)))
+                .collect();
+            out.eom.insert(mode.clone(), map);
+        }
+    }
+    out
 }
 
 /// Loads the model file and evaluates it with the values file.

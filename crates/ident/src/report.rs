@@ -3,7 +3,7 @@
 
 use crate::dataset::Dataset;
 use crate::problem::{Fit, ForceModel, Problem, Unknown};
-use serde::Serialize;
+use serde::{Deserialize, Deserializer, Serialize};
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
 use std::fmt::Write as _;
@@ -74,25 +74,29 @@ pub fn shot_stats(values: &[f64]) -> ShotStats {
 }
 
 /// One reported quantity.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Estimate {
     /// Median over shots (or the single shot's estimate).
+    #[serde(deserialize_with = "nan_if_null")]
     pub value: f64,
     /// One-sigma spread of the per-shot estimates after outlier rejection; with one shot, the
     /// fit's standard error from its residuals.
+    #[serde(deserialize_with = "nan_if_null")]
     pub std: f64,
     /// Uncertainty of `value` itself (`1.2533 · std / √n` for a median over `n` shots).
+    #[serde(deserialize_with = "nan_if_null")]
     pub stderr: f64,
     /// False when the data do not determine it (relative std above 1, or not identifiable).
-    #[serde(skip_serializing_if = "is_true")]
+    #[serde(default = "yes", skip_serializing_if = "is_true")]
     pub identifiable: bool,
     /// Why it is not identifiable.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reason: Option<String>,
     /// Shots flagged as outliers for this quantity.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub outlier_shots: Vec<usize>,
     /// The fit's own standard error of shot 0 (from the least-squares residuals).
+    #[serde(default = "nan", deserialize_with = "nan_if_null")]
     pub single_shot_std: f64,
     /// Per-shot estimates.
     #[serde(skip)]
@@ -103,8 +107,21 @@ fn is_true(b: &bool) -> bool {
     *b
 }
 
+fn yes() -> bool {
+    true
+}
+
+fn nan() -> f64 {
+    f64::NAN
+}
+
+/// Reads a number written by [`Report::to_json`], where NaN became `null`, back as NaN.
+fn nan_if_null<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
+}
+
 /// Linear parameters of one mode.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct ModeResult {
     /// Linear resonance frequency, Hz.
     pub f_hz: Estimate,
@@ -114,31 +131,38 @@ pub struct ModeResult {
 }
 
 /// A drive tone's identified force on a mode.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct ForceResult {
     /// Tone frequency, Hz.
+    #[serde(deserialize_with = "nan_if_null")]
     pub f_hz: f64,
     /// Peak force amplitude, N/kg (median over shots of the complex force).
+    #[serde(deserialize_with = "nan_if_null")]
     pub amplitude: f64,
     /// Phase, rad.
+    #[serde(deserialize_with = "nan_if_null")]
     pub phase_rad: f64,
 }
 
 /// One complex actuator gain.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct GainResult {
     /// |G|, N/kg per drive-level unit.
+    #[serde(deserialize_with = "nan_if_null")]
     pub amplitude: f64,
     /// arg G, rad.
+    #[serde(deserialize_with = "nan_if_null")]
     pub phase_rad: f64,
     /// Real part (median over shots).
+    #[serde(deserialize_with = "nan_if_null")]
     pub re: f64,
     /// Imaginary part (median over shots).
+    #[serde(deserialize_with = "nan_if_null")]
     pub im: f64,
 }
 
 /// Diagnostics of one fit, as reported.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct FitReport {
     /// Stage (1 = single-mode measurements, 2 = two-mode, ...; 0 = joint fit).
     pub stage: usize,
@@ -147,8 +171,10 @@ pub struct FitReport {
     /// Fitted unknowns.
     pub unknowns: Vec<String>,
     /// Condition number of the column-equilibrated matrix (median over shots).
+    #[serde(deserialize_with = "nan_if_null")]
     pub condition_number: f64,
     /// Relative residual `sqrt(Σ RSS / Σ ‖b‖²)`.
+    #[serde(deserialize_with = "nan_if_null")]
     pub relative_residual: f64,
     /// Real equations.
     pub rows: usize,
@@ -162,7 +188,7 @@ pub struct FitReport {
 }
 
 /// The result of an identification (`DATA_FORMAT.md` schema, plus diagnostics).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Report {
     /// [`RESULT_FORMAT`].
     pub format: String,
@@ -171,25 +197,32 @@ pub struct Report {
     /// Dataset path.
     pub dataset: String,
     /// Force model used.
+    #[serde(default)]
     pub force_model: String,
     /// Number of shots.
+    #[serde(default)]
     pub shots: usize,
     /// Linear parameters per mode.
     pub modes: BTreeMap<String, ModeResult>,
     /// Parameters by their model names.
     pub parameters: BTreeMap<String, Estimate>,
     /// Every monomial coefficient of every equation (median over shots).
+    #[serde(default)]
     pub eom: BTreeMap<String, BTreeMap<String, Option<f64>>>,
     /// Forces per measurement and mode, one entry per drive tone acting on that mode.
+    #[serde(default)]
     pub forces: BTreeMap<String, BTreeMap<String, Vec<ForceResult>>>,
     /// Actuator gains per measurement (or "all") and mode, for the drive-level force model.
-    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub gains: BTreeMap<String, BTreeMap<String, GainResult>>,
     /// The fits, in order.
+    #[serde(default)]
     pub fits: Vec<FitReport>,
     /// Shots flagged as outliers by any quantity.
+    #[serde(default)]
     pub outlier_shots: Vec<usize>,
     /// Warnings (conditioning, unidentifiable quantities, ...).
+    #[serde(default)]
     pub warnings: Vec<String>,
 }
 
@@ -480,6 +513,21 @@ impl Report {
         serde_json::to_string_pretty(self).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
     }
 
+    /// Reads a result written by [`Report::to_json`] (`null` numbers come back as NaN; keys
+    /// added after `harmonid-result/1`'s first version default when missing). Refuses another
+    /// `format`.
+    pub fn from_json(text: &str) -> Result<Report, serde_json::Error> {
+        use serde::de::Error as _;
+        let r: Report = serde_json::from_str(text)?;
+        if r.format != RESULT_FORMAT {
+            return Err(serde_json::Error::custom(format!(
+                "format `{}`, expected `{RESULT_FORMAT}`",
+                r.format
+            )));
+        }
+        Ok(r)
+    }
+
     /// Every shot's estimates as CSV: `shot`, `f_hz:<mode>`, `Q:<mode>`, parameters, `outlier`.
     pub fn per_shot_csv(&self) -> String {
         let mut cols: Vec<(String, &Estimate)> = Vec::new();
@@ -636,6 +684,131 @@ mod tests {
         assert_eq!(s.n_used, 18);
         assert!((s.median - 10.2).abs() < 1e-12);
         assert!(s.std < 0.2 && s.std > 0.1, "{}", s.std);
+    }
+
+    fn est(value: f64, std: f64) -> Estimate {
+        let identifiable = std <= value.abs();
+        Estimate {
+            value,
+            std,
+            stderr: std / 3.0,
+            identifiable,
+            reason: (!identifiable).then(|| "the data do not determine it".to_string()),
+            outlier_shots: vec![2],
+            single_shot_std: std,
+            per_shot: Vec::new(),
+        }
+    }
+
+    fn sample_report() -> Report {
+        let mode = ModeResult {
+            f_hz: est(207582.0, 0.8),
+            q: est(116232.0, 1.3e4),
+        };
+        Report {
+            format: RESULT_FORMAT.into(),
+            model: "model.hb".into(),
+            dataset: "ds".into(),
+            force_model: "free complex force per drive tone".into(),
+            shots: 3,
+            modes: [("q1".to_string(), mode)].into(),
+            parameters: [
+                ("beta1".to_string(), est(2.68e22, 1.1e21)),
+                ("g12".to_string(), est(f64::NAN, 5.0)),
+            ]
+            .into(),
+            eom: [(
+                "q1".to_string(),
+                [
+                    ("q1^3".to_string(), Some(2.68e22)),
+                    ("q1*q2^2".to_string(), None),
+                ]
+                .into(),
+            )]
+            .into(),
+            forces: [(
+                "single_q1".to_string(),
+                [(
+                    "q1".to_string(),
+                    vec![ForceResult {
+                        f_hz: 207572.5,
+                        amplitude: 3.5,
+                        phase_rad: -0.25,
+                    }],
+                )]
+                .into(),
+            )]
+            .into(),
+            gains: [(
+                "all".to_string(),
+                [(
+                    "q1".to_string(),
+                    GainResult {
+                        amplitude: 2.0,
+                        phase_rad: 0.5,
+                        re: 2.0 * 0.5f64.cos(),
+                        im: 2.0 * 0.5f64.sin(),
+                    },
+                )]
+                .into(),
+            )]
+            .into(),
+            fits: vec![FitReport {
+                stage: 1,
+                measurements: vec!["single_q1".into()],
+                unknowns: vec!["f(q1)".into()],
+                condition_number: f64::NAN,
+                relative_residual: 1e-7,
+                rows: 20,
+                weighted: true,
+                noise_from_shots: false,
+                shots_with_active_bounds: 0,
+            }],
+            outlier_shots: vec![2],
+            warnings: vec!["parameter g12 is not determined".into()],
+        }
+    }
+
+    #[test]
+    fn result_file_reads_back_equal() {
+        let r = sample_report();
+        let text = r.to_json();
+        let back = Report::from_json(&text).expect("reads back");
+        // Written again, the same bytes: every field survived (NaN as null, both ways).
+        assert_eq!(back.to_json(), text);
+        assert_eq!(back.modes["q1"].f_hz.value, 207582.0);
+        assert_eq!(back.modes["q1"].q.std, 1.3e4);
+        assert!(back.modes["q1"].q.identifiable);
+        let g12 = &back.parameters["g12"];
+        assert!(g12.value.is_nan() && !g12.identifiable);
+        assert_eq!(g12.reason.as_deref(), Some("the data do not determine it"));
+        assert_eq!(back.eom["q1"]["q1*q2^2"], None);
+        assert_eq!(back.gains["all"]["q1"].im, 2.0 * 0.5f64.sin());
+        assert!(back.fits[0].condition_number.is_nan());
+        assert_eq!(back.fits[0].rows, 20);
+    }
+
+    #[test]
+    fn result_file_of_the_data_format_reads_with_defaults() {
+        // The minimal example of DATA_FORMAT.md: no diagnostics, no single-shot std.
+        let text = r#"{
+          "format": "harmonid-result/1",
+          "model": "examples/nanostring_2mode/model.hb",
+          "dataset": "path/of/the/dataset",
+          "modes": {"q1": {"f_hz": {"value": 207582.01, "std": 0.8, "stderr": 0.11},
+                           "Q": {"value": 116240.0, "std": 13000.0, "stderr": 1400.0}}},
+          "parameters": {"beta1": {"value": 2.68e22, "std": 1.1e22, "stderr": 1.5e21}},
+          "eom": {"q1": {"q1^3": 2.68e22}},
+          "forces": {"single_q1": {"q1": [{"f_hz": 207572.0, "amplitude": 10.06, "phase_rad": 0.01}]}}
+        }"#;
+        let r = Report::from_json(text).expect("reads");
+        assert_eq!(r.parameters["beta1"].value, 2.68e22);
+        assert!(r.parameters["beta1"].identifiable);
+        assert!(r.parameters["beta1"].single_shot_std.is_nan());
+        assert!(r.warnings.is_empty() && r.fits.is_empty() && r.gains.is_empty());
+        let other = text.replace("harmonid-result/1", "harmonid-result/9");
+        let e = Report::from_json(&other).expect_err("another format");
+        assert!(e.to_string().contains("harmonid-result/9"), "{e}");
     }
 
     #[test]
