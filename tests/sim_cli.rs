@@ -178,41 +178,31 @@ fn simulate_reads_values_from_an_identification_result() {
     let dir = tempfile::tempdir().expect("tempdir");
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let result = dir.path().join("result.json");
-    let st = Command::new(env!("CARGO_BIN_EXE_harmonid"))
-        .arg("identify")
-        .arg(model_path())
-        .arg(root.join("examples/nanostring_2mode/data"))
-        .arg("--out")
-        .arg(&result)
-        .output()
-        .expect("runs");
-    assert!(
-        st.status.success(),
-        "{}",
-        String::from_utf8_lossy(&st.stderr)
-    );
+    let data = root.join("examples/nanostring_2mode/data");
+    harmonid_ok(&[
+        "identify".as_ref(),
+        model_path().as_os_str(),
+        data.as_os_str(),
+        "--out".as_ref(),
+        result.as_os_str(),
+    ]);
     let report = harmonid::ident::Report::from_json(
         &std::fs::read_to_string(&result).expect("result written"),
     )
     .expect("typed result");
     std::fs::write(dir.path().join("plan.toml"), PLAN).expect("write");
     let out = dir.path().join("ds");
-    let st = Command::new(env!("CARGO_BIN_EXE_harmonid"))
-        .arg("simulate")
-        .arg(model_path())
-        .arg("--values")
-        .arg(&result)
-        .arg("--plan")
-        .arg(dir.path().join("plan.toml"))
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .expect("runs");
-    assert!(
-        st.status.success(),
-        "{}",
-        String::from_utf8_lossy(&st.stderr)
-    );
+    let plan = dir.path().join("plan.toml");
+    harmonid_ok(&[
+        "simulate".as_ref(),
+        model_path().as_os_str(),
+        "--values".as_ref(),
+        result.as_os_str(),
+        "--plan".as_ref(),
+        plan.as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+    ]);
     let truth = Dataset::load(&out).expect("loads").truth.expect("truth");
     assert_eq!(truth.modes["q2"].f_hz, report.modes["q2"].f_hz.value);
     assert_eq!(truth.modes["q1"].q, report.modes["q1"].q.value);
@@ -221,4 +211,17 @@ fn simulate_reads_values_from_an_identification_result() {
         "g12 from the result"
     );
     assert_eq!(truth.eom["q2"]["q2^3"], report.parameters["beta2"].value);
+}
+
+/// Runs `harmonid ARGS` and asserts it succeeds.
+fn harmonid_ok(args: &[&std::ffi::OsStr]) {
+    let st = Command::new(env!("CARGO_BIN_EXE_harmonid"))
+        .args(args)
+        .output()
+        .expect("runs");
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
 }
