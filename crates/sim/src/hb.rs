@@ -412,21 +412,7 @@ impl HbSolver {
     pub fn stability(&mut self, state: &SteadyState) -> Result<Stability, SimError> {
         let nm = self.model.n_modes();
         let nr = self.lattice.len();
-        if state.amplitudes.len() != nm
-            || state.lattice_hz.len() != nr
-            || state
-                .lattice_hz
-                .iter()
-                .zip(&self.lattice)
-                .any(|(a, b)| (a - b).abs() > LINE_TOL_HZ)
-        {
-            return Err(SimError::Shape(
-                "the steady state was not solved on this lattice".into(),
-            ));
-        }
-        for n in 0..nm {
-            self.x[n * nr..(n + 1) * nr].copy_from_slice(&state.amplitudes[n]);
-        }
+        self.load_state(state)?;
         self.assemble_jacobian();
         self.have_lu = false;
         let nu = self.unknowns();
@@ -461,6 +447,60 @@ impl HbSolver {
             growth_rate: growth,
             linear_decay_rate: decay,
         })
+    }
+
+    /// Copies `state` (solved on this lattice) into the current amplitudes.
+    fn load_state(&mut self, state: &SteadyState) -> Result<(), SimError> {
+        let nm = self.model.n_modes();
+        let nr = self.lattice.len();
+        if state.amplitudes.len() != nm
+            || state.amplitudes.iter().any(|row| row.len() != nr)
+            || state.lattice_hz.len() != nr
+            || state
+                .lattice_hz
+                .iter()
+                .zip(&self.lattice)
+                .any(|(a, b)| (a - b).abs() > LINE_TOL_HZ)
+        {
+            return Err(SimError::Shape(
+                "the steady state was not solved on this lattice".into(),
+            ));
+        }
+        for n in 0..nm {
+            self.x[n * nr..(n + 1) * nr].copy_from_slice(&state.amplitudes[n]);
+        }
+        Ok(())
+    }
+
+    /// Loads `state` and factorises the Jacobian `∂(Re R, Im R)/∂(Re X, Im X)` there (unknowns
+    /// interleaved re/im, `[n·R + r]` order), for [`HbSolver::solve_factored`]. Errors: a
+    /// state of another lattice, a singular Jacobian (a fold or bifurcation point).
+    pub(crate) fn factor_at(&mut self, state: &SteadyState) -> Result<(), SimError> {
+        self.load_state(state)?;
+        self.have_lu = false;
+        if !self.jacobian() {
+            return Err(SimError::Hb(
+                "the Jacobian of the harmonic-balance equations is singular at this steady state (a fold or a bifurcation): its sensitivities are unbounded".into(),
+            ));
+        }
+        self.have_lu = true;
+        self.fresh = true;
+        Ok(())
+    }
+
+    /// Solves `J y = b` in place with the Jacobian factorised by [`HbSolver::factor_at`].
+    pub(crate) fn solve_factored(&mut self, b: &mut [f64]) {
+        self.lu.solve(b);
+    }
+
+    /// The numeric model being solved.
+    pub fn model(&self) -> &NumericModel {
+        &self.model
+    }
+
+    /// The product plan of the lattice (input = output = the lattice).
+    pub(crate) fn product_plan(&self) -> &ProductPlan {
+        self.system.plan()
     }
 
     /// Newton at drive fraction `s` from the current `self.x`, reusing the factorised Jacobian

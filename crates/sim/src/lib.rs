@@ -13,6 +13,8 @@
 //!   ([`simulate_lockin`]);
 //! - multi-tone harmonic-balance steady states on an automatic lattice with a drive ramp
 //!   ([`steady_state`], [`HbSolver`], [`convergence_report`]);
+//! - sensitivities of steady states to modal data, model parameters and drive forces by
+//!   implicit differentiation of the harmonic-balance equations ([`sensitivity`]);
 //! - single-tone response curves through folds with stability, jumps and backbones ([`sweep`],
 //!   [`backbone`]).
 
@@ -28,6 +30,7 @@ mod lattice;
 mod linalg;
 mod noise;
 mod numeric;
+pub mod sensitivity;
 mod sweep;
 mod sweep_two_tone;
 mod time_domain;
@@ -41,6 +44,7 @@ pub use hb::{
 pub use lattice::{choose_lattice, measured_lines, LatticeSettings, LINE_TOL_HZ};
 pub use noise::{lockin_noise_sigma, NoiseGen};
 pub use numeric::{parse_monomial, ModeValues, ModelValues, NumericModel, Term};
+pub use sensitivity::{Observation, SensParam, Sensitivity};
 pub use sweep::{backbone, sweep, Fold, SweepPoint, SweepResult, SweepSettings};
 pub use sweep_two_tone::{
     sweep_two_tone, TwoToneCurve, TwoToneJump, TwoTonePoint, TwoToneSettings, TwoToneStatus,

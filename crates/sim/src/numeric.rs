@@ -39,6 +39,10 @@ pub struct NumericModel {
     pub q_factor: Vec<f64>,
     /// Nonlinear terms, grouped by equation (`terms[eq_start[n]..eq_start[n+1]]`).
     terms: Vec<Term>,
+    /// Per term (same order as `terms`): `(p, ∂coef/∂θ_p)` for every model parameter `p` the
+    /// coefficient depends on, at the values it was built with (empty for numbers given
+    /// directly). What sensitivities with respect to model parameters need.
+    param_grad: Vec<Vec<(usize, f64)>>,
     eq_start: Vec<usize>,
     /// Highest exponent of each mode in any term.
     max_pow: Vec<u32>,
@@ -143,6 +147,19 @@ impl NumericModel {
         q_factor: Vec<f64>,
         terms: Vec<Term>,
     ) -> Result<Self, SimError> {
+        let terms = terms.into_iter().map(|t| (t, Vec::new())).collect();
+        Self::with_gradients(mode_names, f_hz, q_factor, terms)
+    }
+
+    /// As [`NumericModel::new`], each term with its parameter gradient `(p, ∂coef/∂θ_p)`; a
+    /// term with a zero coefficient is kept when its gradient is not empty (its parameter may
+    /// move away from zero).
+    fn with_gradients(
+        mode_names: Vec<String>,
+        f_hz: Vec<f64>,
+        q_factor: Vec<f64>,
+        terms: Vec<(Term, Vec<(usize, f64)>)>,
+    ) -> Result<Self, SimError> {
         let n = mode_names.len();
         if f_hz.len() != n || q_factor.len() != n {
             return Err(SimError::Shape(format!(
@@ -155,8 +172,11 @@ impl NumericModel {
             check_positive(&format!("f_hz of {name}"), f_hz[i], 0.0)?;
             check_positive(&format!("Q of {name}"), q_factor[i], 0.5)?;
         }
-        let mut terms: Vec<Term> = terms.into_iter().filter(|t| t.coef != 0.0).collect();
-        for t in &terms {
+        let mut terms: Vec<(Term, Vec<(usize, f64)>)> = terms
+            .into_iter()
+            .filter(|(t, g)| t.coef != 0.0 || !g.is_empty())
+            .collect();
+        for (t, _) in &terms {
             if t.eq >= n || t.factors.iter().any(|&(m, k)| m >= n || k == 0) {
                 return Err(SimError::Shape(format!(
                     "a term refers to a mode beyond the {n} declared"
@@ -170,7 +190,8 @@ impl NumericModel {
                 });
             }
         }
-        terms.sort_by_key(|t| t.eq);
+        terms.sort_by_key(|(t, _)| t.eq);
+        let (terms, param_grad): (Vec<Term>, Vec<_>) = terms.into_iter().unzip();
         let mut eq_start = vec![0; n + 1];
         for t in &terms {
             eq_start[t.eq + 1] += 1;
@@ -204,6 +225,7 @@ impl NumericModel {
             f_hz,
             q_factor,
             terms,
+            param_grad,
             eq_start,
             max_pow,
             flat,
@@ -268,23 +290,36 @@ impl NumericModel {
         for (n, eq) in model.eom.iter().enumerate() {
             if let Some(given) = values.eom.get(&names[n]) {
                 for (mono, &coef) in given {
-                    terms.push(Term {
+                    let term = Term {
                         eq: n,
                         coef,
                         factors: parse_monomial(mono, &names)?,
-                    });
+                    };
+                    terms.push((term, Vec::new()));
                 }
                 continue;
             }
-            for (m, coef) in eq.eval_coefficients(&pvals) {
-                terms.push(Term {
+            for (m, c) in eq.terms() {
+                let mut grad = Vec::new();
+                for p in c.variables() {
+                    let d = c.derivative(p).map_err(|_| {
+                        SimError::Shape(format!(
+                            "the derivative of the coefficient of {} in the equation of {} overflows",
+                            model.monomial_name(m),
+                            names[n]
+                        ))
+                    })?;
+                    grad.push((p.index(), d.eval(&pvals)));
+                }
+                let term = Term {
                     eq: n,
-                    coef,
-                    factors: flat_pp(&m),
-                });
+                    coef: c.eval(&pvals),
+                    factors: flat_pp(m),
+                };
+                terms.push((term, grad));
             }
         }
-        Self::new(names, f_hz, q, terms)
+        Self::with_gradients(names, f_hz, q, terms)
     }
 
     /// Builds a numeric model straight from values with `[modes.*]` and `[eom.*]` (a
@@ -336,6 +371,14 @@ impl NumericModel {
     /// All terms, grouped by equation.
     pub fn terms(&self) -> &[Term] {
         &self.terms
+    }
+
+    /// Parameter gradient of term `t` (index into [`NumericModel::terms`]): `(p, ∂coef/∂θ_p)`
+    /// for each model parameter `p` (declaration order) its coefficient depends on, at the
+    /// values the model was built with. Empty for terms given as numbers ([`NumericModel::new`],
+    /// `[eom]` values).
+    pub fn term_param_grad(&self, t: usize) -> &[(usize, f64)] {
+        &self.param_grad[t]
     }
 
     /// The terms of the equation of mode `n`.
