@@ -27,7 +27,7 @@ fn bench_identify(c: &mut Criterion) {
         let prob = Problem::new(&model, &ds, &settings).expect("problem");
         group.throughput(Throughput::Elements(shots as u64));
         group.bench_function(format!("fit_{shots}shots"), |b| {
-            b.iter(|| black_box(prob.fit(black_box(&ds), &settings)))
+            b.iter(|| black_box(prob.fit(black_box(&ds)).expect("fit")))
         });
         if shots == 1 {
             group.bench_function("setup", |b| {

@@ -37,7 +37,7 @@ fn single_shot_standard_errors_match_the_scatter() {
             ..Settings::default()
         };
         let p = Problem::new(&model, &ds, &settings).expect("problem");
-        let fit = p.fit(&ds, &settings);
+        let fit = p.fit(&ds).expect("fit");
         let mut names = vec![];
         for u in [
             Unknown::OmegaSq(0),

@@ -82,7 +82,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         ..Settings::default()
     };
     let prob = Problem::new(&model, &ds, &settings).map_err(|e| miette!("{e}"))?;
-    let fit = prob.fit(&ds, &settings);
+    let fit = prob.fit(&ds).map_err(|e| miette!("{e}"))?;
     let report = Report::new(&args.model.display().to_string(), &ds, &prob, &fit);
     print!("{}", report.summary(ds.truth.as_ref()));
     if let Some(out) = &args.out {

@@ -317,7 +317,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         .par_iter()
         .map(|&(l, r)| {
             let ds = make(l, r)?;
-            let fit = prob.fit(&ds, &settings);
+            let fit = prob.fit(&ds).map_err(|e| miette::miette!("{e}"))?;
             let rep = Report::new(&args.model.display().to_string(), &ds, &prob, &fit);
             bar.inc(1);
             Ok(estimates(&model, &prob, &rep))

@@ -44,6 +44,6 @@ pub fn identify(
     settings: &Settings,
 ) -> Result<Report, IdentError> {
     let prob = Problem::new(model, ds, settings)?;
-    let fit = prob.fit(ds, settings);
+    let fit = prob.fit(ds)?;
     Ok(Report::new(&model.source, ds, &prob, &fit))
 }

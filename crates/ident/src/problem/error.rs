@@ -1,0 +1,80 @@
+//! Errors of the identification.
+
+use crate::dataset::DatasetError;
+
+/// Errors of the identification (bad model/dataset combinations, detected before fitting).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum IdentError {
+    /// The dataset itself is malformed.
+    #[error(transparent)]
+    Dataset(#[from] DatasetError),
+    /// The model has a coefficient that is not affine in the parameters.
+    #[error("{0}")]
+    NonAffine(#[from] harmonid_model::NonAffineTerm),
+    /// No nominal frequency for a mode.
+    #[error("mode {mode} has no nominal resonance frequency: give it in the model (`mode {mode} at ... kHz`), in the dataset's [nominal_hz], or on the command line")]
+    NoNominal {
+        /// Mode name.
+        mode: String,
+    },
+    /// A drive tone sits near no resonance.
+    #[error("{file}: measurement \"{measurement}\": drive tone {drive_hz} Hz is near no resonance (nearest: {mode} at {nominal_hz} Hz, {rel:.3} relative away; limit {limit}); check drives_hz and the nominal frequencies")]
+    ToneNearNoResonance {
+        /// Manifest path.
+        file: String,
+        /// Measurement name.
+        measurement: String,
+        /// Drive frequency, Hz.
+        drive_hz: f64,
+        /// Nearest mode.
+        mode: String,
+        /// Its nominal frequency, Hz.
+        nominal_hz: f64,
+        /// Relative distance.
+        rel: f64,
+        /// The limit ([`Settings::near_rel`]).
+        limit: f64,
+    },
+    /// A measured mode has zero shape at every measured point.
+    #[error("{file}: measurement \"{measurement}\": mode {mode} has zero shape at every measured point, so its amplitude cannot be measured; give a point where it moves")]
+    ZeroShape {
+        /// Manifest path.
+        file: String,
+        /// Measurement name.
+        measurement: String,
+        /// Mode.
+        mode: String,
+    },
+    /// Fewer real equations than unknowns in a fit.
+    #[error("{file}: {what} has {rows} real equations (2 per measured frequency) for {unknowns} unknowns ({names}); measure more frequencies (sidebands) or fix some parameters")]
+    TooFewFrequencies {
+        /// Manifest path.
+        file: String,
+        /// The measurement(s).
+        what: String,
+        /// Real equations.
+        rows: usize,
+        /// Unknowns.
+        unknowns: usize,
+        /// Names of the unknowns.
+        names: String,
+    },
+    /// Unsupported model feature.
+    #[error("{0}")]
+    Unsupported(String),
+    /// Planning products failed.
+    #[error("measurement \"{measurement}\": {source}")]
+    Spectral {
+        /// Measurement name.
+        measurement: String,
+        /// The error.
+        source: harmonid_spectral::SpectralError,
+    },
+    /// A dataset given to a fit does not have the shape of the one the problem was set up for.
+    #[error("{file}: the dataset's measurements, frequencies or points differ from those the identification was set up for; set it up again for this dataset")]
+    ShapeMismatch {
+        /// Manifest path.
+        file: String,
+    },
+}

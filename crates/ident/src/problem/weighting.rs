@@ -1,0 +1,291 @@
+//! Weighting: the covariance of the equation errors that noise on the measured amplitudes causes.
+
+use super::{FitGroup, MeasRows, Problem, Unknown};
+use crate::dataset::Dataset;
+use harmonid_spectral::{monomial_jacobian, ProductScratch};
+use nalgebra::{DMatrix, DVector};
+use num_complex::Complex64;
+use std::f64::consts::PI;
+
+impl Problem {
+    /// Relative noise variance of every modal amplitude, `var[mi][r]`: equal noise on every
+    /// measured amplitude, propagated through the modal conversion (`Σ_p w_p²`).
+    pub(super) fn relative_variances(&self) -> Vec<Vec<f64>> {
+        self.meas
+            .iter()
+            .map(|m| {
+                m.weights
+                    .iter()
+                    .map(|w| w.iter().map(|x| x * x).sum())
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// Noise variance per quadrature of every modal amplitude, `var[mi][r]` (m²), from the
+    /// scatter across `nshots` shots, and `true`; the relative variances and `false` when some
+    /// amplitude does not scatter (noise-free data).
+    pub(super) fn amplitude_variances(&self, ds: &Dataset, nshots: usize) -> (Vec<Vec<f64>>, bool) {
+        let mut data_var = self.relative_variances();
+        let mut all_positive = true;
+        for (mi, dv) in data_var.iter_mut().enumerate() {
+            let spectra: Vec<Vec<Vec<Complex64>>> =
+                (0..nshots).map(|s| self.modal_spectra(ds, mi, s)).collect();
+            for (r, v) in dv.iter_mut().enumerate() {
+                let n = self.meas[mi].mode_of[r];
+                let mean: Complex64 =
+                    spectra.iter().map(|x| x[n][r]).sum::<Complex64>() / nshots as f64;
+                let var = spectra
+                    .iter()
+                    .map(|x| (x[n][r] - mean).norm_sqr())
+                    .sum::<f64>()
+                    / (2.0 * (nshots as f64 - 1.0));
+                *v = var;
+                all_positive &= var > 0.0;
+            }
+        }
+        if all_positive {
+            (data_var, true)
+        } else {
+            (self.relative_variances(), false)
+        }
+    }
+
+    /// Covariance of the group's real equation errors caused by noise on the measured modal
+    /// amplitudes, linearised at the current estimate: `Σ = J D Jᵀ`, where `J` is the derivative
+    /// of every equation (real, imaginary rows) with respect to the real and imaginary parts of
+    /// every modal amplitude (through the linear term and, via the products ĝ, the nonlinear
+    /// terms), and `D` the amplitudes' noise variances. Row order as in `assemble`.
+    ///
+    /// Whitening with `Σ` makes the least squares a generalised (Gauss-Markov) fit that accounts
+    /// for noise in the regressors to first order, and gives covariances that match the scatter.
+    pub(super) fn equation_cov(
+        &self,
+        ds: &Dataset,
+        g: &FitGroup,
+        shot: usize,
+        values: &[f64],
+        data_var: &[Vec<f64>],
+        scratch: &mut [ProductScratch],
+    ) -> DMatrix<f64> {
+        let total: usize = g
+            .measurements
+            .iter()
+            .map(|&m| self.meas[m].mode_of.len())
+            .sum();
+        let mut sigma = DMatrix::<f64>::zeros(2 * total, 2 * total);
+        let val = |u: &Unknown| -> f64 {
+            self.index_of(u).map_or(0.0, |i| {
+                if values[i].is_finite() {
+                    values[i]
+                } else if self.fixed[i].is_finite() {
+                    self.fixed[i]
+                } else {
+                    0.0
+                }
+            })
+        };
+        let mut offset = 0;
+        for &mi in &g.measurements {
+            let prep = &self.meas[mi];
+            let m = &ds.measurements[mi];
+            let nf = prep.mode_of.len();
+            let modal = self.modal_spectra(ds, mi, shot);
+            let modal_ref: Vec<&[Complex64]> = modal.iter().map(|v| v.as_slice()).collect();
+            // J[o][2s + quad], complex.
+            let mut jac = vec![Complex64::new(0.0, 0.0); nf * 2 * nf];
+            for r in 0..nf {
+                let n = prep.mode_of[r];
+                let om = 2.0 * PI * m.freqs_hz[r];
+                let lin = Complex64::new(
+                    val(&Unknown::OmegaSq(n)) - om * om,
+                    om * val(&Unknown::Gamma(n)),
+                );
+                jac[r * 2 * nf + 2 * r] += lin;
+                jac[r * 2 * nf + 2 * r + 1] += lin * Complex64::i();
+            }
+            let mut jr = vec![Complex64::new(0.0, 0.0); nf * nf];
+            let mut ji = vec![Complex64::new(0.0, 0.0); nf * nf];
+            for &n in &prep.active {
+                for t in &self.eqs[n] {
+                    let b = t.konst
+                        + t.params
+                            .iter()
+                            .map(|&(p, f)| f * val(&Unknown::Param(p)))
+                            .sum::<f64>();
+                    if b == 0.0 || !b.is_finite() {
+                        continue;
+                    }
+                    let mono = &self.monomials[t.monomial];
+                    for &(v, _) in mono.factors() {
+                        monomial_jacobian(
+                            &prep.plan,
+                            mono,
+                            &modal_ref,
+                            v,
+                            &mut jr,
+                            &mut ji,
+                            &mut scratch[mi],
+                        );
+                        for o in (0..nf).filter(|&o| prep.mode_of[o] == n) {
+                            for s in (0..nf).filter(|&s| prep.mode_of[s] == v.index()) {
+                                jac[o * 2 * nf + 2 * s] += jr[o * nf + s] * b;
+                                jac[o * 2 * nf + 2 * s + 1] += ji[o * nf + s] * b;
+                            }
+                        }
+                    }
+                }
+            }
+            // Σ_block = Jr D Jrᵀ with real rows (2o: re, 2o+1: im).
+            let real = |row: usize, c: usize| -> f64 {
+                let z = jac[(row / 2) * 2 * nf + c];
+                if row % 2 == 0 {
+                    z.re
+                } else {
+                    z.im
+                }
+            };
+            for r1 in 0..2 * nf {
+                for r2 in r1..2 * nf {
+                    let mut acc = 0.0;
+                    for c in 0..2 * nf {
+                        let a = real(r1, c);
+                        if a != 0.0 {
+                            acc += a * real(r2, c) * data_var[mi][c / 2];
+                        }
+                    }
+                    sigma[(offset + r1, offset + r2)] = acc;
+                    sigma[(offset + r2, offset + r1)] = acc;
+                }
+            }
+            offset += 2 * nf;
+        }
+        sigma
+    }
+
+    /// Cholesky factor `L` (`L Lᵀ = Σ`) of the sample covariance of the group's real rows, where `Σ` is the covariance
+    /// across shots of the equation residuals evaluated at the median estimate (held fixed):
+    /// the equation error the data noise makes, correlations between rows included (the same
+    /// noisy amplitude enters several rows through the products). `Σ` is shrunk towards its
+    /// diagonal by `shrinkage` (the sample covariance of few shots is noisy). Residuals of
+    /// per-shot fits would understate the noise where a row's own unknowns absorb it.
+    pub(super) fn whitening(
+        &self,
+        rows: &[Vec<MeasRows>],
+        g: &FitGroup,
+        values: &[Vec<f64>],
+        shrinkage: f64,
+    ) -> Option<DMatrix<f64>> {
+        // Returns the Cholesky factor L of the shrunk sample covariance (whiten with L⁻¹).
+        let nshots = rows.len();
+        let mut xbar = values.first()?.clone();
+        for &u in &g.unknowns {
+            let mut v: Vec<f64> = values.iter().map(|x| x[u]).collect();
+            v.sort_by(f64::total_cmp);
+            xbar[u] = v[v.len() / 2];
+        }
+        let xv = DVector::from_iterator(g.unknowns.len(), g.unknowns.iter().map(|&u| xbar[u]));
+        let mut res: Vec<DVector<f64>> = Vec::with_capacity(nshots);
+        for shot_rows in rows {
+            let (a, b, _) = self.assemble(shot_rows, &g.measurements, &g.unknowns, &xbar, None);
+            res.push(&a * &xv - &b);
+        }
+        let m = res.first()?.len();
+        let mean = res.iter().fold(DVector::zeros(m), |acc, r| acc + r) / nshots as f64;
+        let mut cov = DMatrix::<f64>::zeros(m, m);
+        for r in &res {
+            let d = r - &mean;
+            cov += &d * d.transpose();
+        }
+        cov /= (nshots as f64 - 1.0).max(1.0);
+        let dmax = cov.diagonal().max();
+        if !(dmax > 0.0 && dmax.is_finite()) {
+            return None;
+        }
+        for i in 0..m {
+            // Floor: rows whose residual never moves get the smallest nonzero variance.
+            if cov[(i, i)] <= 1e-300 {
+                cov[(i, i)] = dmax * 1e-12;
+            }
+            for j in 0..m {
+                if i != j {
+                    cov[(i, j)] *= 1.0 - shrinkage;
+                }
+            }
+        }
+        cov.cholesky().map(|c| c.l())
+    }
+}
+
+/// The dataset with every measurement's shots averaged into one shot.
+pub(super) fn shot_mean(ds: &Dataset) -> Dataset {
+    let mut mean_ds = ds.clone();
+    for m in &mut mean_ds.measurements {
+        let per = m.freqs_hz.len() * m.points.len();
+        let mut mean = vec![Complex64::new(0.0, 0.0); per];
+        for s in 0..m.n_shots {
+            for (i, x) in mean.iter_mut().enumerate() {
+                *x += m.data[s * per + i] / m.n_shots as f64;
+            }
+        }
+        m.data = mean;
+        m.n_shots = 1;
+    }
+    mean_ds
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::testkit::{self, SHAPE};
+    use super::super::{Problem, Settings};
+    use super::shot_mean;
+
+    #[test]
+    fn amplitude_noise_comes_from_the_shot_scatter() {
+        let sigma = 1e-9;
+        let ds = testkit::dataset(false, 400, sigma, 7);
+        let p = Problem::new(&testkit::model(), &ds, &Settings::default()).expect("problem");
+        let (var, absolute) = p.amplitude_variances(&ds, 400);
+        assert!(absolute);
+        for (mi, v) in var.iter().enumerate() {
+            // Modal amplitude = x / shape: its variance per quadrature is σ²/shape².
+            let expect = (sigma / SHAPE[mi]).powi(2);
+            for x in v {
+                assert!((x / expect - 1.0).abs() < 0.15, "{x:e} vs {expect:e}");
+            }
+        }
+        let rel = p.relative_variances();
+        assert!((rel[0][0] - 4.0).abs() < 1e-12);
+        let clean = testkit::dataset(false, 5, 0.0, 7);
+        let (v, absolute) = p.amplitude_variances(&clean, 5);
+        assert!(!absolute);
+        assert_eq!(v, rel);
+    }
+
+    #[test]
+    fn the_shot_mean_averages_every_amplitude() {
+        let ds = testkit::dataset(false, 3, 1e-9, 7);
+        let m = shot_mean(&ds);
+        assert_eq!(m.measurements[0].n_shots, 1);
+        let x = &ds.measurements[1];
+        let mean = (x.amplitude(0, 2, 0) + x.amplitude(1, 2, 0) + x.amplitude(2, 2, 0)) / 3.0;
+        assert!((m.measurements[1].amplitude(0, 2, 0) - mean).norm() < 1e-24);
+    }
+
+    #[test]
+    fn the_equation_covariance_of_a_linear_row_is_its_gain_squared() {
+        let ds = testkit::dataset(false, 1, 0.0, 1);
+        let p = Problem::new(&testkit::model(), &ds, &Settings::default()).expect("problem");
+        let t = testkit::truth(&p);
+        let g = &p.groups[0];
+        let var = p.relative_variances();
+        let mut scratch: Vec<_> = p.meas.iter().map(|m| m.plan.scratch()).collect();
+        let sigma = p.equation_cov(&ds, g, 0, &t, &var, &mut scratch);
+        // beta = 0: each row depends on its own amplitude only, through ω² − Ω² + iΩγ.
+        let om = 2.0 * std::f64::consts::PI * 985.0;
+        let lin = num_complex::Complex64::new(t[0] - om * om, om * t[1]);
+        assert!((sigma[(0, 0)] / (lin.norm_sqr() * var[0][0]) - 1.0).abs() < 1e-12);
+        assert!(sigma[(0, 2)].abs() < 1e-12 * sigma[(0, 0)]);
+        assert!((sigma[(0, 1)] - sigma[(1, 0)]).abs() <= 1e-12 * sigma[(0, 0)]);
+    }
+}
