@@ -392,6 +392,32 @@ impl Dataset {
         })
     }
 
+    /// Builds a dataset from measurements made in memory (from arrays, or by a simulation),
+    /// checked as [`Dataset::load`] checks files: the manifest's rules, shapes, positive and
+    /// distinct frequencies, finite amplitudes (metres), every drive tone measured. The
+    /// manifest's measurement list is replaced by the measurements' specs, and frequencies are
+    /// sorted in increasing order as a file read gives them. `dir` names the data in errors
+    /// (and in results, as the dataset's path).
+    pub fn from_parts(
+        dir: impl Into<PathBuf>,
+        mut manifest: Manifest,
+        mut measurements: Vec<Measurement>,
+        truth: Option<Truth>,
+    ) -> Result<Dataset, DatasetError> {
+        let dir = dir.into();
+        manifest.measurements = measurements.iter().map(|m| m.spec.clone()).collect();
+        validate_manifest(&manifest, &dir)?;
+        for m in &mut measurements {
+            check_measurement(m, manifest.points.len(), &dir)?;
+        }
+        Ok(Dataset {
+            dir,
+            manifest,
+            measurements,
+            truth,
+        })
+    }
+
     /// The measurement called `name`.
     pub fn measurement(&self, name: &str) -> Option<&Measurement> {
         self.measurements.iter().find(|m| m.spec.name == name)
@@ -620,6 +646,104 @@ fn validate_manifest(m: &Manifest, path: &Path) -> Result<(), DatasetError> {
     Ok(())
 }
 
+/// Every drive tone of `spec` must be among the measured frequencies `freqs`.
+fn check_drives_measured(
+    spec: &MeasurementSpec,
+    freqs: &[f64],
+    path: &Path,
+) -> Result<(), DatasetError> {
+    for &d in &spec.drives_hz {
+        if !freqs.iter().any(|f| (f - d).abs() <= FREQ_REL_TOL * d) {
+            let nearest = freqs
+                .iter()
+                .copied()
+                .min_by(|a, b| (a - d).abs().total_cmp(&(b - d).abs()))
+                .unwrap_or(f64::NAN);
+            return Err(DatasetError::DriveNotMeasured {
+                path: path.to_path_buf(),
+                measurement: spec.name.clone(),
+                drive_hz: d,
+                nearest_hz: nearest,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Checks one measurement built in memory (by [`Dataset::from_parts`]) as [`read_csv`] checks a
+/// file, and sorts its frequencies (with their data) in increasing order as a file read gives
+/// them.
+fn check_measurement(
+    m: &mut Measurement,
+    n_points: usize,
+    path: &Path,
+) -> Result<(), DatasetError> {
+    let name = m.spec.name.clone();
+    let bad = |message: String| DatasetError::Inconsistent {
+        path: path.to_path_buf(),
+        message: format!("measurement \"{name}\": {message}"),
+    };
+    let (nf, np) = (m.freqs_hz.len(), m.points.len());
+    if m.n_shots == 0 || nf == 0 {
+        return Err(bad(format!(
+            "{} shots of {nf} frequencies: give at least one shot and one frequency",
+            m.n_shots
+        )));
+    }
+    if np == 0 || m.points.iter().any(|&p| p >= n_points.max(1)) {
+        return Err(bad(format!(
+            "point indices {:?} do not fit the {n_points} declared points",
+            m.points
+        )));
+    }
+    if m.data.len() != m.n_shots * nf * np {
+        return Err(bad(format!(
+            "{} amplitudes for {} shots × {nf} frequencies × {np} points = {}",
+            m.data.len(),
+            m.n_shots,
+            m.n_shots * nf * np
+        )));
+    }
+    if let Some(f) = m.freqs_hz.iter().find(|f| !(f.is_finite() && **f > 0.0)) {
+        return Err(bad(format!(
+            "frequency {f} Hz: frequencies must be positive and finite"
+        )));
+    }
+    if let Some(i) = m
+        .data
+        .iter()
+        .position(|x| !(x.re.is_finite() && x.im.is_finite()))
+    {
+        let (s, f, p) = (i / (nf * np), (i / np) % nf, i % np);
+        return Err(bad(format!(
+            "the amplitude of shot {s} at {} Hz (point #{p}) is {}, expected a finite number",
+            m.freqs_hz[f], m.data[i]
+        )));
+    }
+    let mut order: Vec<usize> = (0..nf).collect();
+    order.sort_by(|&a, &b| m.freqs_hz[a].total_cmp(&m.freqs_hz[b]));
+    let freqs: Vec<f64> = order.iter().map(|&i| m.freqs_hz[i]).collect();
+    if let Some(w) = freqs
+        .windows(2)
+        .find(|w| (w[1] - w[0]).abs() <= FREQ_REL_TOL * w[1])
+    {
+        return Err(bad(format!("frequency {} Hz appears twice", w[1])));
+    }
+    check_drives_measured(&m.spec, &freqs, path)?;
+    if order.iter().enumerate().any(|(k, &i)| k != i) {
+        let mut data = Vec::with_capacity(m.data.len());
+        for s in 0..m.n_shots {
+            for &f in &order {
+                let at = (s * nf + f) * np;
+                data.extend_from_slice(&m.data[at..at + np]);
+            }
+        }
+        m.data = data;
+        m.freqs_hz = freqs;
+    }
+    Ok(())
+}
+
 /// One CSV value: frequency (Hz), amplitude (m), 1-based row.
 type Cell = (f64, Complex64, usize);
 
@@ -841,21 +965,7 @@ fn read_csv(
             }
         }
     }
-    for &d in &spec.drives_hz {
-        if !freqs.iter().any(|f| (f - d).abs() <= FREQ_REL_TOL * d) {
-            let nearest = freqs
-                .iter()
-                .copied()
-                .min_by(|a, b| (a - d).abs().total_cmp(&(b - d).abs()))
-                .unwrap_or(f64::NAN);
-            return Err(DatasetError::DriveNotMeasured {
-                path: path.to_path_buf(),
-                measurement: spec.name.clone(),
-                drive_hz: d,
-                nearest_hz: nearest,
-            });
-        }
-    }
+    check_drives_measured(spec, &freqs, path)?;
     let nf = freqs.len();
     let np = points.len();
     let mut data = vec![Complex64::new(0.0, 0.0); n_shots * nf * np];
@@ -994,6 +1104,40 @@ drive_phases_rad = [0.0, 0.5]
         );
         expect_err("shot,freq_hz,re,im\n0,-990,1,2\n", "positive");
         expect_err("shot,freq_hz,re,im\n", "no data rows");
+    }
+
+    #[test]
+    fn from_parts_checks_and_sorts_like_a_file() {
+        let d = good_dir();
+        let ds = Dataset::load(d.path()).expect("load");
+        let m = &ds.measurements[0];
+        // The same measurement with its frequencies reversed comes back sorted.
+        let mut rev = m.clone();
+        rev.freqs_hz.reverse();
+        rev.data = (0..m.n_shots)
+            .flat_map(|s| (0..3).rev().map(move |f| (s, f)))
+            .map(|(s, f)| m.amplitude(s, f, 0))
+            .collect();
+        let built = Dataset::from_parts("arrays", ds.manifest.clone(), vec![rev], None)
+            .expect("from_parts");
+        assert_eq!(built.measurements[0], *m);
+        assert_eq!(built.manifest, ds.manifest);
+        let fail = |edit: &dyn Fn(&mut Measurement), needle: &str| {
+            let mut x = m.clone();
+            edit(&mut x);
+            let e = Dataset::from_parts("arrays", ds.manifest.clone(), vec![x], None)
+                .expect_err("should fail");
+            let s = e.to_string();
+            assert!(s.starts_with("arrays"), "no origin in: {s}");
+            assert!(s.contains(needle), "expected \"{needle}\" in: {s}");
+        };
+        fail(&|x| x.data.truncate(5), "= 6");
+        fail(&|x| x.data[4].im = f64::NAN, "shot 1 at 990 Hz");
+        fail(&|x| x.freqs_hz[0] = 990.0, "appears twice");
+        fail(&|x| x.freqs_hz[2] = 1011.0, "drive frequency 1010");
+        fail(&|x| x.freqs_hz[0] = -1.0, "positive");
+        fail(&|x| x.points = vec![3], "declared points");
+        fail(&|x| x.spec.drive_levels_v = None, "give both");
     }
 
     #[test]
