@@ -1,0 +1,116 @@
+"""harmonid: identify nonlinear multimode resonator models from multi-tone sideband spectra.
+
+Every mode ``n`` obeys (mass-normalised, SI units, per kg of modal mass)::
+
+    q̈_n + (ω_n/Q_n) q̇_n + ω_n² q_n + Σ_m b_m^(n) m(q) = Σ_d F_d^(n) cos(2π f_d t + φ_d^(n))
+
+and a complex amplitude ``X`` at frequency ``f`` means ``Re[X e^{i2πft}]`` (peak amplitude).
+
+Quick start::
+
+    import harmonid
+    model = harmonid.Model.from_file("examples/nanostring_2mode/model.hb")
+    data = harmonid.Dataset.from_folder("examples/nanostring_2mode/data")
+    result = harmonid.identify(model, data)
+    print(result.summary())
+    result.parameters["g12"]          # {"value": ..., "std": ..., "stderr": ...}
+    result.per_shot["g12"]            # numpy array, one estimate per shot
+
+The work is done by the compiled Rust library (the same code as the ``harmonid`` command);
+long computations release the GIL.
+"""
+
+from collections.abc import Mapping
+
+from . import _harmonid
+from ._harmonid import (
+    Dataset,
+    DatasetError,
+    HarmonidError,
+    IdentifyError,
+    IdentifyResult,
+    Model,
+    ModelError,
+    SimulationError,
+    identify,
+)
+from ._harmonid import sweep_single as _sweep_single
+from ._harmonid import sweep_two_tone as _sweep_two_tone
+
+__version__ = _harmonid.__version__
+
+__all__ = [
+    "Dataset",
+    "DatasetError",
+    "HarmonidError",
+    "IdentifyError",
+    "IdentifyResult",
+    "Model",
+    "ModelError",
+    "SimulationError",
+    "identify",
+    "mix",
+    "sweep",
+]
+
+
+def mix(model, drives, *, sidebands=None, window_hz=None, nominal_hz=None):
+    """The lines every term of every equation generates under a set of tones.
+
+    ``drives`` maps each mode to the tones in its motion, in Hz:
+    ``{"q1": [207572, 207592], "q2": [415842]}`` (or a list of ``(mode, [Hz, ...])`` pairs).
+    Tones are numbered f1, f2, ... in the order given; a component's real amplitude is the
+    symbol X1, X2, ... ``sidebands`` lets every mode with two or more tones carry its own
+    sidebands up to that intermodulation order (amplitudes Y1, Y2, ...). A line is "near" a
+    resonance within ``window_hz`` of it (default: 1 % of the resonance frequency);
+    ``nominal_hz`` overrides the model's nominal resonances.
+
+    Returns one record (dict) per line, as ``harmonid mix --json`` lists them: ``equation``,
+    ``monomial``, ``term_coefficient``, ``combination``, ``coeffs``, ``freq_hz``,
+    ``coefficient`` (the amplitude of ``cos(2π f t)`` in the monomial), ``near``.
+    ``pandas.DataFrame(mix(...))`` is the table.
+    """
+    if isinstance(drives, Mapping):
+        drives = list(drives.items())
+    pairs = [(str(mode), [float(f) for f in tones]) for mode, tones in drives]
+    return _harmonid.mix(
+        model, pairs, sidebands=sidebands, window_hz=window_hz, nominal_hz=nominal_hz
+    )
+
+
+def sweep(
+    model,
+    values,
+    f_from_hz,
+    f_to_hz,
+    force,
+    *,
+    points=2000,
+    harmonics=3,
+    two_tone_spacing_hz=None,
+):
+    """A frequency-response curve, followed through folds (``harmonid sweep``).
+
+    ``values`` gives the model's numbers: a dict in the layout of a values file
+    (``{"modes": {"q1": {"f_hz": ..., "Q": ...}}, "parameters": {"beta1": ...}}``) or the path of
+    a values TOML file. ``force`` is ``{mode: N/kg}`` (peak, phase 0) of the tone on each mode.
+
+    Single tone (default): the tone is swept from ``f_from_hz`` to ``f_to_hz`` by
+    pseudo-arclength continuation; returns numpy arrays ``f_hz`` (N,), ``stable`` (N,) and
+    ``amplitudes`` (N, modes, harmonics; complex, m, ``Re[X e^{i2πkft}]``), with ``harmonics``,
+    ``folds_hz``, ``jumps_up_hz``, ``jumps_down_hz`` (where an up/down sweep would jump) and
+    ``complete``.
+
+    ``two_tone_spacing_hz=Δ``: a pair of tones at ``c ± Δ/2`` (each with ``force``) whose centre
+    ``c`` is swept up and down; returns ``up`` and ``down``, each with ``centre_hz``,
+    ``stable``, ``amplitudes`` (N, modes, lines; complex, at the centre offsets
+    ``lines_offset_hz``: ``−3Δ/2, −Δ/2, Δ/2, 3Δ/2``), ``jumps_hz`` and ``stopped``.
+    """
+    force = {str(k): float(v) for k, v in dict(force).items()}
+    if two_tone_spacing_hz is None:
+        return _sweep_single(
+            model, values, f_from_hz, f_to_hz, force, points=points, harmonics=harmonics
+        )
+    return _sweep_two_tone(
+        model, values, f_from_hz, f_to_hz, force, two_tone_spacing_hz, points=points
+    )

@@ -1,0 +1,117 @@
+"""Type stubs of the compiled module ``harmonid._harmonid`` (docstrings live on the objects)."""
+
+import os
+from collections.abc import Mapping, Sequence
+from typing import Any, Literal, Optional, Union, overload
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+_Path = Union[str, os.PathLike[str]]
+
+class HarmonidError(ValueError): ...
+class ModelError(HarmonidError): ...
+class DatasetError(HarmonidError): ...
+class IdentifyError(HarmonidError): ...
+class SimulationError(HarmonidError): ...
+
+class Model:
+    @staticmethod
+    def from_file(path: _Path) -> Model: ...
+    @staticmethod
+    def from_str(text: str, origin: str = "<string>") -> Model: ...
+    @property
+    def source(self) -> str: ...
+    @property
+    def modes(self) -> dict[str, dict[str, Optional[float]]]: ...
+    @property
+    def parameters(self) -> dict[str, dict[str, Any]]: ...
+    @property
+    def identifiable(self) -> bool: ...
+    @overload
+    def equations(self, format: Literal["dict"] = "dict") -> dict[str, dict[str, dict[str, float]]]: ...
+    @overload
+    def equations(self, format: Literal["latex", "text"]) -> str: ...
+    def to_dict(self) -> dict[str, Any]: ...
+
+class Dataset:
+    @staticmethod
+    def from_folder(path: _Path) -> Dataset: ...
+    @staticmethod
+    def from_arrays(
+        measurements: Union[Mapping[str, Mapping[str, Any]], Sequence[Mapping[str, Any]]],
+        *,
+        displacement_unit: str = "m",
+        points: Optional[Mapping[str, Mapping[str, float]]] = None,
+        nominal_hz: Optional[Mapping[str, float]] = None,
+        description: str = "",
+    ) -> Dataset: ...
+    def to_folder(self, path: _Path) -> None: ...
+    @property
+    def path(self) -> str: ...
+    @property
+    def measurements(self) -> list[str]: ...
+    def measurement(self, name: str) -> dict[str, Any]: ...
+    @property
+    def manifest(self) -> dict[str, Any]: ...
+    @property
+    def truth(self) -> Optional[dict[str, Any]]: ...
+
+class IdentifyResult:
+    def to_dict(self) -> dict[str, Any]: ...
+    def to_json(self) -> str: ...
+    @property
+    def parameters(self) -> dict[str, dict[str, Any]]: ...
+    @property
+    def modes(self) -> dict[str, dict[str, dict[str, Any]]]: ...
+    @property
+    def eom(self) -> dict[str, dict[str, Optional[float]]]: ...
+    @property
+    def warnings(self) -> list[str]: ...
+    @property
+    def per_shot(self) -> dict[str, npt.NDArray[Any]]: ...
+    @property
+    def crlb(self) -> Optional[dict[str, float]]: ...
+    def summary(self) -> str: ...
+
+def identify(
+    model: Model,
+    dataset: Dataset,
+    *,
+    joint: bool = False,
+    force_model: Literal["auto", "free", "gain_per_measurement", "gain_per_mode"] = "auto",
+    nominal_hz: Optional[Mapping[str, float]] = None,
+    near_rel: Optional[float] = None,
+    unweighted: bool = False,
+    rank_tol: Optional[float] = None,
+    gls: Optional[bool] = None,
+    gls_iterations: Optional[int] = None,
+    sample_covariance: Optional[bool] = None,
+) -> IdentifyResult: ...
+def mix(
+    model: Model,
+    drives: Sequence[tuple[str, Sequence[float]]],
+    sidebands: Optional[int] = None,
+    window_hz: Optional[float] = None,
+    nominal_hz: Optional[Mapping[str, float]] = None,
+) -> list[dict[str, Any]]: ...
+def sweep_single(
+    model: Model,
+    values: Union[Mapping[str, Any], _Path],
+    f_from_hz: float,
+    f_to_hz: float,
+    force: Mapping[str, float],
+    points: int = 2000,
+    harmonics: int = 3,
+) -> dict[str, Any]: ...
+def sweep_two_tone(
+    model: Model,
+    values: Union[Mapping[str, Any], _Path],
+    f_from_hz: float,
+    f_to_hz: float,
+    force: Mapping[str, float],
+    spacing_hz: float,
+    points: int = 2000,
+) -> dict[str, Any]: ...

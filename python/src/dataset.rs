@@ -1,0 +1,308 @@
+//! `harmonid.Dataset`: measurements in the layout of `DATA_FORMAT.md`, read from a folder, built
+//! from numpy arrays, written back.
+
+use crate::convert::json_to_py;
+use crate::errors::{dataset_error, DatasetError};
+use harmonid_ident::{Manifest, Measurement, MeasurementSpec, Point};
+use num_complex::Complex64;
+use numpy::{IntoPyArray, PyArray3, PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
+use pyo3::exceptions::PyTypeError;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::sync::Arc;
+
+/// A dataset: the manifest, and per measurement the complex amplitudes of every shot at every
+/// measured frequency and point.
+///
+/// Amplitudes are held in metres whatever `displacement_unit` the data came in (the folder is
+/// written back in its declared unit). A complex amplitude `X` at `f` is `Re[X e^{i2πft}]`, peak.
+#[pyclass(module = "harmonid._harmonid", frozen)]
+pub struct Dataset {
+    pub(crate) inner: Arc<harmonid_ident::Dataset>,
+}
+
+impl Dataset {
+    pub(crate) fn wrap(ds: harmonid_ident::Dataset) -> Self {
+        Dataset {
+            inner: Arc::new(ds),
+        }
+    }
+}
+
+/// `d[key]` extracted, or None when absent or None.
+fn opt<'py, T: FromPyObjectOwned<'py>>(d: &Bound<'py, PyDict>, key: &str) -> PyResult<Option<T>> {
+    match d.get_item(key)? {
+        Some(v) if !v.is_none() => v.extract::<T>().map(Some).map_err(|e| {
+            let e: PyErr = e.into();
+            PyTypeError::new_err(format!("\"{key}\": {e}"))
+        }),
+        _ => Ok(None),
+    }
+}
+
+fn measurement_error(name: &str, message: String) -> PyErr {
+    DatasetError::new_err(format!("measurement \"{name}\": {message}"))
+}
+
+/// One measurement's record from `from_arrays`.
+fn measurement_from_dict(
+    py: Python<'_>,
+    name: String,
+    d: &Bound<'_, PyDict>,
+    manifest: &Manifest,
+    scale: f64,
+) -> PyResult<Measurement> {
+    const KEYS: [&str; 8] = [
+        "drives_hz",
+        "freqs_hz",
+        "amplitudes",
+        "points",
+        "drive_levels_v",
+        "drive_phases_rad",
+        "bandwidth_hz",
+        "file",
+    ];
+    for k in d.keys() {
+        let k: String = k.extract()?;
+        if !KEYS.contains(&k.as_str()) && k != "name" {
+            return Err(measurement_error(
+                &name,
+                format!("unknown key \"{k}\" (expected: {})", KEYS.join(", ")),
+            ));
+        }
+    }
+    let need = |key: &str| measurement_error(&name, format!("\"{key}\" is required"));
+    let drives_hz: Vec<f64> = opt(d, "drives_hz")?.ok_or_else(|| need("drives_hz"))?;
+    let freqs_hz: Vec<f64> = opt(d, "freqs_hz")?.ok_or_else(|| need("freqs_hz"))?;
+    let amps = d
+        .get_item("amplitudes")?
+        .ok_or_else(|| need("amplitudes"))?;
+    let np = py.import("numpy")?;
+    let kw = PyDict::new(py);
+    kw.set_item("dtype", np.getattr("complex128")?)?;
+    let amps = np.call_method("ascontiguousarray", (amps,), Some(&kw))?;
+    let amps = amps.cast::<PyArrayDyn<Complex64>>()?.readonly();
+    let point_names: Option<Vec<String>> = opt(d, "points")?;
+    let points: Vec<usize> = match point_names {
+        None => (0..manifest.points.len().max(1)).collect(),
+        Some(names) => names
+            .iter()
+            .map(|p| {
+                manifest
+                    .points
+                    .iter()
+                    .position(|q| &q.name == p)
+                    .ok_or_else(|| {
+                        measurement_error(&name, format!("point \"{p}\" is not among `points`"))
+                    })
+            })
+            .collect::<PyResult<_>>()?,
+    };
+    let shape = amps.shape().to_vec();
+    let (nf, npt) = (freqs_hz.len(), points.len());
+    let ok = match shape.as_slice() {
+        [_, f] => *f == nf && npt == 1,
+        [_, f, p] => *f == nf && *p == npt,
+        _ => false,
+    };
+    if !ok {
+        return Err(measurement_error(
+            &name,
+            format!(
+                "amplitudes have shape {shape:?}; expected (shots, {nf}){} for {nf} frequencies and {npt} point{}",
+                if npt == 1 { format!(" or (shots, {nf}, 1)") } else { format!(" → (shots, {nf}, {npt})") },
+                if npt == 1 { "" } else { "s" }
+            ),
+        ));
+    }
+    let n_shots = shape[0];
+    let data: Vec<Complex64> = amps.as_slice()?.iter().map(|x| x * scale).collect();
+    Ok(Measurement {
+        spec: MeasurementSpec {
+            name,
+            file: opt(d, "file")?,
+            drives_hz,
+            drive_levels_v: opt(d, "drive_levels_v")?,
+            drive_phases_rad: opt(d, "drive_phases_rad")?,
+            bandwidth_hz: opt(d, "bandwidth_hz")?,
+        },
+        freqs_hz,
+        points,
+        n_shots,
+        data,
+    })
+}
+
+#[pymethods]
+impl Dataset {
+    /// Reads a dataset folder (`dataset.toml`, one CSV per measurement, optional `truth.toml`).
+    #[staticmethod]
+    fn from_folder(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
+        let ds = py
+            .detach(|| harmonid_ident::Dataset::load(&path))
+            .map_err(|e| dataset_error(&e))?;
+        Ok(Dataset::wrap(ds))
+    }
+
+    /// Builds a dataset from arrays. `measurements` maps each measurement's name to a dict:
+    ///
+    /// - `drives_hz`: every drive tone, Hz (each must be among `freqs_hz`);
+    /// - `freqs_hz`: the measured frequencies, Hz (1-D);
+    /// - `amplitudes`: complex amplitudes in `displacement_unit`, shape `(shots, freqs)` or
+    ///   `(shots, freqs, points)`;
+    /// - optional `points` (names, default all declared points), `drive_levels_v`,
+    ///   `drive_phases_rad` (both or neither, one per drive tone), `bandwidth_hz`, `file`.
+    ///
+    /// `points` maps point names to mode shapes (`{"p0": {"q1": 0.31, "q2": 0.59}}`; none: the
+    /// amplitudes are modal). `nominal_hz` gives approximate resonances per mode. The arrays are
+    /// checked as a folder's files are; errors name the measurement and what is wrong.
+    #[staticmethod]
+    #[pyo3(signature = (measurements, *, displacement_unit = "m", points = None, nominal_hz = None, description = ""))]
+    fn from_arrays(
+        py: Python<'_>,
+        measurements: &Bound<'_, PyAny>,
+        displacement_unit: &str,
+        points: Option<&Bound<'_, PyDict>>,
+        nominal_hz: Option<BTreeMap<String, f64>>,
+        description: &str,
+    ) -> PyResult<Self> {
+        let mut manifest = Manifest::new(description);
+        manifest.displacement_unit = displacement_unit.to_string();
+        let scale = manifest.unit_scale().ok_or_else(|| {
+            DatasetError::new_err(format!(
+                "displacement_unit=\"{displacement_unit}\" is not one of \"m\", \"um\", \"nm\", \"pm\""
+            ))
+        })?;
+        if let Some(points) = points {
+            for (name, shape) in points.iter() {
+                manifest.points.push(Point {
+                    name: name.extract()?,
+                    shape: shape.extract()?,
+                });
+            }
+        }
+        manifest.nominal_hz = nominal_hz.unwrap_or_default();
+        let items: Vec<(String, Bound<'_, PyDict>)> = if let Ok(d) = measurements.cast::<PyDict>() {
+            d.iter()
+                .map(|(k, v)| Ok((k.extract()?, v.cast_into::<PyDict>()?)))
+                .collect::<PyResult<_>>()?
+        } else {
+            measurements
+                .try_iter()?
+                .map(|v| {
+                    let v = v?.cast_into::<PyDict>()?;
+                    let name: String = opt(&v, "name")?.ok_or_else(|| {
+                        PyTypeError::new_err("a measurement given in a list needs a \"name\"")
+                    })?;
+                    Ok((name, v))
+                })
+                .collect::<PyResult<_>>()?
+        };
+        let ms = items
+            .into_iter()
+            .map(|(name, d)| measurement_from_dict(py, name, &d, &manifest, scale))
+            .collect::<PyResult<Vec<_>>>()?;
+        let ds = py
+            .detach(|| harmonid_ident::Dataset::from_parts("<arrays>", manifest, ms, None))
+            .map_err(|e| dataset_error(&e))?;
+        Ok(Dataset::wrap(ds))
+    }
+
+    /// Writes the dataset folder (replacing `path` if it exists; written atomically).
+    fn to_folder(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        let ds = Arc::clone(&self.inner);
+        py.detach(|| ds.write(&path)).map_err(|e| dataset_error(&e))
+    }
+
+    /// Where the dataset was read from (`"<arrays>"` when built from arrays).
+    #[getter]
+    fn path(&self) -> String {
+        self.inner.dir.display().to_string()
+    }
+
+    /// The measurement names, in manifest order.
+    #[getter]
+    fn measurements(&self) -> Vec<String> {
+        self.inner
+            .measurements
+            .iter()
+            .map(|m| m.spec.name.clone())
+            .collect()
+    }
+
+    /// One measurement: `drives_hz`, `freqs_hz` (numpy, increasing), `amplitudes` (numpy complex,
+    /// metres, shape `(shots, freqs, points)`), `points` (names), and `drive_levels_v`,
+    /// `drive_phases_rad`, `bandwidth_hz` when given. The arrays are copies.
+    fn measurement<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyDict>> {
+        let m = self.inner.measurement(name).ok_or_else(|| {
+            pyo3::exceptions::PyKeyError::new_err(format!(
+                "no measurement \"{name}\" (measurements: {})",
+                self.measurements().join(", ")
+            ))
+        })?;
+        let d = PyDict::new(py);
+        d.set_item("name", &m.spec.name)?;
+        d.set_item("drives_hz", m.spec.drives_hz.clone().into_pyarray(py))?;
+        d.set_item("freqs_hz", m.freqs_hz.clone().into_pyarray(py))?;
+        let shape = [m.n_shots, m.freqs_hz.len(), m.points.len()];
+        let amps = m.data.clone().into_pyarray(py).reshape(shape)?;
+        let amps: Bound<'py, PyArray3<Complex64>> = amps;
+        d.set_item("amplitudes", amps)?;
+        let names: Vec<&str> = m
+            .points
+            .iter()
+            .map(|&p| {
+                self.inner
+                    .manifest
+                    .points
+                    .get(p)
+                    .map_or("(modal)", |q| q.name.as_str())
+            })
+            .collect();
+        d.set_item("points", PyList::new(py, names)?)?;
+        d.set_item("drive_levels_v", &m.spec.drive_levels_v)?;
+        d.set_item("drive_phases_rad", &m.spec.drive_phases_rad)?;
+        d.set_item("bandwidth_hz", m.spec.bandwidth_hz)?;
+        Ok(d)
+    }
+
+    /// The manifest (`dataset.toml`) as a dict.
+    #[getter]
+    fn manifest<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let v = serde_json::to_value(&self.inner.manifest)
+            .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
+        json_to_py(py, &v)
+    }
+
+    /// The true values (`truth.toml`, synthetic data only) as a dict, or None.
+    #[getter]
+    fn truth<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        match &self.inner.truth {
+            None => Ok(py.None().into_bound(py)),
+            Some(t) => {
+                let v = serde_json::to_value(t)
+                    .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
+                json_to_py(py, &v)
+            }
+        }
+    }
+
+    fn __repr__(&self) -> String {
+        let shots: Vec<String> = self
+            .inner
+            .measurements
+            .iter()
+            .map(|m| {
+                format!(
+                    "{} ({} shots × {} freqs)",
+                    m.spec.name,
+                    m.n_shots,
+                    m.freqs_hz.len()
+                )
+            })
+            .collect();
+        format!("Dataset({:?}, [{}])", self.path(), shots.join(", "))
+    }
+}

@@ -1,0 +1,66 @@
+//! Python exceptions. Every one carries the library's located message (file, line or row, what
+//! was expected, what to try) as its text.
+
+use pyo3::create_exception;
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+
+create_exception!(
+    harmonid,
+    HarmonidError,
+    PyValueError,
+    "Base class of harmonid's errors; the message names the file, line or row and what to try."
+);
+create_exception!(
+    harmonid,
+    ModelError,
+    HarmonidError,
+    "A model file or text that does not parse or check (every diagnostic, with line and caret)."
+);
+create_exception!(
+    harmonid,
+    DatasetError,
+    HarmonidError,
+    "A dataset folder or arrays that break the data contract (DATA_FORMAT.md)."
+);
+create_exception!(
+    harmonid,
+    IdentifyError,
+    HarmonidError,
+    "A model and dataset that cannot be identified together."
+);
+create_exception!(
+    harmonid,
+    SimulationError,
+    HarmonidError,
+    "Values, plans or settings a simulation or sweep cannot use."
+);
+
+/// Adds the exception classes to the module.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    let py = m.py();
+    m.add("HarmonidError", py.get_type::<HarmonidError>())?;
+    m.add("ModelError", py.get_type::<ModelError>())?;
+    m.add("DatasetError", py.get_type::<DatasetError>())?;
+    m.add("IdentifyError", py.get_type::<IdentifyError>())?;
+    m.add("SimulationError", py.get_type::<SimulationError>())?;
+    Ok(())
+}
+
+/// A model's diagnostics, rendered as plain text (file:line:column, the line, a caret, help).
+pub fn model_error(e: &harmonid_model::ModelErrors) -> PyErr {
+    ModelError::new_err(e.render_plain(100))
+}
+
+/// A dataset error (its message names the file and row).
+pub fn dataset_error(e: &harmonid_ident::DatasetError) -> PyErr {
+    DatasetError::new_err(e.to_string())
+}
+
+/// An identification error; dataset errors keep their own class.
+pub fn ident_error(e: &harmonid_ident::IdentError) -> PyErr {
+    match e {
+        harmonid_ident::IdentError::Dataset(d) => dataset_error(d),
+        other => IdentifyError::new_err(other.to_string()),
+    }
+}

@@ -1,0 +1,255 @@
+//! `harmonid.identify`: the model's unknowns from a dataset (`docs/identification.md`), and the
+//! result object.
+
+use crate::convert::json_to_py;
+use crate::dataset::Dataset;
+use crate::errors::{ident_error, HarmonidError};
+use crate::model::Model;
+use harmonid_ident::{ForceModel, Report, Settings};
+use numpy::IntoPyArray;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use serde_json::Value;
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+fn force_model(name: &str) -> PyResult<ForceModel> {
+    Ok(match name {
+        "auto" => ForceModel::Auto,
+        "free" => ForceModel::Free,
+        "gain_per_measurement" => ForceModel::GainPerMeasurement,
+        "gain_per_mode" => ForceModel::GainPerMode,
+        other => {
+            return Err(HarmonidError::new_err(format!(
+                "force_model={other:?}: expected \"auto\", \"free\", \"gain_per_measurement\" or \"gain_per_mode\""
+            )))
+        }
+    })
+}
+
+/// Identifies `model`'s unknowns from `dataset` (sequential stages unless `joint`), exactly as
+/// `harmonid identify MODEL DATASET` does with the matching options:
+///
+/// - `joint`: fit everything in one problem (`--joint`);
+/// - `force_model`: `"auto"` (drive levels when the manifest gives them), `"free"`
+///   (`--free-forces`), `"gain_per_measurement"`, `"gain_per_mode"` (`--gain-per-mode`);
+/// - `nominal_hz`: `{mode: Hz}` overriding the dataset's and the model's (`--nominal`);
+/// - `near_rel`: how close (relative) a drive tone must be to a resonance (`--near-rel`);
+/// - `unweighted`: no weights from the scatter across shots (`--unweighted`);
+/// - `rank_tol`, `gls`, `gls_iterations`, `sample_covariance`: the library's settings
+///   (`Settings` in `harmonid_ident`); None keeps the documented default.
+///
+/// Runs without holding the GIL. Returns an `IdentifyResult`.
+#[pyfunction]
+#[pyo3(signature = (model, dataset, *, joint = false, force_model = "auto", nominal_hz = None, near_rel = None, unweighted = false, rank_tol = None, gls = None, gls_iterations = None, sample_covariance = None))]
+#[allow(clippy::too_many_arguments)]
+pub fn identify(
+    py: Python<'_>,
+    model: &Model,
+    dataset: &Dataset,
+    joint: bool,
+    force_model: &str,
+    nominal_hz: Option<BTreeMap<String, f64>>,
+    near_rel: Option<f64>,
+    unweighted: bool,
+    rank_tol: Option<f64>,
+    gls: Option<bool>,
+    gls_iterations: Option<usize>,
+    sample_covariance: Option<bool>,
+) -> PyResult<IdentifyResult> {
+    let mut nominal = BTreeMap::new();
+    for (name, hz) in nominal_hz.unwrap_or_default() {
+        if model.inner.mode_index(&name).is_none() {
+            return Err(HarmonidError::new_err(format!(
+                "nominal_hz: the model declares no mode \"{name}\" (modes: {})",
+                model.inner.mode_names().join(", ")
+            )));
+        }
+        if !(hz.is_finite() && hz > 0.0) {
+            return Err(HarmonidError::new_err(format!(
+                "nominal_hz[\"{name}\"] = {hz} is not a positive frequency in Hz"
+            )));
+        }
+        nominal.insert(name, hz);
+    }
+    // Field by field from the defaults, so settings the library adds keep their defaults.
+    let mut settings = Settings {
+        force_model: self::force_model(force_model)?,
+        joint,
+        nominal_hz: nominal,
+        ..Settings::default()
+    };
+    if let Some(x) = near_rel {
+        settings.near_rel = x;
+    }
+    if unweighted {
+        settings.min_shots_for_weights = 0;
+    }
+    if let Some(x) = rank_tol {
+        settings.rank_tol = x;
+    }
+    if let Some(x) = gls {
+        settings.gls = x;
+    }
+    if let Some(x) = gls_iterations {
+        settings.gls_iterations = x;
+    }
+    if let Some(x) = sample_covariance {
+        settings.sample_covariance = x;
+    }
+    let (m, ds) = (Arc::clone(&model.inner), Arc::clone(&dataset.inner));
+    let (report, summary) = py
+        .detach(|| {
+            harmonid_ident::identify(&m, &ds, &settings).map(|r| {
+                let s = r.summary(ds.truth.as_ref());
+                (r, s)
+            })
+        })
+        .map_err(|e| ident_error(&e))?;
+    IdentifyResult::new(py, report, summary)
+}
+
+/// The result of an identification.
+///
+/// `to_dict()` is the result file `harmonid identify --out` writes (`harmonid-result/1`,
+/// `DATA_FORMAT.md`); `parameters` and `modes` are its parts; `per_shot` holds every shot's
+/// estimate as numpy arrays (the columns of `--per-shot`); `summary()` is the printed table.
+#[pyclass(module = "harmonid._harmonid", frozen)]
+pub struct IdentifyResult {
+    json: Value,
+    per_shot: Py<PyDict>,
+    summary: String,
+}
+
+impl IdentifyResult {
+    fn new(py: Python<'_>, mut report: Report, summary: String) -> PyResult<Self> {
+        let json = serde_json::to_value(&report)
+            .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
+        // The per-shot vectors move into numpy without a copy.
+        let per_shot = PyDict::new(py);
+        for (n, m) in &mut report.modes {
+            per_shot.set_item(
+                format!("f_hz:{n}"),
+                std::mem::take(&mut m.f_hz.per_shot).into_pyarray(py),
+            )?;
+            per_shot.set_item(
+                format!("Q:{n}"),
+                std::mem::take(&mut m.q.per_shot).into_pyarray(py),
+            )?;
+        }
+        for (p, e) in &mut report.parameters {
+            per_shot.set_item(p, std::mem::take(&mut e.per_shot).into_pyarray(py))?;
+        }
+        let outlier: Vec<bool> = (0..report.shots)
+            .map(|s| report.outlier_shots.contains(&s))
+            .collect();
+        per_shot.set_item("outlier", outlier.into_pyarray(py))?;
+        Ok(IdentifyResult {
+            json,
+            per_shot: per_shot.unbind(),
+            summary,
+        })
+    }
+
+    fn part<'py>(&self, py: Python<'py>, key: &str) -> PyResult<Bound<'py, PyAny>> {
+        json_to_py(py, self.json.get(key).unwrap_or(&Value::Null))
+    }
+}
+
+#[pymethods]
+impl IdentifyResult {
+    /// The result file as a dict (equal to `json.load` of `harmonid identify --out`).
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        json_to_py(py, &self.json)
+    }
+
+    /// The result file's text (what `harmonid identify --out` writes).
+    fn to_json(&self) -> PyResult<String> {
+        serde_json::to_string_pretty(&self.json)
+            .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))
+    }
+
+    /// `{name: {"value", "std", "stderr", ...}}` for the model's parameters.
+    #[getter]
+    fn parameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.part(py, "parameters")
+    }
+
+    /// `{mode: {"f_hz": {...}, "Q": {...}}}`.
+    #[getter]
+    fn modes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.part(py, "modes")
+    }
+
+    /// Every monomial coefficient of every equation: `{mode: {monomial: value}}`.
+    #[getter]
+    fn eom<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.part(py, "eom")
+    }
+
+    /// Warnings (conditioning, quantities the data do not determine, ...).
+    #[getter]
+    fn warnings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.part(py, "warnings")
+    }
+
+    /// Every shot's estimates: `{"f_hz:q1": array, "Q:q1": array, ..., parameter: array,
+    /// "outlier": bool array}` (numpy, one entry per shot; `pandas.DataFrame(result.per_shot)`
+    /// is the `--per-shot` table).
+    #[getter]
+    fn per_shot<'py>(&self, py: Python<'py>) -> Bound<'py, PyDict> {
+        self.per_shot.bind(py).clone()
+    }
+
+    /// The Cramér–Rao bound of each quantity that reports one (`{"beta1": ..., "f_hz:q1": ...}`),
+    /// or None when the result has none.
+    #[getter]
+    fn crlb<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let mut out = serde_json::Map::new();
+        let mut take = |name: String, e: &Value| {
+            if let Some(c) = e.get("crlb") {
+                out.insert(name, c.clone());
+            }
+        };
+        if let Some(Value::Object(modes)) = self.json.get("modes") {
+            for (n, m) in modes {
+                for key in ["f_hz", "Q"] {
+                    if let Some(e) = m.get(key) {
+                        take(format!("{key}:{n}"), e);
+                    }
+                }
+            }
+        }
+        if let Some(Value::Object(ps)) = self.json.get("parameters") {
+            for (p, e) in ps {
+                take(p.clone(), e);
+            }
+        }
+        if out.is_empty() {
+            Ok(py.None().into_bound(py))
+        } else {
+            json_to_py(py, &Value::Object(out))
+        }
+    }
+
+    /// The readable summary `harmonid identify` prints (value ± std, stages, residuals,
+    /// conditioning, warnings; truth when the dataset has it).
+    fn summary(&self) -> &str {
+        &self.summary
+    }
+
+    fn __repr__(&self) -> String {
+        let params: Vec<String> = match self.json.get("parameters") {
+            Some(Value::Object(ps)) => ps
+                .iter()
+                .map(|(p, e)| {
+                    let v = e.get("value").and_then(Value::as_f64).unwrap_or(f64::NAN);
+                    let s = e.get("stderr").and_then(Value::as_f64).unwrap_or(f64::NAN);
+                    format!("{p}={v:.4e}±{s:.1e}")
+                })
+                .collect(),
+            _ => Vec::new(),
+        };
+        format!("IdentifyResult({})", params.join(", "))
+    }
+}

@@ -1,0 +1,37 @@
+//! Python bindings of harmonid: the compiled module `harmonid._harmonid`, wrapped by the pure
+//! Python package `harmonid` (`python/harmonid/`), which adds the keyword-friendly signatures.
+//!
+//! Conventions are the library's (`DATA_FORMAT.md`): SI units, a complex amplitude `X` at `f`
+//! means `Re[X e^{i2πft}]` (peak), frequencies in Hz. Long computations (identification,
+//! simulation, sweeps) run with the Python thread state detached, so other Python threads keep
+//! running. Arrays handed to Python are moved into numpy without a copy where the library
+//! produces them as owned vectors.
+//!
+//! Build: `pip install ./python` (maturin, which enables the `extension-module` feature). The
+//! workspace's `cargo test` and `cargo clippy` compile this crate without that feature and never
+//! link it, so they need no Python development files.
+
+mod convert;
+mod dataset;
+mod errors;
+mod identify;
+mod mix;
+mod model;
+mod sweep;
+
+use pyo3::prelude::*;
+
+/// The compiled part of the `harmonid` package.
+#[pymodule]
+fn _harmonid(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    errors::register(m)?;
+    m.add_class::<model::Model>()?;
+    m.add_class::<dataset::Dataset>()?;
+    m.add_class::<identify::IdentifyResult>()?;
+    m.add_function(wrap_pyfunction!(mix::mix, m)?)?;
+    m.add_function(wrap_pyfunction!(identify::identify, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep::sweep_single, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep::sweep_two_tone, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,118 @@
+"""identify: the result equals `harmonid identify --out`, per shot equals `--per-shot`."""
+
+import csv
+import threading
+
+import numpy as np
+import pytest
+from conftest import DATA_2, MODEL_2, assert_close, load_json
+from test_dataset import arrays_of
+
+import harmonid
+
+OPTIONS = [
+    ({}, []),
+    ({"joint": True}, ["--joint"]),
+    ({"force_model": "free"}, ["--free-forces"]),
+    ({"force_model": "gain_per_mode"}, ["--gain-per-mode"]),
+    ({"unweighted": True, "near_rel": 0.01}, ["--unweighted", "--near-rel", "0.01"]),
+    ({"nominal_hz": {"q1": 207590.0}}, ["--nominal", "q1=207590"]),
+]
+
+
+def cli_identify(cli, tmp_path, model, data, flags):
+    out, shots = tmp_path / "result.json", tmp_path / "shots.csv"
+    text = cli("identify", model, data, "--out", out, "--per-shot", shots, *flags)
+    with open(shots) as f:
+        rows = list(csv.DictReader(f))
+    return load_json(out.read_text()), rows, text
+
+
+@pytest.mark.parametrize("options, flags", OPTIONS)
+def test_result_equals_cli(cli, tmp_path, options, flags):
+    want, rows, printed = cli_identify(cli, tmp_path, MODEL_2, DATA_2, flags)
+    r = harmonid.identify(
+        harmonid.Model.from_file(MODEL_2), harmonid.Dataset.from_folder(DATA_2), **options
+    )
+    assert_close(r.to_dict(), want)
+    assert_close(load_json(r.to_json()), want)
+    assert_close(r.parameters, want["parameters"])
+    assert_close(r.modes, want["modes"])
+    assert_close(r.eom, want["eom"])
+    assert r.warnings == want["warnings"]
+    assert r.summary() in printed
+    per_shot = r.per_shot
+    assert set(per_shot) == set(rows[0]) - {"shot"}
+    for col, arr in per_shot.items():
+        assert isinstance(arr, np.ndarray) and arr.shape == (len(rows),)
+        want_col = [float(row[col]) for row in rows]
+        if col == "outlier":
+            assert list(arr) == [bool(int(v)) for v in want_col]
+        else:
+            assert_close(list(arr), want_col, path=col)
+
+
+def test_crlb_is_what_the_result_reports():
+    r = harmonid.identify(
+        harmonid.Model.from_file(MODEL_2), harmonid.Dataset.from_folder(DATA_2)
+    )
+    d = r.to_dict()
+    want = {p: e["crlb"] for p, e in d["parameters"].items() if "crlb" in e}
+    for n, m in d["modes"].items():
+        want.update({f"{k}:{n}": m[k]["crlb"] for k in ("f_hz", "Q") if "crlb" in m[k]})
+    assert r.crlb == (want or None)
+
+
+def test_arrays_and_a_written_folder_identify_as_the_folder(cli, tmp_path):
+    ds = harmonid.Dataset.from_folder(DATA_2)
+    man = ds.manifest
+    built = harmonid.Dataset.from_arrays(
+        arrays_of(ds),
+        displacement_unit="nm",
+        points={p["name"]: p["shape"] for p in man["point"]},
+        nominal_hz=man.get("nominal_hz"),
+    )
+    model = harmonid.Model.from_file(MODEL_2)
+    got = harmonid.identify(model, built).to_dict()
+    want, _, _ = cli_identify(cli, tmp_path, MODEL_2, DATA_2, [])
+    assert got["dataset"] == "<arrays>"
+    got["dataset"] = want["dataset"]
+    # nm → m scaling rounds the amplitudes at 1e-16; the estimates follow to ~1e-9.
+    assert_close(got, want, rel=1e-6)
+    # A folder written from Python identifies, through the command line, as in Python.
+    built.to_folder(tmp_path / "written")
+    want2, _, _ = cli_identify(cli, tmp_path, MODEL_2, tmp_path / "written", [])
+    got2 = harmonid.identify(model, harmonid.Dataset.from_folder(tmp_path / "written")).to_dict()
+    assert_close(got2, want2)
+
+
+def test_threads_share_models_and_datasets():
+    model = harmonid.Model.from_file(MODEL_2)
+    ds = harmonid.Dataset.from_folder(DATA_2)
+    results = [None] * 4
+
+    def work(i):
+        results[i] = harmonid.identify(model, ds).to_dict()
+
+    threads = [threading.Thread(target=work, args=(i,)) for i in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert all(r == results[0] for r in results)
+
+
+def test_errors_are_located(tmp_path):
+    model = harmonid.Model.from_file(MODEL_2)
+    ds = harmonid.Dataset.from_folder(DATA_2)
+    with pytest.raises(harmonid.IdentifyError, match=r"dataset.toml: measurement \"single_q1\""):
+        harmonid.identify(model, ds, near_rel=1e-9)
+    with pytest.raises(harmonid.HarmonidError, match="force_model"):
+        harmonid.identify(model, ds, force_model="magic")
+    with pytest.raises(harmonid.HarmonidError, match="no mode \"q9\""):
+        harmonid.identify(model, ds, nominal_hz={"q9": 1e5})
+    with pytest.raises(TypeError):
+        harmonid.identify(model, ds, unknown_option=1)
+    other = harmonid.Model.from_str("mode a at 1 kHz\nmode b at 2 kHz\nparam k\neom a += k*a^3\n")
+    with pytest.raises(harmonid.HarmonidError):
+        harmonid.identify(other, ds)

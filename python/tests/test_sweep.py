@@ -1,0 +1,83 @@
+"""sweep: numpy arrays equal to `harmonid sweep` CSV output."""
+
+import csv
+import numpy as np
+import pytest
+from conftest import MODEL_2
+
+import harmonid
+
+VALUES = "examples/nanostring_2mode/values.toml"
+
+
+def read_csv(path):
+    with open(path) as f:
+        return list(csv.DictReader(f))
+
+
+def test_single_tone_equals_cli(cli, tmp_path):
+    out = tmp_path / "curve.csv"
+    cli("sweep", MODEL_2, "--values", VALUES, "--from", "207540", "--to", "207700",
+        "--force", "q1=3.5", "--points", "400", "--out", out)
+    rows = read_csv(out)
+    model = harmonid.Model.from_file(MODEL_2)
+    r = harmonid.sweep(model, VALUES, 207540, 207700, {"q1": 3.5}, points=400)
+    assert r["modes"] == ["q1", "q2"] and r["harmonics"] == [1, 3]
+    assert r["amplitudes"].shape == (len(rows), 2, 2)
+    np.testing.assert_allclose(r["f_hz"], [float(x["f_hz"]) for x in rows], rtol=1e-12, atol=0)
+    assert list(r["stable"]) == [x["stable"] == "1" for x in rows]
+    for n, mode in enumerate(r["modes"]):
+        for i, h in enumerate(r["harmonics"]):
+            for part, f in (("re", np.real), ("im", np.imag)):
+                want = [float(x[f"{mode}_h{h}_{part}"]) for x in rows]
+                np.testing.assert_allclose(f(r["amplitudes"][:, n, i]), want, rtol=1e-12, atol=0)
+    # This drive folds the Duffing curve: up and down sweeps jump at different frequencies.
+    assert r["complete"] and len(r["folds_hz"]) == 2
+    assert r["jumps_up_hz"][0] > r["jumps_down_hz"][0]
+    # Values as a dict are the same values.
+    values = {
+        "modes": {"q1": {"f_hz": 207582.0, "Q": 116232.0}, "q2": {"f_hz": 415842.0, "Q": 599173.0}},
+        "parameters": {"beta1": 2.68e22, "beta2": 3.70e23, "g12": 8.57e22},
+    }
+    same = harmonid.sweep(model, values, 207540, 207700, {"q1": 3.5}, points=400)
+    np.testing.assert_array_equal(same["amplitudes"], r["amplitudes"])
+
+
+def test_two_tone_equals_cli(cli, tmp_path):
+    out = tmp_path / "two.csv"
+    cli("sweep", MODEL_2, "--values", VALUES, "--from", "207560", "--to", "207620",
+        "--force", "q1=3.5", "--two-tone", "20", "--points", "60", "--out", out)
+    rows = read_csv(out)
+    model = harmonid.Model.from_file(MODEL_2)
+    r = harmonid.sweep(model, VALUES, 207560, 207620, {"q1": 3.5}, two_tone_spacing_hz=20,
+                       points=60)
+    labels = ["lsb", "lo", "hi", "usb"]
+    assert r["lines_offset_hz"] == [-30.0, -10.0, 10.0, 30.0]
+    for direction in ("up", "down"):
+        want = [x for x in rows if x["direction"] == direction]
+        got = r[direction]
+        assert got["amplitudes"].shape == (len(want), 2, 4)
+        np.testing.assert_allclose(got["centre_hz"], [float(x["centre_hz"]) for x in want],
+                                   rtol=1e-12, atol=0)
+        assert list(got["stable"]) == [x["stable"] == "1" for x in want]
+        for n, mode in enumerate(r["modes"]):
+            for i, lab in enumerate(labels):
+                z = got["amplitudes"][:, n, i]
+                np.testing.assert_allclose(np.abs(z), [float(x[f"{mode}_{lab}_abs"]) for x in want],
+                                           rtol=1e-12, atol=0)
+                # The CSV prints phases to 1e-9 rad.
+                ph = np.array([float(x[f"{mode}_{lab}_phase_rad"]) for x in want])
+                big = np.abs(z) > 0
+                np.testing.assert_allclose(np.angle(z)[big], ph[big], rtol=0, atol=6e-10)
+
+
+def test_bad_values_and_forces_raise():
+    model = harmonid.Model.from_file(MODEL_2)
+    with pytest.raises(harmonid.SimulationError, match="beta1"):
+        harmonid.sweep(model, {"modes": {"q1": {"f_hz": 1e5, "Q": 1e4},
+                                         "q2": {"f_hz": 2e5, "Q": 1e4}}},
+                       9e4, 1.1e5, {"q1": 1.0})
+    with pytest.raises(harmonid.SimulationError, match="not a mode"):
+        harmonid.sweep(model, VALUES, 207540, 207700, {"q7": 1.0})
+    with pytest.raises(harmonid.SimulationError, match="cannot read the values file"):
+        harmonid.sweep(model, "nope.toml", 207540, 207700, {"q1": 1.0})
