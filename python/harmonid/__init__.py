@@ -33,9 +33,8 @@ from ._harmonid import (
     ModelError,
     SimulationError,
     identify,
+    sweep,
 )
-from ._harmonid import sweep_single as _sweep_single
-from ._harmonid import sweep_two_tone as _sweep_two_tone
 
 __version__ = _harmonid.__version__
 
@@ -77,40 +76,3 @@ def mix(model, drives, *, sidebands=None, window_hz=None, nominal_hz=None):
         model, pairs, sidebands=sidebands, window_hz=window_hz, nominal_hz=nominal_hz
     )
 
-
-def sweep(
-    model,
-    values,
-    f_from_hz,
-    f_to_hz,
-    force,
-    *,
-    points=2000,
-    harmonics=3,
-    two_tone_spacing_hz=None,
-):
-    """A frequency-response curve, followed through folds (``harmonid sweep``).
-
-    ``values`` gives the model's numbers: a dict in the layout of a values file
-    (``{"modes": {"q1": {"f_hz": ..., "Q": ...}}, "parameters": {"beta1": ...}}``) or the path of
-    a values TOML file. ``force`` is ``{mode: N/kg}`` (peak, phase 0) of the tone on each mode.
-
-    Single tone (default): the tone is swept from ``f_from_hz`` to ``f_to_hz`` by
-    pseudo-arclength continuation; returns numpy arrays ``f_hz`` (N,), ``stable`` (N,) and
-    ``amplitudes`` (N, modes, harmonics; complex, m, ``Re[X e^{i2πkft}]``), with ``harmonics``,
-    ``folds_hz``, ``jumps_up_hz``, ``jumps_down_hz`` (where an up/down sweep would jump) and
-    ``complete``.
-
-    ``two_tone_spacing_hz=Δ``: a pair of tones at ``c ± Δ/2`` (each with ``force``) whose centre
-    ``c`` is swept up and down; returns ``up`` and ``down``, each with ``centre_hz``,
-    ``stable``, ``amplitudes`` (N, modes, lines; complex, at the centre offsets
-    ``lines_offset_hz``: ``−3Δ/2, −Δ/2, Δ/2, 3Δ/2``), ``jumps_hz`` and ``stopped``.
-    """
-    force = {str(k): float(v) for k, v in dict(force).items()}
-    if two_tone_spacing_hz is None:
-        return _sweep_single(
-            model, values, f_from_hz, f_to_hz, force, points=points, harmonics=harmonics
-        )
-    return _sweep_two_tone(
-        model, values, f_from_hz, f_to_hz, force, two_tone_spacing_hz, points=points
-    )

@@ -1,4 +1,3 @@
-import os
 from collections.abc import Mapping, Sequence
 from typing import Any, Optional, Union
 
@@ -12,6 +11,7 @@ from ._harmonid import (
     ModelError as ModelError,
     SimulationError as SimulationError,
     identify as identify,
+    sweep as sweep,
 )
 
 __version__: str
@@ -24,15 +24,3 @@ def mix(
     window_hz: Optional[float] = None,
     nominal_hz: Optional[Mapping[str, float]] = None,
 ) -> list[dict[str, Any]]: ...
-
-def sweep(
-    model: Model,
-    values: Union[Mapping[str, Any], str, "os.PathLike[str]"],
-    f_from_hz: float,
-    f_to_hz: float,
-    force: Mapping[str, float],
-    *,
-    points: int = 2000,
-    harmonics: int = 3,
-    two_tone_spacing_hz: Optional[float] = None,
-) -> dict[str, Any]: ...

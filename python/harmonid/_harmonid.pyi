@@ -97,21 +97,14 @@ def mix(
     window_hz: Optional[float] = None,
     nominal_hz: Optional[Mapping[str, float]] = None,
 ) -> list[dict[str, Any]]: ...
-def sweep_single(
+def sweep(
     model: Model,
     values: Union[Mapping[str, Any], _Path],
     f_from_hz: float,
     f_to_hz: float,
     force: Mapping[str, float],
+    *,
     points: int = 2000,
     harmonics: int = 3,
-) -> dict[str, Any]: ...
-def sweep_two_tone(
-    model: Model,
-    values: Union[Mapping[str, Any], _Path],
-    f_from_hz: float,
-    f_to_hz: float,
-    force: Mapping[str, float],
-    spacing_hz: float,
-    points: int = 2000,
+    two_tone_spacing_hz: Optional[float] = None,
 ) -> dict[str, Any]: ...

@@ -31,7 +31,6 @@ fn _harmonid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<identify::IdentifyResult>()?;
     m.add_function(wrap_pyfunction!(mix::mix, m)?)?;
     m.add_function(wrap_pyfunction!(identify::identify, m)?)?;
-    m.add_function(wrap_pyfunction!(sweep::sweep_single, m)?)?;
-    m.add_function(wrap_pyfunction!(sweep::sweep_two_tone, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep::sweep, m)?)?;
     Ok(())
 }

@@ -4,7 +4,7 @@
 use crate::errors::HarmonidError;
 use crate::model::Model;
 use harmonid_model::Linear;
-use harmonid_spectral::{mixing_table, ComponentKind, ToneAssignment, Window};
+use harmonid_spectral::{mixing_table, ToneAssignment, Window};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::collections::BTreeMap;
@@ -65,17 +65,7 @@ pub fn mix<'py>(
             .map_err(spectral_error)?;
     }
     // A mode without a nominal frequency sits at the mean of its own tones (as `harmonid mix`).
-    for (n, f) in nominal.iter_mut().enumerate() {
-        let own: Vec<f64> = assignment
-            .components()
-            .iter()
-            .filter(|c| c.mode == n && matches!(c.kind, ComponentKind::Drive(_)))
-            .map(|c| c.combination.hz(assignment.tones()))
-            .collect();
-        if f.is_none() && !own.is_empty() {
-            *f = Some(own.iter().sum::<f64>() / own.len() as f64);
-        }
-    }
+    assignment.fill_nominal_from_drives(&mut nominal);
     let window = match window_hz {
         Some(w) if w.is_finite() && w >= 0.0 => Window::Hz(w),
         Some(w) => {

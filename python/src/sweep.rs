@@ -78,11 +78,56 @@ fn force_vector(model: &NumericModel, force: &BTreeMap<String, f64>) -> PyResult
     Ok(out)
 }
 
-/// Single-tone sweep from `f_from_hz` to `f_to_hz` (see the Python docstring of `sweep`).
+/// Puts a curve's frequency axis (`key`), stability and amplitudes (shape points × modes ×
+/// lines, complex, m) into `d` as numpy arrays; the vectors move into numpy without a copy.
+fn put_curve<'py, 'a>(
+    d: &Bound<'py, PyDict>,
+    key: &str,
+    points: impl ExactSizeIterator<Item = (f64, bool, &'a [Vec<Complex64>])>,
+    n_modes: usize,
+    n_lines: usize,
+) -> PyResult<()> {
+    let py = d.py();
+    let n = points.len();
+    let (mut axis, mut stable) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    let mut amps = Vec::with_capacity(n * n_modes * n_lines);
+    for (f, s, rows) in points {
+        axis.push(f);
+        stable.push(s);
+        for row in rows {
+            amps.extend_from_slice(row);
+        }
+    }
+    d.set_item(key, axis.into_pyarray(py))?;
+    d.set_item("stable", stable.into_pyarray(py))?;
+    d.set_item(
+        "amplitudes",
+        amps.into_pyarray(py).reshape([n, n_modes, n_lines])?,
+    )?;
+    Ok(())
+}
+
+/// A frequency-response curve, followed through folds (`harmonid sweep`).
+///
+/// `values` gives the model's numbers: a dict in the layout of a values file
+/// (`{"modes": {"q1": {"f_hz": ..., "Q": ...}}, "parameters": {"beta1": ...}}`) or the path of a
+/// values TOML file. `force` is `{mode: N/kg}` (peak, phase 0) of the tone on each mode.
+///
+/// Single tone (default): the tone is swept from `f_from_hz` to `f_to_hz` by pseudo-arclength
+/// continuation; returns numpy arrays `f_hz` (N,), `stable` (N,) and `amplitudes` (N, modes,
+/// harmonics; complex, m, `Re[X e^{i2πkft}]`), with `modes`, `harmonics`, `folds_hz`,
+/// `jumps_up_hz`, `jumps_down_hz` (where an up or down sweep jumps) and `complete`.
+///
+/// `two_tone_spacing_hz=Δ`: a pair of tones at `c ± Δ/2` (each with `force`) whose centre `c`
+/// is swept up and down; returns `up` and `down`, each with `centre_hz`, `stable`,
+/// `amplitudes` (N, modes, lines; complex, m, at the centre offsets `lines_offset_hz`:
+/// `−3Δ/2, −Δ/2, Δ/2, 3Δ/2`), `jumps_hz` and `stopped` (None, or where and why).
+///
+/// Runs without holding the GIL.
 #[pyfunction]
-#[pyo3(signature = (model, values, f_from_hz, f_to_hz, force, points = 2000, harmonics = 3))]
+#[pyo3(signature = (model, values, f_from_hz, f_to_hz, force, *, points = 2000, harmonics = 3, two_tone_spacing_hz = None))]
 #[allow(clippy::too_many_arguments)] // the Python signature, keyword arguments included
-pub fn sweep_single<'py>(
+pub fn sweep<'py>(
     py: Python<'py>,
     model: &Model,
     values: &Bound<'py, PyAny>,
@@ -91,9 +136,22 @@ pub fn sweep_single<'py>(
     force: BTreeMap<String, f64>,
     points: usize,
     harmonics: usize,
+    two_tone_spacing_hz: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let nm = numeric_model(model, values)?;
     let f = force_vector(&nm, &force)?;
+    if let Some(spacing_hz) = two_tone_spacing_hz {
+        let s = TwoToneSettings {
+            c_start_hz: f_from_hz,
+            c_end_hz: f_to_hz,
+            spacing_hz,
+            force_low: f.clone(),
+            force_high: f,
+            points,
+            ..TwoToneSettings::default()
+        };
+        return two_tone(py, &nm, &s);
+    }
     let s = SweepSettings {
         f_start_hz: f_from_hz,
         f_stop_hz: f_to_hz,
@@ -104,35 +162,13 @@ pub fn sweep_single<'py>(
     let r = py
         .detach(|| sim::sweep(&nm, &f, &s))
         .map_err(|e| sim_error(&e))?;
-    let (n_pts, n_modes, n_h) = (r.points.len(), nm.n_modes(), r.harmonics.len());
-    let mut amps = Vec::with_capacity(n_pts * n_modes * n_h);
-    for p in &r.points {
-        for row in &p.amplitudes {
-            amps.extend_from_slice(row);
-        }
-    }
     let (up, down) = r.jumps();
     let d = PyDict::new(py);
-    d.set_item(
-        "f_hz",
-        r.points
-            .iter()
-            .map(|p| p.f_hz)
-            .collect::<Vec<_>>()
-            .into_pyarray(py),
-    )?;
-    d.set_item(
-        "stable",
-        r.points
-            .iter()
-            .map(|p| p.stable)
-            .collect::<Vec<_>>()
-            .into_pyarray(py),
-    )?;
-    d.set_item(
-        "amplitudes",
-        amps.into_pyarray(py).reshape([n_pts, n_modes, n_h])?,
-    )?;
+    let pts = r
+        .points
+        .iter()
+        .map(|p| (p.f_hz, p.stable, p.amplitudes.as_slice()));
+    put_curve(&d, "f_hz", pts, nm.n_modes(), r.harmonics.len())?;
     d.set_item("modes", nm.mode_names.clone())?;
     d.set_item("harmonics", r.harmonics.clone())?;
     d.set_item("jumps_up_hz", up)?;
@@ -145,67 +181,25 @@ pub fn sweep_single<'py>(
     Ok(d)
 }
 
-/// Two-tone sweep of a pair's centre, up and down (see the Python docstring of `sweep`).
-#[pyfunction]
-#[pyo3(signature = (model, values, f_from_hz, f_to_hz, force, spacing_hz, points = 2000))]
-#[allow(clippy::too_many_arguments)] // the Python signature, keyword arguments included
-pub fn sweep_two_tone<'py>(
+/// Two-tone sweep of a pair's centre, up and down.
+fn two_tone<'py>(
     py: Python<'py>,
-    model: &Model,
-    values: &Bound<'py, PyAny>,
-    f_from_hz: f64,
-    f_to_hz: f64,
-    force: BTreeMap<String, f64>,
-    spacing_hz: f64,
-    points: usize,
+    nm: &NumericModel,
+    s: &TwoToneSettings,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let nm = numeric_model(model, values)?;
-    let f = force_vector(&nm, &force)?;
-    let s = TwoToneSettings {
-        c_start_hz: f_from_hz,
-        c_end_hz: f_to_hz,
-        spacing_hz,
-        force_low: f.clone(),
-        force_high: f,
-        points,
-        ..TwoToneSettings::default()
-    };
     let r = py
-        .detach(|| sim::sweep_two_tone(&nm, &s))
+        .detach(|| sim::sweep_two_tone(nm, s))
         .map_err(|e| sim_error(&e))?;
     let out = PyDict::new(py);
     out.set_item("lines_offset_hz", r.lines_offset_hz.clone())?;
     out.set_item("modes", nm.mode_names.clone())?;
     for c in [&r.up, &r.down] {
-        let n_lines = r.lines_offset_hz.len();
-        let n = c.points.len();
-        let mut amps = Vec::with_capacity(n * nm.n_modes() * n_lines);
-        for p in &c.points {
-            for row in &p.amplitudes {
-                amps.extend_from_slice(row);
-            }
-        }
         let d = PyDict::new(py);
-        d.set_item(
-            "centre_hz",
-            c.points
-                .iter()
-                .map(|p| p.centre_hz)
-                .collect::<Vec<_>>()
-                .into_pyarray(py),
-        )?;
-        d.set_item(
-            "stable",
-            c.points
-                .iter()
-                .map(|p| p.stable)
-                .collect::<Vec<_>>()
-                .into_pyarray(py),
-        )?;
-        d.set_item(
-            "amplitudes",
-            amps.into_pyarray(py).reshape([n, nm.n_modes(), n_lines])?,
-        )?;
+        let pts = c
+            .points
+            .iter()
+            .map(|p| (p.centre_hz, p.stable, p.amplitudes.as_slice()));
+        put_curve(&d, "centre_hz", pts, nm.n_modes(), r.lines_offset_hz.len())?;
         d.set_item(
             "jumps_hz",
             c.jumps

@@ -6,7 +6,7 @@ import threading
 import numpy as np
 import pytest
 from conftest import DATA_2, MODEL_2, assert_close, load_json
-from test_dataset import arrays_of
+from test_dataset import rebuild
 
 import harmonid
 
@@ -64,14 +64,7 @@ def test_crlb_is_what_the_result_reports():
 
 
 def test_arrays_and_a_written_folder_identify_as_the_folder(cli, tmp_path):
-    ds = harmonid.Dataset.from_folder(DATA_2)
-    man = ds.manifest
-    built = harmonid.Dataset.from_arrays(
-        arrays_of(ds),
-        displacement_unit="nm",
-        points={p["name"]: p["shape"] for p in man["point"]},
-        nominal_hz=man.get("nominal_hz"),
-    )
+    built = rebuild(harmonid.Dataset.from_folder(DATA_2))
     model = harmonid.Model.from_file(MODEL_2)
     got = harmonid.identify(model, built).to_dict()
     want, _, _ = cli_identify(cli, tmp_path, MODEL_2, DATA_2, [])

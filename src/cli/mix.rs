@@ -243,19 +243,7 @@ fn build(args: &Args, model: &Model) -> miette::Result<Report> {
         assignment.add_own_sidebands(order).map_err(spectral_err)?;
     }
     // A mode without a nominal frequency sits at the mean of its own tones.
-    for (n, f) in nominal.iter_mut().enumerate() {
-        if f.is_none() {
-            let own: Vec<f64> = assignment
-                .components()
-                .iter()
-                .filter(|c| c.mode == n && matches!(c.kind, ComponentKind::Drive(_)))
-                .map(|c| c.combination.hz(assignment.tones()))
-                .collect();
-            if !own.is_empty() {
-                *f = Some(own.iter().sum::<f64>() / own.len() as f64);
-            }
-        }
-    }
+    assignment.fill_nominal_from_drives(&mut nominal);
     let window = match args.window {
         Some(w) if w.is_finite() && w >= 0.0 => Window::Hz(w),
         Some(w) => return Err(miette!("--window {w}: the window must be a number ≥ 0 Hz")),

@@ -229,6 +229,25 @@ impl ToneAssignment {
     pub fn symbols(&self) -> Vec<String> {
         self.components.iter().map(|c| c.symbol.clone()).collect()
     }
+
+    /// Fills every `None` in `nominal_hz` (per mode, Hz) with the mean frequency of that mode's
+    /// own drive tones, if it has any: where a mode without a nominal resonance is taken to sit.
+    pub fn fill_nominal_from_drives(&self, nominal_hz: &mut [Option<f64>]) {
+        for (n, f) in nominal_hz.iter_mut().enumerate() {
+            if f.is_some() {
+                continue;
+            }
+            let own: Vec<f64> = self
+                .components
+                .iter()
+                .filter(|c| c.mode == n && matches!(c.kind, ComponentKind::Drive(_)))
+                .map(|c| c.combination.hz(&self.tones))
+                .collect();
+            if !own.is_empty() {
+                *f = Some(own.iter().sum::<f64>() / own.len() as f64);
+            }
+        }
+    }
 }
 
 /// What counts as "near" a resonance.
@@ -454,4 +473,25 @@ pub fn mixing_table(
         monomial: m.clone(),
         lines,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_mode_without_nominal_sits_at_its_drive_tones_mean() {
+        let names = ["q1", "q2", "q3"];
+        let drives = vec![
+            ("q1".to_string(), vec![100.0, 110.0]),
+            ("q2".to_string(), vec![300.0]),
+        ];
+        let mut a = ToneAssignment::from_drives(&names, &drives).expect("tones");
+        a.add_own_sidebands(3).expect("sidebands");
+        let mut nominal = [None, Some(290.0), None];
+        a.fill_nominal_from_drives(&mut nominal);
+        // q1: the mean of its two tones (its sidebands do not count); q2 keeps its own; q3 has
+        // no tone and stays unknown.
+        assert_eq!(nominal, [Some(105.0), Some(290.0), None]);
+    }
 }
