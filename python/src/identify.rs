@@ -8,10 +8,11 @@ use crate::model::Model;
 use harmonid_ident::{ForceModel, Report, Settings};
 use numpy::IntoPyArray;
 use pyo3::prelude::*;
+use pyo3::sync::PyOnceLock;
 use pyo3::types::PyDict;
 use serde_json::Value;
 use std::collections::BTreeMap;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 fn force_model(name: &str) -> PyResult<ForceModel> {
     Ok(match name {
@@ -106,7 +107,7 @@ pub fn identify(
             })
         })
         .map_err(|e| ident_error(&e))?;
-    IdentifyResult::new(py, report, summary)
+    IdentifyResult::new(report, summary)
 }
 
 /// The result of an identification.
@@ -117,36 +118,34 @@ pub fn identify(
 #[pyclass(module = "harmonid._harmonid", frozen)]
 pub struct IdentifyResult {
     json: Value,
-    per_shot: Py<PyDict>,
+    /// Every shot's estimates per column, until `per_shot` first moves them into numpy (so
+    /// that an identification does not import numpy unless the estimates are asked for).
+    columns: Mutex<Vec<(String, Vec<f64>)>>,
+    outlier: Vec<bool>,
+    per_shot: PyOnceLock<Py<PyDict>>,
     summary: String,
 }
 
 impl IdentifyResult {
-    fn new(py: Python<'_>, mut report: Report, summary: String) -> PyResult<Self> {
+    fn new(mut report: Report, summary: String) -> PyResult<Self> {
         let json = serde_json::to_value(&report)
             .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
-        // The per-shot vectors move into numpy without a copy.
-        let per_shot = PyDict::new(py);
+        let mut columns = Vec::new();
         for (n, m) in &mut report.modes {
-            per_shot.set_item(
-                format!("f_hz:{n}"),
-                std::mem::take(&mut m.f_hz.per_shot).into_pyarray(py),
-            )?;
-            per_shot.set_item(
-                format!("Q:{n}"),
-                std::mem::take(&mut m.q.per_shot).into_pyarray(py),
-            )?;
+            columns.push((format!("f_hz:{n}"), std::mem::take(&mut m.f_hz.per_shot)));
+            columns.push((format!("Q:{n}"), std::mem::take(&mut m.q.per_shot)));
         }
         for (p, e) in &mut report.parameters {
-            per_shot.set_item(p, std::mem::take(&mut e.per_shot).into_pyarray(py))?;
+            columns.push((p.clone(), std::mem::take(&mut e.per_shot)));
         }
-        let outlier: Vec<bool> = (0..report.shots)
+        let outlier = (0..report.shots)
             .map(|s| report.outlier_shots.contains(&s))
             .collect();
-        per_shot.set_item("outlier", outlier.into_pyarray(py))?;
         Ok(IdentifyResult {
             json,
-            per_shot: per_shot.unbind(),
+            columns: Mutex::new(columns),
+            outlier,
+            per_shot: PyOnceLock::new(),
             summary,
         })
     }
@@ -197,8 +196,21 @@ impl IdentifyResult {
     /// "outlier": bool array}` (numpy, one entry per shot; `pandas.DataFrame(result.per_shot)`
     /// is the `--per-shot` table).
     #[getter]
-    fn per_shot<'py>(&self, py: Python<'py>) -> Bound<'py, PyDict> {
-        self.per_shot.bind(py).clone()
+    fn per_shot<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = self
+            .per_shot
+            .get_or_try_init(py, || -> PyResult<Py<PyDict>> {
+                let d = PyDict::new(py);
+                let columns = std::mem::take(&mut *self.columns.lock().map_err(|_| {
+                    pyo3::exceptions::PyRuntimeError::new_err("per-shot estimates unavailable")
+                })?);
+                for (name, v) in columns {
+                    d.set_item(name, v.into_pyarray(py))?;
+                }
+                d.set_item("outlier", self.outlier.clone().into_pyarray(py))?;
+                Ok(d.unbind())
+            })?;
+        Ok(d.bind(py).clone())
     }
 
     /// The Cramér–Rao bound of each quantity that reports one (`{"beta1": ..., "f_hz:q1": ...}`),
