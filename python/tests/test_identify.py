@@ -1,11 +1,13 @@
 """identify: the result equals `harmonid identify --out`, per shot equals `--per-shot`."""
 
 import csv
+import subprocess
+import sys
 import threading
 
 import numpy as np
 import pytest
-from conftest import DATA_2, MODEL_2, assert_close, load_json
+from conftest import DATA_2, MODEL_2, REPO, assert_close, load_json
 from test_dataset import rebuild
 
 import harmonid
@@ -109,3 +111,16 @@ def test_errors_are_located(tmp_path):
     other = harmonid.Model.from_str("mode a at 1 kHz\nmode b at 2 kHz\nparam k\neom a += k*a^3\n")
     with pytest.raises(harmonid.HarmonidError):
         harmonid.identify(other, ds)
+
+
+def test_identify_alone_does_not_import_numpy():
+    """numpy is imported only when arrays are asked for (it costs ~90 ms in a fresh process)."""
+    code = (
+        "import sys, harmonid\n"
+        f"r = harmonid.identify(harmonid.Model.from_file({MODEL_2!r}),"
+        f" harmonid.Dataset.from_folder({DATA_2!r}))\n"
+        "assert 'numpy' not in sys.modules, 'identify imported numpy'\n"
+        "assert r.per_shot['g12'].shape == (20,)\n"
+        "assert 'numpy' in sys.modules\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=REPO)
