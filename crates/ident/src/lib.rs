@@ -25,6 +25,8 @@
 #![warn(missing_docs)]
 
 pub mod dataset;
+pub mod fisher;
+pub mod forward;
 pub mod problem;
 pub mod report;
 pub mod solve;
@@ -33,6 +35,8 @@ pub use dataset::{
     Dataset, DatasetError, Manifest, Measurement, MeasurementSpec, Point, Truth, TruthForce,
     TruthMode, TruthNoise,
 };
+pub use fisher::{crlb, Bounds, FisherError, Noise};
+pub use forward::{ForwardError, ForwardModel, ForwardSettings};
 pub use problem::{ForceModel, IdentError, Problem, Settings, Unknown};
 pub use report::{Estimate, Report};
 

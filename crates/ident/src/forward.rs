@@ -1,0 +1,815 @@
+//! The dataset-shaped forward model: what a dataset's every measured amplitude should be for
+//! given values of the identification's unknowns, by harmonic balance, with its Jacobian by
+//! implicit differentiation ([`harmonid_sim::sensitivity`]). The output-error estimator and
+//! the Cramér–Rao bounds ([`crate::fisher`]) and the planner are built on it.
+//!
+//! **Unknowns** are [`Unknown`]s, the layout of the linear fit ([`crate::Problem`]): per mode
+//! `ω_n²` (rad²/s²) and `γ_n = ω_n/Q_n` (rad/s), every model parameter (SI units of its
+//! terms), then the force model's unknowns per measurement (N/kg, or N/kg per drive-level unit
+//! for gains). A vector `θ` holds a value for each of them, fixed ones included
+//! ([`ForwardModel::fixed`]: values the model gives; a mode whose `Q` is fixed while `f` is
+//! unknown has `γ = √ω²/Q` derived from `θ[ω²]`, and its `γ` entry is ignored).
+//!
+//! **Forces.** Each drive tone pushes the mode whose nominal resonance is spectrally closest
+//! (the linear fit's attribution), and no other mode. Free forces: the tone's complex force is
+//! `F = θ[Force{re}] + i θ[Force{im}]`. Drive levels: `F = G_n V e^{iφ}` with the complex gain
+//! `G_n = θ[Gain{re}] + i θ[Gain{im}]` of that mode (per measurement, or per mode for the
+//! whole dataset) and the tone's level `V` and phase `φ` from the manifest.
+//!
+//! **Observations** are every (measurement, measured frequency, point) of the dataset, in the
+//! order measurement → frequency → point (a shot's layout in [`crate::Measurement::data`]).
+//! The prediction at a point is the complex amplitude (m, peak, `DATA_FORMAT.md` phase
+//! convention) of `x = Σ_n shape_n q_n` with the manifest's shapes, so a line two modes
+//! contribute to is modelled exactly; without points the data are modal amplitudes and each
+//! frequency observes the mode it is attributed to.
+//!
+//! Each measurement has its own harmonic-balance problem on a lattice chosen at the first
+//! evaluation (and kept, so predictions are smooth in `θ`) that holds every measured
+//! frequency. Its steady state is warm-started from the previous evaluation's (or from a start
+//! set by [`ForwardModel::start_from_data`]); the drive ramp from rest is the fall-back.
+
+use crate::dataset::Dataset;
+use crate::problem::{ForceModel, Unknown};
+use harmonid_model::{Linear, Model, ParamKind};
+use harmonid_sim::{
+    choose_lattice, Excitation, HbSettings, HbSolver, ModeValues, ModelValues, NumericModel,
+    Observation, SensParam, Sensitivity, SteadyState,
+};
+use num_complex::Complex64;
+use std::collections::BTreeMap;
+use std::f64::consts::TAU;
+
+const Z: Complex64 = Complex64::new(0.0, 0.0);
+
+/// Errors of the forward model.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ForwardError {
+    /// No nominal frequency to attribute drive tones to a mode.
+    #[error("mode {mode} has no nominal resonance frequency: give it in the model (`mode {mode} at ... kHz`), in the dataset's [nominal_hz], or in the settings")]
+    NoNominal {
+        /// Mode name.
+        mode: String,
+    },
+    /// The drive-level force model without levels and phases in a measurement.
+    #[error("measurement \"{measurement}\" has no drive_levels_v and drive_phases_rad, which the force model {force_model:?} needs (use the free-force model)")]
+    NoDriveLevels {
+        /// Measurement name.
+        measurement: String,
+        /// The force model asked for.
+        force_model: ForceModel,
+    },
+    /// A value of `θ` outside its physical range (or of the wrong length).
+    #[error("{unknown} = {value:e} is not allowed: {why}")]
+    BadValue {
+        /// The unknown (readable label).
+        unknown: String,
+        /// Its value.
+        value: f64,
+        /// The rule it breaks.
+        why: String,
+    },
+    /// The harmonic balance of a measurement could not be set up or did not converge.
+    #[error("measurement \"{measurement}\": harmonic balance failed: {why}")]
+    Hb {
+        /// Measurement name.
+        measurement: String,
+        /// What happened.
+        why: String,
+    },
+    /// Output buffers of the wrong size.
+    #[error("{0}")]
+    Shape(String),
+}
+
+/// Settings of the forward model.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ForwardSettings {
+    /// Harmonic-balance settings (lattice, tolerance, ramp); the measured frequencies are added
+    /// to the lattice.
+    pub hb: HbSettings,
+    /// Nominal resonance frequencies, Hz, that override the dataset's and the model's (they
+    /// attribute drive tones to modes).
+    pub nominal_hz: BTreeMap<String, f64>,
+}
+
+/// How a sensitivity of the harmonic balance enters the unknowns' columns.
+#[derive(Debug, Clone)]
+enum Chain {
+    /// `∂X/∂θ_col += c · ∂X/∂s` for each `(col, c)`.
+    Linear(Vec<(usize, f64)>),
+    /// `γ_n` of a mode with fixed `Q`: into the `ω_n²` column times `∂γ/∂ω² = 1/(2Q√ω²)`.
+    FixedQ {
+        /// Column of `ω_n²`.
+        col: usize,
+        /// The fixed `Q`.
+        q: f64,
+        /// The mode.
+        mode: usize,
+    },
+}
+
+/// Nominal resonance of each mode, Hz, for attributing frequencies to modes: `overrides`
+/// (e.g. the command line), then the dataset's `[nominal_hz]`, then the model's
+/// `mode q1 at ...`, then its fixed `f`. Error: the name of the first mode with none.
+pub fn nominal_frequencies(
+    model: &Model,
+    ds: &Dataset,
+    overrides: &BTreeMap<String, f64>,
+) -> Result<Vec<f64>, String> {
+    model
+        .modes
+        .iter()
+        .map(|m| {
+            overrides
+                .get(&m.name)
+                .or_else(|| ds.manifest.nominal_hz.get(&m.name))
+                .copied()
+                .or(m.nominal_hz)
+                .or(match m.f_hz {
+                    Linear::Fixed(f) => Some(f),
+                    Linear::Unknown => None,
+                })
+                .ok_or_else(|| m.name.clone())
+        })
+        .collect()
+}
+
+/// The mode whose nominal resonance (Hz) is spectrally closest to `f_hz`.
+fn nearest_mode(nominal: &[f64], f_hz: f64) -> usize {
+    (0..nominal.len())
+        .min_by(|&a, &b| (nominal[a] - f_hz).abs().total_cmp(&(nominal[b] - f_hz).abs()))
+        .unwrap_or(0)
+}
+
+/// One measurement's harmonic-balance problem.
+#[derive(Debug, Clone)]
+struct MeasFwd {
+    name: String,
+    tones_hz: Vec<f64>,
+    /// Mode each tone pushes.
+    tone_mode: Vec<usize>,
+    /// `V e^{iφ}` of each tone (drive-level force models).
+    drive_c: Option<Vec<Complex64>>,
+    obs: Vec<Observation>,
+    /// Global index of the first observation.
+    offset: usize,
+    sens_params: Vec<SensParam>,
+    chains: Vec<Chain>,
+    lattice: Option<Vec<f64>>,
+    /// Last converged state (warm start).
+    state: Option<SteadyState>,
+    /// Start amplitudes per mode at measured frequencies (from data).
+    start: Option<Vec<(f64, Vec<Complex64>)>>,
+    buf: Vec<Complex64>,
+}
+
+/// The forward model of a dataset; see the module documentation.
+#[derive(Debug, Clone)]
+pub struct ForwardModel {
+    model: Model,
+    mode_names: Vec<String>,
+    /// Nominal resonance of each mode, Hz (attributes tones and modal data to modes).
+    nominal: Vec<f64>,
+    unknowns: Vec<Unknown>,
+    fixed: Vec<Option<f64>>,
+    /// Fixed `Q` of modes whose `f` is unknown.
+    fixed_q: Vec<Option<f64>>,
+    meas: Vec<MeasFwd>,
+    n_obs: usize,
+    force_model: ForceModel,
+    settings: ForwardSettings,
+}
+
+impl ForwardModel {
+    /// Sets the forward model up for `model` and the shape of `ds` (its measurements, drive
+    /// tones, levels, measured frequencies and points; the amplitudes are not used).
+    /// `ForceModel::Auto` becomes drive levels when every measurement gives them, free forces
+    /// otherwise.
+    pub fn new(
+        model: &Model,
+        ds: &Dataset,
+        force_model: ForceModel,
+        settings: &ForwardSettings,
+    ) -> Result<Self, ForwardError> {
+        let nm = model.modes.len();
+        let mode_names: Vec<String> = model.modes.iter().map(|m| m.name.clone()).collect();
+        let nominal = nominal_frequencies(model, ds, &settings.nominal_hz)
+            .map_err(|mode| ForwardError::NoNominal { mode })?;
+        let nearest = |f: f64| nearest_mode(&nominal, f);
+        let all_levels = ds
+            .measurements
+            .iter()
+            .all(|m| m.spec.drive_levels_and_phases().is_some());
+        let force_model = match force_model {
+            ForceModel::Auto if all_levels => ForceModel::GainPerMeasurement,
+            ForceModel::Auto => ForceModel::Free,
+            f => f,
+        };
+        let gains = matches!(
+            force_model,
+            ForceModel::GainPerMeasurement | ForceModel::GainPerMode
+        );
+        let mut unknowns = Vec::new();
+        let mut fixed = Vec::new();
+        let mut fixed_q = vec![None; nm];
+        for (n, m) in model.modes.iter().enumerate() {
+            unknowns.push(Unknown::OmegaSq(n));
+            unknowns.push(Unknown::Gamma(n));
+            match (m.f_hz, m.q_factor) {
+                (Linear::Fixed(f), Linear::Fixed(q)) => {
+                    fixed.push(Some((TAU * f).powi(2)));
+                    fixed.push(Some(TAU * f / q));
+                }
+                (Linear::Fixed(f), Linear::Unknown) => {
+                    fixed.push(Some((TAU * f).powi(2)));
+                    fixed.push(None);
+                }
+                (Linear::Unknown, Linear::Fixed(q)) => {
+                    fixed_q[n] = Some(q);
+                    fixed.push(None);
+                    // Derived from ω²: not an unknown of its own.
+                    fixed.push(Some(TAU * nominal[n] / q));
+                }
+                (Linear::Unknown, Linear::Unknown) => {
+                    fixed.push(None);
+                    fixed.push(None);
+                }
+            }
+        }
+        for (p, par) in model.params.iter().enumerate() {
+            unknowns.push(Unknown::Param(p));
+            fixed.push(match par.kind {
+                ParamKind::Fixed(v) => Some(v),
+                ParamKind::Unknown => None,
+            });
+        }
+        let mut meas = Vec::with_capacity(ds.measurements.len());
+        let mut n_obs = 0;
+        for (mi, m) in ds.measurements.iter().enumerate() {
+            let tone_mode: Vec<usize> = m.spec.drives_hz.iter().map(|&f| nearest(f)).collect();
+            let drive_c: Option<Vec<Complex64>> = m.spec.drive_levels_and_phases().map(|(l, p)| {
+                l.iter()
+                    .zip(p)
+                    .map(|(&v, &ph)| Complex64::from_polar(v, ph))
+                    .collect()
+            });
+            if gains && drive_c.is_none() {
+                return Err(ForwardError::NoDriveLevels {
+                    measurement: m.spec.name.clone(),
+                    force_model,
+                });
+            }
+            // Force unknowns.
+            for (tone, &n) in tone_mode.iter().enumerate() {
+                for quad in 0..2u8 {
+                    let u = if gains {
+                        Unknown::Gain {
+                            meas: (force_model == ForceModel::GainPerMeasurement).then_some(mi),
+                            mode: n,
+                            quad,
+                        }
+                    } else {
+                        Unknown::Force {
+                            meas: mi,
+                            tone,
+                            quad,
+                        }
+                    };
+                    if !unknowns.contains(&u) {
+                        unknowns.push(u);
+                        fixed.push(None);
+                    }
+                }
+            }
+            // Observations.
+            let np = m.points.len();
+            let mut obs = Vec::with_capacity(m.freqs_hz.len() * np);
+            for &f in &m.freqs_hz {
+                for &p in &m.points {
+                    let shape = if ds.manifest.points.is_empty() {
+                        let mut s = vec![0.0; nm];
+                        s[nearest(f)] = 1.0;
+                        s
+                    } else {
+                        mode_names
+                            .iter()
+                            .map(|name| ds.manifest.points[p].shape_of(name))
+                            .collect()
+                    };
+                    obs.push(Observation { f_hz: f, shape });
+                }
+            }
+            meas.push(MeasFwd {
+                name: m.spec.name.clone(),
+                tones_hz: m.spec.drives_hz.clone(),
+                tone_mode,
+                drive_c,
+                offset: n_obs,
+                sens_params: Vec::new(),
+                chains: Vec::new(),
+                lattice: None,
+                state: None,
+                start: None,
+                buf: Vec::new(),
+                obs,
+            });
+            n_obs += meas[mi].obs.len();
+        }
+        let mut fwd = ForwardModel {
+            model: model.clone(),
+            mode_names,
+            nominal,
+            unknowns,
+            fixed,
+            fixed_q,
+            meas,
+            n_obs,
+            force_model,
+            settings: settings.clone(),
+        };
+        fwd.plan_chains();
+        Ok(fwd)
+    }
+
+    /// Per measurement: the harmonic-balance parameters and how they enter the columns.
+    fn plan_chains(&mut self) {
+        let nm = self.mode_names.len();
+        let col = |u: &Unknown| self.unknowns.iter().position(|x| x == u);
+        let mut all = Vec::new();
+        for (mi, m) in self.meas.iter().enumerate() {
+            let mut params = Vec::new();
+            let mut chains = Vec::new();
+            for n in 0..nm {
+                params.push(SensParam::OmegaSq(n));
+                chains.push(Chain::Linear(
+                    col(&Unknown::OmegaSq(n)).map(|c| vec![(c, 1.0)]).unwrap_or_default(),
+                ));
+                params.push(SensParam::Gamma(n));
+                chains.push(match (self.fixed_q[n], col(&Unknown::OmegaSq(n))) {
+                    (Some(q), Some(c)) => Chain::FixedQ { col: c, q, mode: n },
+                    _ => Chain::Linear(
+                        col(&Unknown::Gamma(n)).map(|c| vec![(c, 1.0)]).unwrap_or_default(),
+                    ),
+                });
+            }
+            for p in 0..self.model.params.len() {
+                params.push(SensParam::Param(p));
+                chains.push(Chain::Linear(
+                    col(&Unknown::Param(p)).map(|c| vec![(c, 1.0)]).unwrap_or_default(),
+                ));
+            }
+            for (tone, &mode) in m.tone_mode.iter().enumerate() {
+                for quad in 0..2u8 {
+                    params.push(SensParam::Force { tone, mode, quad });
+                    let cols = match (&m.drive_c, self.force_model) {
+                        (Some(d), ForceModel::GainPerMeasurement | ForceModel::GainPerMode) => {
+                            let meas =
+                                (self.force_model == ForceModel::GainPerMeasurement).then_some(mi);
+                            let g = |quad| Unknown::Gain { meas, mode, quad };
+                            let d = d[tone];
+                            // F = (a + ib) D: ∂F/∂a = D, ∂F/∂b = iD.
+                            let (ca, cb) = if quad == 0 { (d.re, -d.im) } else { (d.im, d.re) };
+                            [(col(&g(0)), ca), (col(&g(1)), cb)]
+                                .into_iter()
+                                .filter_map(|(c, v)| c.map(|c| (c, v)))
+                                .collect()
+                        }
+                        _ => col(&Unknown::Force {
+                            meas: mi,
+                            tone,
+                            quad,
+                        })
+                        .map(|c| vec![(c, 1.0)])
+                        .unwrap_or_default(),
+                    };
+                    chains.push(Chain::Linear(cols));
+                }
+            }
+            all.push((params, chains));
+        }
+        for (m, (params, chains)) in self.meas.iter_mut().zip(all) {
+            m.buf = vec![Z; params.len() * m.obs.len()];
+            m.sens_params = params;
+            m.chains = chains;
+        }
+    }
+
+    /// Mode names, declaration order.
+    pub fn mode_names(&self) -> &[String] {
+        &self.mode_names
+    }
+
+    /// `γ_n = ω_n/Q_n` at `θ` (rad/s): `θ`'s own entry, or `√ω²/Q` for a mode whose `Q` is
+    /// fixed while its `f` is identified.
+    pub fn gamma(&self, theta: &[f64], n: usize) -> f64 {
+        match self.fixed_q[n] {
+            Some(q) => theta[2 * n].sqrt() / q,
+            None => theta[2 * n + 1],
+        }
+    }
+
+    /// The unknowns, in the order of `θ` and of the Jacobian's columns.
+    pub fn unknowns(&self) -> &[Unknown] {
+        &self.unknowns
+    }
+
+    /// Values the model fixes (`None`: to be identified). A mode with fixed `Q` and unknown
+    /// `f` has its `γ` marked fixed (it is derived from `ω²`).
+    pub fn fixed(&self) -> &[Option<f64>] {
+        &self.fixed
+    }
+
+    /// Indices of the unknowns not fixed by the model.
+    pub fn free(&self) -> Vec<usize> {
+        (0..self.unknowns.len())
+            .filter(|&k| self.fixed[k].is_none())
+            .collect()
+    }
+
+    /// The force model in use (`Auto` resolved).
+    pub fn force_model(&self) -> ForceModel {
+        self.force_model
+    }
+
+    /// Number of observations (complex amplitudes predicted).
+    pub fn n_observations(&self) -> usize {
+        self.n_obs
+    }
+
+    /// Range of the observations of measurement `mi` (order: frequency, then point).
+    pub fn observations_of(&self, mi: usize) -> std::ops::Range<usize> {
+        let m = &self.meas[mi];
+        m.offset..m.offset + m.obs.len()
+    }
+
+    /// Frequency (Hz) and shapes of every observation of measurement `mi`.
+    pub fn observation_points(&self, mi: usize) -> &[Observation] {
+        &self.meas[mi].obs
+    }
+
+    /// The last converged steady state of measurement `mi` (after an evaluation).
+    pub fn state(&self, mi: usize) -> Option<&SteadyState> {
+        self.meas[mi].state.as_ref()
+    }
+
+    /// Mode each drive tone of measurement `mi` pushes.
+    pub fn tone_modes(&self, mi: usize) -> &[usize] {
+        &self.meas[mi].tone_mode
+    }
+
+    /// Readable name of unknown `k` (`f`-style names are for reports; these name the
+    /// parametrisation: `omega^2 of q1`, `gain of q2 in "single_q2" (re)`).
+    pub fn label(&self, k: usize) -> String {
+        match &self.unknowns[k] {
+            Unknown::OmegaSq(n) => format!("omega^2 of {}", self.mode_names[*n]),
+            Unknown::Gamma(n) => format!("omega/Q of {}", self.mode_names[*n]),
+            Unknown::Param(p) => self.model.params[*p].name.clone(),
+            Unknown::Force { meas, tone, quad } => format!(
+                "force of tone {tone} in \"{}\" ({})",
+                self.meas[*meas].name,
+                if *quad == 0 { "re" } else { "im" }
+            ),
+            Unknown::Gain { meas, mode, quad } => format!(
+                "gain of {}{} ({})",
+                self.mode_names[*mode],
+                meas.map(|m| format!(" in \"{}\"", self.meas[m].name))
+                    .unwrap_or_default(),
+                if *quad == 0 { "re" } else { "im" }
+            ),
+        }
+    }
+
+    /// `θ` from modal data and parameters (`values`: `[modes]` and `[parameters]`, anything
+    /// `simulate --values` reads, `[eom]` not used) and the true forces of each measurement,
+    /// `forces[mi][n][d]` (N/kg, tone `d` on mode `n`, the layout of
+    /// [`harmonid_sim::Excitation::force`]). With drive levels the gain of a mode is its first
+    /// tone's force over that tone's `V e^{iφ}` (GainPerMode: of the first measurement that
+    /// drives it). Forces on modes other than a tone's own are not representable and ignored.
+    pub fn theta_from(
+        &self,
+        values: &ModelValues,
+        forces: &[Vec<Vec<Complex64>>],
+    ) -> Result<Vec<f64>, ForwardError> {
+        let mut theta = vec![f64::NAN; self.unknowns.len()];
+        let missing = |what: String| ForwardError::BadValue {
+            unknown: what,
+            value: f64::NAN,
+            why: "no value given".into(),
+        };
+        for (n, m) in self.model.modes.iter().enumerate() {
+            let given = values.modes.get(&m.name).copied().unwrap_or_default();
+            let f = given
+                .f_hz
+                .or(match m.f_hz {
+                    Linear::Fixed(v) => Some(v),
+                    Linear::Unknown => None,
+                })
+                .ok_or_else(|| missing(format!("f_hz of {}", m.name)))?;
+            let q = given
+                .q
+                .or(match m.q_factor {
+                    Linear::Fixed(v) => Some(v),
+                    Linear::Unknown => None,
+                })
+                .ok_or_else(|| missing(format!("Q of {}", m.name)))?;
+            theta[2 * n] = (TAU * f).powi(2);
+            theta[2 * n + 1] = TAU * f / q;
+        }
+        let nm = self.mode_names.len();
+        for (p, par) in self.model.params.iter().enumerate() {
+            theta[2 * nm + p] = match (values.parameters.get(&par.name), par.kind) {
+                (Some(&v), _) | (None, ParamKind::Fixed(v)) => v,
+                (None, ParamKind::Unknown) => return Err(missing(par.name.clone())),
+            };
+        }
+        if forces.len() != self.meas.len() {
+            return Err(ForwardError::Shape(format!(
+                "forces are given for {} measurements, the dataset has {}",
+                forces.len(),
+                self.meas.len()
+            )));
+        }
+        for (mi, m) in self.meas.iter().enumerate() {
+            for (tone, &n) in m.tone_mode.iter().enumerate() {
+                let f = forces[mi]
+                    .get(n)
+                    .and_then(|row| row.get(tone))
+                    .copied()
+                    .ok_or_else(|| {
+                        ForwardError::Shape(format!(
+                            "measurement \"{}\": no force given for tone {tone} on mode {}",
+                            m.name, self.mode_names[n]
+                        ))
+                    })?;
+                let (u, z) = match (&m.drive_c, self.force_model) {
+                    (Some(d), ForceModel::GainPerMeasurement | ForceModel::GainPerMode) => {
+                        if d[tone].norm() == 0.0 {
+                            continue;
+                        }
+                        let meas =
+                            (self.force_model == ForceModel::GainPerMeasurement).then_some(mi);
+                        (
+                            [0u8, 1].map(|quad| Unknown::Gain { meas, mode: n, quad }),
+                            f / d[tone],
+                        )
+                    }
+                    _ => (
+                        [0u8, 1].map(|quad| Unknown::Force {
+                            meas: mi,
+                            tone,
+                            quad,
+                        }),
+                        f,
+                    ),
+                };
+                for (q, v) in u.iter().zip([z.re, z.im]) {
+                    if let Some(k) = self.unknowns.iter().position(|x| x == q) {
+                        if theta[k].is_nan() {
+                            theta[k] = v;
+                        }
+                    }
+                }
+            }
+        }
+        // Gains no tone set (every level zero): zero.
+        for v in theta.iter_mut().filter(|v| v.is_nan()) {
+            *v = 0.0;
+        }
+        Ok(theta)
+    }
+
+    /// Warm-starts every measurement's first solve from the dataset's amplitudes (mean over
+    /// shots), converted to the amplitude of the mode each frequency is nearest to by least
+    /// squares over the points; lattice lines that are not measured start at zero. Useful when
+    /// the drive ramp from rest would land on another branch than the measured one.
+    pub fn start_from_data(&mut self, ds: &Dataset) {
+        let nm = self.mode_names.len();
+        for (m, dm) in self.meas.iter_mut().zip(&ds.measurements) {
+            let np = dm.points.len();
+            let mut start = Vec::with_capacity(dm.freqs_hz.len());
+            for (r, &f) in dm.freqs_hz.iter().enumerate() {
+                let obs = &m.obs[r * np..(r + 1) * np];
+                let n = nearest_mode(&self.nominal, f);
+                let s2: f64 = obs.iter().map(|o| o.shape[n].powi(2)).sum();
+                let mut q = Z;
+                if s2 > 0.0 {
+                    for (p, o) in obs.iter().enumerate() {
+                        let mean: Complex64 = (0..dm.n_shots)
+                            .map(|s| dm.amplitude(s, r, p))
+                            .sum::<Complex64>()
+                            / dm.n_shots.max(1) as f64;
+                        q += mean * (o.shape[n] / s2);
+                    }
+                }
+                let mut amps = vec![Z; nm];
+                amps[n] = q;
+                start.push((f, amps));
+            }
+            m.start = Some(start);
+            m.state = None;
+        }
+    }
+
+    /// The numeric model at `θ`.
+    fn numeric(&self, theta: &[f64]) -> Result<NumericModel, ForwardError> {
+        let mut values = ModelValues::default();
+        for (n, name) in self.mode_names.iter().enumerate() {
+            let w2 = theta[2 * n];
+            if !(w2.is_finite() && w2 > 0.0) {
+                return Err(ForwardError::BadValue {
+                    unknown: self.label(2 * n),
+                    value: w2,
+                    why: "omega^2 must be a finite positive number".into(),
+                });
+            }
+            let w = w2.sqrt();
+            let g = self.gamma(theta, n);
+            if !(g.is_finite() && g > 0.0 && w / g > 0.5) {
+                return Err(ForwardError::BadValue {
+                    unknown: self.label(2 * n + 1),
+                    value: g,
+                    why: format!("omega/Q must be positive with Q = omega/gamma above 1/2 (omega = {w:e} rad/s)"),
+                });
+            }
+            values.modes.insert(
+                name.clone(),
+                ModeValues {
+                    f_hz: Some(w / TAU),
+                    q: Some(w / g),
+                },
+            );
+        }
+        let nm = self.mode_names.len();
+        for (p, par) in self.model.params.iter().enumerate() {
+            let v = theta[2 * nm + p];
+            if !v.is_finite() {
+                return Err(ForwardError::BadValue {
+                    unknown: par.name.clone(),
+                    value: v,
+                    why: "parameters must be finite".into(),
+                });
+            }
+            values.parameters.insert(par.name.clone(), v);
+        }
+        NumericModel::from_model(&self.model, &values).map_err(|e| ForwardError::BadValue {
+            unknown: "the model at these values".into(),
+            value: f64::NAN,
+            why: e.to_string(),
+        })
+    }
+
+    /// The drive of measurement `mi` at `θ`.
+    fn excitation(&self, mi: usize, theta: &[f64]) -> Excitation {
+        let m = &self.meas[mi];
+        let nm = self.mode_names.len();
+        let mut force = vec![vec![Z; m.tones_hz.len()]; nm];
+        let get = |u: Unknown| {
+            self.unknowns
+                .iter()
+                .position(|x| *x == u)
+                .map_or(0.0, |k| theta[k])
+        };
+        for (tone, &n) in m.tone_mode.iter().enumerate() {
+            force[n][tone] = match (&m.drive_c, self.force_model) {
+                (Some(d), ForceModel::GainPerMeasurement | ForceModel::GainPerMode) => {
+                    let meas = (self.force_model == ForceModel::GainPerMeasurement).then_some(mi);
+                    let g = |quad| get(Unknown::Gain { meas, mode: n, quad });
+                    Complex64::new(g(0), g(1)) * d[tone]
+                }
+                _ => {
+                    let f = |quad| {
+                        get(Unknown::Force {
+                            meas: mi,
+                            tone,
+                            quad,
+                        })
+                    };
+                    Complex64::new(f(0), f(1))
+                }
+            };
+        }
+        Excitation {
+            tones_hz: m.tones_hz.clone(),
+            force,
+        }
+    }
+
+    /// Predicts every observation at `θ` into `out_x` (m; length
+    /// [`ForwardModel::n_observations`]) and, with `out_jac`, the Jacobian
+    /// `out_jac[o·K + k] = ∂X_o/∂θ_k` (`K = unknowns().len()`, every unknown, fixed ones
+    /// included; units m per unit of `θ_k`).
+    ///
+    /// Errors name the measurement (a harmonic balance that does not converge from the warm
+    /// start nor by the drive ramp) or the unknown (a value outside its range); the outputs
+    /// are then unspecified but never NaN-filled silently: the caller must not use them.
+    pub fn evaluate(
+        &mut self,
+        theta: &[f64],
+        out_x: &mut [Complex64],
+        mut out_jac: Option<&mut [Complex64]>,
+    ) -> Result<(), ForwardError> {
+        let nk = self.unknowns.len();
+        if theta.len() != nk || out_x.len() != self.n_obs {
+            return Err(ForwardError::Shape(format!(
+                "evaluate: θ has {} entries ({nk} unknowns), out_x {} ({} observations)",
+                theta.len(),
+                out_x.len(),
+                self.n_obs
+            )));
+        }
+        if let Some(j) = out_jac.as_deref() {
+            if j.len() != self.n_obs * nk {
+                return Err(ForwardError::Shape(format!(
+                    "evaluate: the Jacobian holds {} entries, {} × {nk} expected",
+                    j.len(),
+                    self.n_obs
+                )));
+            }
+        }
+        let numeric = self.numeric(theta)?;
+        for mi in 0..self.meas.len() {
+            let drive = self.excitation(mi, theta);
+            let hb = self.settings.hb.clone();
+            let m = &mut self.meas[mi];
+            let hb_err = |why: String| ForwardError::Hb {
+                measurement: m.name.clone(),
+                why,
+            };
+            let lattice = match &m.lattice {
+                Some(l) => l.clone(),
+                None => {
+                    let mut ls = hb.lattice.clone();
+                    ls.extra_hz.extend(m.obs.iter().map(|o| o.f_hz));
+                    let l = choose_lattice(&numeric, &drive, &ls).map_err(|e| hb_err(e.to_string()))?;
+                    m.lattice = Some(l.clone());
+                    l
+                }
+            };
+            let mut solver = HbSolver::with_lattice(&numeric, &drive, lattice.clone())
+                .map_err(|e| hb_err(e.to_string()))?;
+            let warm: Option<Vec<Vec<Complex64>>> = match (&m.state, &m.start) {
+                (Some(st), _) => Some(st.amplitudes.clone()),
+                (None, Some(start)) => {
+                    let nm = numeric.n_modes();
+                    let mut a = vec![vec![Z; lattice.len()]; nm];
+                    for (f, amps) in start {
+                        if let Some(r) = lattice.iter().position(|&x| (x - f).abs() <= 1e-6) {
+                            for n in 0..nm {
+                                a[n][r] = amps[n];
+                            }
+                        }
+                    }
+                    Some(a)
+                }
+                (None, None) => None,
+            };
+            let mut state = match warm {
+                Some(a) => solver.solve_from(&a, &hb),
+                None => solver.solve(&hb),
+            };
+            if !state.converged() {
+                state = solver.solve(&hb);
+            }
+            if !state.converged() {
+                return Err(hb_err(format!(
+                    "no steady state (status {:?}, relative residual {:.2e})",
+                    state.status, state.residual
+                )));
+            }
+            for (o, ob) in m.obs.iter().enumerate() {
+                out_x[m.offset + o] = state.at_point(&ob.shape, ob.f_hz);
+            }
+            if let Some(jac) = out_jac.as_deref_mut() {
+                let mut sens = Sensitivity::new(&solver, &m.tones_hz, &m.sens_params, &m.obs)
+                    .map_err(|e| hb_err(e.to_string()))?;
+                sens.compute(&mut solver, &state, &mut m.buf)
+                    .map_err(|e| hb_err(e.to_string()))?;
+                let no = m.obs.len();
+                for o in 0..no {
+                    jac[(m.offset + o) * nk..(m.offset + o + 1) * nk].fill(Z);
+                }
+                for (k, chain) in m.chains.iter().enumerate() {
+                    let d = &m.buf[k * no..(k + 1) * no];
+                    match chain {
+                        Chain::Linear(cols) => {
+                            for &(c, w) in cols {
+                                for o in 0..no {
+                                    jac[(m.offset + o) * nk + c] += d[o] * w;
+                                }
+                            }
+                        }
+                        Chain::FixedQ { col, q, mode } => {
+                            let w = 1.0 / (2.0 * q * theta[2 * mode].sqrt());
+                            for o in 0..no {
+                                jac[(m.offset + o) * nk + col] += d[o] * w;
+                            }
+                        }
+                    }
+                }
+            }
+            m.state = Some(state);
+        }
+        Ok(())
+    }
+}
