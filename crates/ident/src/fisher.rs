@@ -152,7 +152,9 @@ impl Bounds {
 
     /// The largest relative bound and its quantity.
     pub fn worst(&self) -> Option<&Bound> {
-        self.quantities.iter().max_by(|a, b| a.rel.total_cmp(&b.rel))
+        self.quantities
+            .iter()
+            .max_by(|a, b| a.rel.total_cmp(&b.rel))
     }
 }
 
@@ -297,10 +299,7 @@ pub fn crlb(
     let info = information(&jac, nk, &free, noise, shots);
     let (cov, condition, dropped) = invert(&info, &labels);
     let c = free.len();
-    let local = |u: &Unknown| {
-        free.iter()
-            .position(|&k| fwd.unknowns()[k] == *u)
-    };
+    let local = |u: &Unknown| free.iter().position(|&k| fwd.unknowns()[k] == *u);
     let var = |i: Option<usize>, j: Option<usize>| match (i, j) {
         (Some(i), Some(j)) => cov[i * c + j],
         _ => 0.0,
@@ -322,7 +321,12 @@ pub fn crlb(
             // Q = √ω²/γ: ∂Q/∂ω² = Q/(2ω²), ∂Q/∂γ = −Q/γ.
             let (a, b) = (q / (2.0 * w2), -q / g);
             let vq = a * a * var(iw, iw) + b * b * var(ig, ig) + 2.0 * a * b * var(iw, ig);
-            quantities.push(bound(Quantity::Q(n), format!("Q:{name}"), q, vq.max(0.0).sqrt()));
+            quantities.push(bound(
+                Quantity::Q(n),
+                format!("Q:{name}"),
+                q,
+                vq.max(0.0).sqrt(),
+            ));
         }
     }
     for (i, &k) in free.iter().enumerate() {
@@ -388,7 +392,11 @@ mod tests {
         let want = [0.6, -0.2, -0.2, 0.4];
         for k in 0..4 {
             let w = want[k] / (s[k / 2] * s[k % 2]);
-            assert!((cov[k] - w).abs() < 1e-12 * w.abs(), "{k}: {} vs {w}", cov[k]);
+            assert!(
+                (cov[k] - w).abs() < 1e-12 * w.abs(),
+                "{k}: {} vs {w}",
+                cov[k]
+            );
         }
         // Condition of the equilibrated matrix [[1, 1/√6], [1/√6, 1]].
         let r = 1.0 / 6f64.sqrt();
@@ -423,6 +431,10 @@ mod tests {
             // u1 = 2 u0: I/300 = [[5.36, 1], [1, 2]].
             5.36 / (5.36 * 2.0 - 1.0) / 300.0
         };
-        assert!((cov[15] - want).abs() < 1e-9 * want, "{} vs {want}", cov[15]);
+        assert!(
+            (cov[15] - want).abs() < 1e-9 * want,
+            "{} vs {want}",
+            cov[15]
+        );
     }
 }

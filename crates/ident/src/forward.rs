@@ -29,7 +29,7 @@
 //! set by [`ForwardModel::start_from_data`]); the drive ramp from rest is the fall-back.
 
 use crate::dataset::Dataset;
-use crate::problem::{ForceModel, Unknown};
+use crate::problem::{nearest_mode, nominal_frequencies, ForceModel, IdentError, Unknown};
 use harmonid_model::{Linear, Model, ParamKind};
 use harmonid_sim::{
     choose_lattice, Excitation, HbSettings, HbSolver, ModeValues, ModelValues, NumericModel,
@@ -109,39 +109,6 @@ enum Chain {
     },
 }
 
-/// Nominal resonance of each mode, Hz, for attributing frequencies to modes: `overrides`
-/// (e.g. the command line), then the dataset's `[nominal_hz]`, then the model's
-/// `mode q1 at ...`, then its fixed `f`. Error: the name of the first mode with none.
-pub fn nominal_frequencies(
-    model: &Model,
-    ds: &Dataset,
-    overrides: &BTreeMap<String, f64>,
-) -> Result<Vec<f64>, String> {
-    model
-        .modes
-        .iter()
-        .map(|m| {
-            overrides
-                .get(&m.name)
-                .or_else(|| ds.manifest.nominal_hz.get(&m.name))
-                .copied()
-                .or(m.nominal_hz)
-                .or(match m.f_hz {
-                    Linear::Fixed(f) => Some(f),
-                    Linear::Unknown => None,
-                })
-                .ok_or_else(|| m.name.clone())
-        })
-        .collect()
-}
-
-/// The mode whose nominal resonance (Hz) is spectrally closest to `f_hz`.
-fn nearest_mode(nominal: &[f64], f_hz: f64) -> usize {
-    (0..nominal.len())
-        .min_by(|&a, &b| (nominal[a] - f_hz).abs().total_cmp(&(nominal[b] - f_hz).abs()))
-        .unwrap_or(0)
-}
-
 /// One measurement's harmonic-balance problem.
 #[derive(Debug, Clone)]
 struct MeasFwd {
@@ -194,8 +161,14 @@ impl ForwardModel {
     ) -> Result<Self, ForwardError> {
         let nm = model.modes.len();
         let mode_names: Vec<String> = model.modes.iter().map(|m| m.name.clone()).collect();
-        let nominal = nominal_frequencies(model, ds, &settings.nominal_hz)
-            .map_err(|mode| ForwardError::NoNominal { mode })?;
+        let overrides = crate::Settings {
+            nominal_hz: settings.nominal_hz.clone(),
+            ..crate::Settings::default()
+        };
+        let nominal = nominal_frequencies(model, ds, &overrides).map_err(|e| match e {
+            IdentError::NoNominal { mode } => ForwardError::NoNominal { mode },
+            e => ForwardError::Shape(e.to_string()),
+        })?;
         let nearest = |f: f64| nearest_mode(&nominal, f);
         let all_levels = ds
             .measurements
@@ -343,20 +316,26 @@ impl ForwardModel {
             for n in 0..nm {
                 params.push(SensParam::OmegaSq(n));
                 chains.push(Chain::Linear(
-                    col(&Unknown::OmegaSq(n)).map(|c| vec![(c, 1.0)]).unwrap_or_default(),
+                    col(&Unknown::OmegaSq(n))
+                        .map(|c| vec![(c, 1.0)])
+                        .unwrap_or_default(),
                 ));
                 params.push(SensParam::Gamma(n));
                 chains.push(match (self.fixed_q[n], col(&Unknown::OmegaSq(n))) {
                     (Some(q), Some(c)) => Chain::FixedQ { col: c, q, mode: n },
                     _ => Chain::Linear(
-                        col(&Unknown::Gamma(n)).map(|c| vec![(c, 1.0)]).unwrap_or_default(),
+                        col(&Unknown::Gamma(n))
+                            .map(|c| vec![(c, 1.0)])
+                            .unwrap_or_default(),
                     ),
                 });
             }
             for p in 0..self.model.params.len() {
                 params.push(SensParam::Param(p));
                 chains.push(Chain::Linear(
-                    col(&Unknown::Param(p)).map(|c| vec![(c, 1.0)]).unwrap_or_default(),
+                    col(&Unknown::Param(p))
+                        .map(|c| vec![(c, 1.0)])
+                        .unwrap_or_default(),
                 ));
             }
             for (tone, &mode) in m.tone_mode.iter().enumerate() {
@@ -369,7 +348,11 @@ impl ForwardModel {
                             let g = |quad| Unknown::Gain { meas, mode, quad };
                             let d = d[tone];
                             // F = (a + ib) D: ∂F/∂a = D, ∂F/∂b = iD.
-                            let (ca, cb) = if quad == 0 { (d.re, -d.im) } else { (d.im, d.re) };
+                            let (ca, cb) = if quad == 0 {
+                                (d.re, -d.im)
+                            } else {
+                                (d.im, d.re)
+                            };
                             [(col(&g(0)), ca), (col(&g(1)), cb)]
                                 .into_iter()
                                 .filter_map(|(c, v)| c.map(|c| (c, v)))
@@ -550,7 +533,11 @@ impl ForwardModel {
                         let meas =
                             (self.force_model == ForceModel::GainPerMeasurement).then_some(mi);
                         (
-                            [0u8, 1].map(|quad| Unknown::Gain { meas, mode: n, quad }),
+                            [0u8, 1].map(|quad| Unknown::Gain {
+                                meas,
+                                mode: n,
+                                quad,
+                            }),
                             f / d[tone],
                         )
                     }
@@ -674,7 +661,13 @@ impl ForwardModel {
             force[n][tone] = match (&m.drive_c, self.force_model) {
                 (Some(d), ForceModel::GainPerMeasurement | ForceModel::GainPerMode) => {
                     let meas = (self.force_model == ForceModel::GainPerMeasurement).then_some(mi);
-                    let g = |quad| get(Unknown::Gain { meas, mode: n, quad });
+                    let g = |quad| {
+                        get(Unknown::Gain {
+                            meas,
+                            mode: n,
+                            quad,
+                        })
+                    };
                     Complex64::new(g(0), g(1)) * d[tone]
                 }
                 _ => {
@@ -741,7 +734,8 @@ impl ForwardModel {
                 None => {
                     let mut ls = hb.lattice.clone();
                     ls.extra_hz.extend(m.obs.iter().map(|o| o.f_hz));
-                    let l = choose_lattice(&numeric, &drive, &ls).map_err(|e| hb_err(e.to_string()))?;
+                    let l =
+                        choose_lattice(&numeric, &drive, &ls).map_err(|e| hb_err(e.to_string()))?;
                     m.lattice = Some(l.clone());
                     l
                 }

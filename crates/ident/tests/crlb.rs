@@ -82,11 +82,14 @@ fn check_jacobian(model_text: &str, force_model: ForceModel) -> f64 {
     let (no, nk) = (fwd.n_observations(), fwd.unknowns().len());
     let mut x = vec![Complex64::new(0.0, 0.0); no];
     let mut jac = vec![Complex64::new(0.0, 0.0); no * nk];
-    fwd.evaluate(&theta, &mut x, Some(&mut jac)).expect("evaluate");
+    fwd.evaluate(&theta, &mut x, Some(&mut jac))
+        .expect("evaluate");
     // The prediction at the truth is the noise-free data: the shot mean is within noise.
     let m = &ds.measurements[2];
     let r = m.freq_index(207572.5).expect("drive line");
-    let mean: Complex64 = (0..m.n_shots).map(|s| m.amplitude(s, r, 0)).sum::<Complex64>()
+    let mean: Complex64 = (0..m.n_shots)
+        .map(|s| m.amplitude(s, r, 0))
+        .sum::<Complex64>()
         / m.n_shots as f64;
     let o = fwd.observations_of(2).start + r;
     assert!((mean - x[o]).norm() < 1e-10, "{mean} vs {}", x[o]);
@@ -166,7 +169,10 @@ fn public_noisy_dataset_bounds_match_the_independent_computation() {
     let mut bad = Vec::new();
     for (name, rel) in want {
         let got = b.get(name).expect(name).rel;
-        println!("{name}: {got:.3e} (independent {rel:.2e}, ratio {:.3})", got / rel);
+        println!(
+            "{name}: {got:.3e} (independent {rel:.2e}, ratio {:.3})",
+            got / rel
+        );
         if (got / rel - 1.0).abs() > 0.1 {
             bad.push(name);
         }

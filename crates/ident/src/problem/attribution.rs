@@ -97,7 +97,7 @@ impl Problem {
 
 /// Nominal resonance frequency of every mode, Hz: the settings' override, else the dataset's
 /// `[nominal_hz]`, else the model's `at`, else its fixed `f`.
-pub(super) fn nominal_frequencies(
+pub(crate) fn nominal_frequencies(
     model: &Model,
     ds: &Dataset,
     settings: &Settings,
@@ -124,7 +124,7 @@ pub(super) fn nominal_frequencies(
 }
 
 /// The mode whose nominal resonance is spectrally closest to `f` (Hz).
-pub(super) fn nearest_mode(nominal_hz: &[f64], f: f64) -> usize {
+pub(crate) fn nearest_mode(nominal_hz: &[f64], f: f64) -> usize {
     (0..nominal_hz.len())
         .min_by(|&a, &b| {
             (nominal_hz[a] - f)

@@ -46,6 +46,7 @@ mod testkit;
 mod unknowns;
 mod weighting;
 
+pub(crate) use attribution::{nearest_mode, nominal_frequencies};
 pub use error::IdentError;
 pub use fit::{Fit, GroupDiagnostics};
 pub use settings::{ForceModel, Settings};
