@@ -4,10 +4,13 @@
 //! `fit_1shot`: all 15 fits of one shot (products, regressors, equilibrated SVD solves).
 //! `fit_20shots`: 20 shots with row weights from shot scatter (three passes), reported per
 //! shot through criterion's throughput.
+//! `identify_ml_30shots`: the whole default identification of 30 shots at 0.1 nm (per-shot
+//! fits, pooling, pooled linear fit, output-error ML by harmonic balance, Fisher stderrs,
+//! jackknife, drift check).
 #![allow(missing_docs)] // criterion_group! generates an undocumented pub fn
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use harmonid_ident::{Problem, Settings};
+use harmonid_ident::{identify, Problem, Settings};
 use std::hint::black_box;
 use std::path::PathBuf;
 
@@ -35,6 +38,12 @@ fn bench_identify(c: &mut Criterion) {
             });
         }
     }
+    let ds = gen::simulate(&model, &v, &d, &gen::NANOSTRING_SHAPE, 1e-10, 30, 7);
+    group.sample_size(10);
+    group.throughput(Throughput::Elements(1));
+    group.bench_function("identify_ml_30shots", |b| {
+        b.iter(|| black_box(identify(&model, black_box(&ds), &settings).expect("identify")))
+    });
     group.finish();
 }
 

@@ -2,7 +2,7 @@
 //! measured dataset (sequential stages by default), print a summary table, write the result.
 
 use crate::cli::common::write_atomic;
-use harmonid_ident::{Dataset, ForceModel, Problem, Report, Settings};
+use harmonid_ident::{identify, Dataset, Estimator, ForceModel, Settings};
 use miette::miette;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -38,9 +38,28 @@ pub struct Args {
     /// A drive tone must lie within this relative distance of a nominal resonance.
     #[arg(long, default_value_t = 0.05)]
     pub near_rel: f64,
-    /// Do not weight rows by the noise estimated from the scatter across shots.
+    /// Do not weight rows by the noise estimated from the scatter across shots (per-shot and
+    /// pooled equation-error fits).
     #[arg(long)]
     pub unweighted: bool,
+    /// The estimator of the reported values: `ml`, output-error maximum likelihood by harmonic
+    /// balance on the pooled shots (default; falls back to `linear` with a warning when the
+    /// model cannot be simulated); `linear`, the equation-error fit of the pooled shots.
+    #[arg(long, value_enum, default_value_t = EstimatorArg::Ml)]
+    pub estimator: EstimatorArg,
+    /// Also print and write the Cramér–Rao bound of every quantity at the estimate (`crlb`
+    /// in the result), for the force model in use and the noise from the shot scatter.
+    #[arg(long)]
+    pub crlb: bool,
+}
+
+/// `--estimator` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum EstimatorArg {
+    /// Output-error maximum likelihood (harmonic balance).
+    Ml,
+    /// Equation-error fit of the pooled shots.
+    Linear,
 }
 
 /// Runs the subcommand.
@@ -79,11 +98,15 @@ pub fn run(args: Args) -> miette::Result<()> {
         nominal_hz,
         near_rel: args.near_rel,
         min_shots_for_weights: if args.unweighted { 0 } else { 5 },
+        estimator: match args.estimator {
+            EstimatorArg::Ml => Estimator::Ml,
+            EstimatorArg::Linear => Estimator::Linear,
+        },
+        crlb: args.crlb,
         ..Settings::default()
     };
-    let prob = Problem::new(&model, &ds, &settings).map_err(|e| miette!("{e}"))?;
-    let fit = prob.fit(&ds).map_err(|e| miette!("{e}"))?;
-    let report = Report::new(&args.model.display().to_string(), &ds, &prob, &fit);
+    let mut report = identify(&model, &ds, &settings).map_err(|e| miette!("{e}"))?;
+    report.model = args.model.display().to_string();
     print!("{}", report.summary(ds.truth.as_ref()));
     if let Some(out) = &args.out {
         write_atomic(out, report.to_json().as_bytes())?;

@@ -25,8 +25,12 @@
 #![warn(missing_docs)]
 
 pub mod dataset;
+pub mod drift;
+pub mod estimator;
 pub mod fisher;
 pub mod forward;
+pub mod ml;
+pub mod pool;
 pub mod problem;
 pub mod report;
 pub mod solve;
@@ -35,19 +39,8 @@ pub use dataset::{
     Dataset, DatasetError, Manifest, Measurement, MeasurementSpec, Point, Truth, TruthForce,
     TruthMode, TruthNoise,
 };
+pub use estimator::{identify, Estimator};
 pub use fisher::{crlb, Bounds, FisherError, Noise};
 pub use forward::{ForwardError, ForwardModel, ForwardSettings};
 pub use problem::{ForceModel, IdentError, Problem, Settings, Unknown};
 pub use report::{Estimate, Report};
-
-/// Identifies `model`'s unknowns from dataset `ds`: sets up the [`Problem`], fits every shot,
-/// and gathers the [`Report`] (`model.source` is recorded as the model path).
-pub fn identify(
-    model: &harmonid_model::Model,
-    ds: &Dataset,
-    settings: &Settings,
-) -> Result<Report, IdentError> {
-    let prob = Problem::new(model, ds, settings)?;
-    let fit = prob.fit(ds)?;
-    Ok(Report::new(&model.source, ds, &prob, &fit))
-}

@@ -76,17 +76,31 @@ pub fn shot_stats(values: &[f64]) -> ShotStats {
 /// One reported quantity.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Estimate {
-    /// Median over shots (or the single shot's estimate).
+    /// The estimate: output-error maximum likelihood on the pooled shots (`estimator` "ml"),
+    /// or the equation-error fit of the pooled shots ("linear"); see `docs/identification.md`.
     #[serde(deserialize_with = "nan_if_null")]
     pub value: f64,
-    /// One-sigma spread of the per-shot estimates after outlier rejection; with one shot, the
-    /// fit's standard error from its residuals.
+    /// One-sigma spread of the per-shot (equation-error) estimates after outlier rejection,
+    /// the width of the paper's histograms; with one shot, the fit's standard error from its
+    /// residuals. A diagnostic: it is not the uncertainty of `value`.
     #[serde(deserialize_with = "nan_if_null")]
     pub std: f64,
-    /// Uncertainty of `value` itself (`1.2533 · std / √n` for a median over `n` shots).
+    /// Standard error of `value`: ml, `√diag((JᵀWJ)⁻¹)` at the estimate with the noise of
+    /// every line from the shot scatter (nuisances profiled), times `√(χ²/dof)` when the fit
+    /// is worse than the noise; linear, the per-shot spread over `√n`.
     #[serde(deserialize_with = "nan_if_null")]
     pub stderr: f64,
-    /// False when the data do not determine it (relative std above 1, or not identifiable).
+    /// Cramér–Rao bound at the estimate (same noise, `√diag(I⁻¹)`), when computed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub crlb: Option<f64>,
+    /// Linearised delete-one-shot jackknife standard error of `value`, when computed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub jackknife: Option<f64>,
+    /// The estimate sits at a bound of the parameter (the data favour a value beyond it).
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub at_bound: bool,
+    /// False when the data do not determine it (relative stderr above 0.3, or not
+    /// identifiable).
     #[serde(default = "yes", skip_serializing_if = "is_true")]
     pub identifiable: bool,
     /// Why it is not identifiable.
@@ -105,6 +119,10 @@ pub struct Estimate {
 
 fn is_true(b: &bool) -> bool {
     *b
+}
+
+fn is_false(b: &bool) -> bool {
+    !*b
 }
 
 fn yes() -> bool {
@@ -199,6 +217,16 @@ pub struct Report {
     /// Force model used.
     #[serde(default)]
     pub force_model: String,
+    /// The estimator of `value`: `"ml"` (output-error maximum likelihood by harmonic balance)
+    /// or `"linear"` (equation-error fit of the pooled shots).
+    #[serde(default)]
+    pub estimator: String,
+    /// Per measurement, the shots left out of the pooled mean as disturbed.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub rejected_shots: BTreeMap<String, Vec<usize>>,
+    /// Notes on how the estimate was made (noise source, fall-backs).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
     /// Number of shots.
     #[serde(default)]
     pub shots: usize,
@@ -244,6 +272,9 @@ fn estimate(per_shot: Vec<f64>, single_var: f64) -> Estimate {
         value,
         std,
         stderr,
+        crlb: None,
+        jackknife: None,
+        at_bound: false,
         identifiable,
         reason: (!identifiable)
             .then(|| "the data do not determine it (relative std above 1)".to_string()),
@@ -487,6 +518,9 @@ impl Report {
             format: RESULT_FORMAT.to_string(),
             model: model_path.to_string(),
             dataset: ds.dir.display().to_string(),
+            estimator: "per-shot".into(),
+            rejected_shots: BTreeMap::new(),
+            notes: Vec::new(),
             force_model: match prob.force_model {
                 ForceModel::Free | ForceModel::Auto => "free complex force per drive tone".into(),
                 ForceModel::GainPerMeasurement => {
@@ -569,37 +603,70 @@ impl Report {
         );
         let _ = writeln!(
             s,
-            "  std = spread of per-shot estimates after IQR outlier rejection{}",
+            "  estimator: {}; value ± stderr{}; std = spread of per-shot estimates (diagnostic){}",
+            match self.estimator.as_str() {
+                "ml" => "output-error maximum likelihood (harmonic balance) on the pooled shots",
+                "linear" => "equation-error fit of the pooled shots",
+                other => other,
+            },
+            if self.estimator == "ml" {
+                " (Fisher information at the estimate)"
+            } else {
+                ""
+            },
             if self.shots <= 1 {
                 " (single shot: the fit's standard error)"
             } else {
                 ""
             }
         );
-        let _ = writeln!(
+        let with_crlb = self
+            .modes
+            .values()
+            .flat_map(|m| [&m.f_hz, &m.q])
+            .chain(self.parameters.values())
+            .any(|e| e.crlb.is_some());
+        let _ = write!(
             s,
-            "\n{:<14} {:>18} {:>12} {:>10} {:>18} {:>9}",
-            "quantity", "value", "std", "rel.std", "truth", "dev/std"
+            "\n{:<14} {:>18} {:>11} {:>9} {:>11}",
+            "quantity", "value", "± stderr", "rel.", "std"
         );
+        if with_crlb {
+            let _ = write!(s, " {:>11}", "crlb");
+        }
+        let _ = writeln!(s, " {:>18} {:>10}", "truth", "dev/stderr");
         let mut line = |name: String, e: &Estimate, t: Option<f64>| {
-            let rel = e.std / e.value.abs();
+            let rel = e.stderr / e.value.abs();
             let (tt, dev) = match t {
                 Some(t) => (
                     format!("{t:.10e}"),
-                    format!("{:+.2}", (e.value - t) / e.std),
+                    format!("{:+.2}", (e.value - t) / e.stderr),
                 ),
                 None => (String::new(), String::new()),
             };
-            let flag = if e.identifiable {
+            let flag = if e.at_bound {
+                "  AT BOUND"
+            } else if e.identifiable {
                 ""
             } else {
                 "  NOT DETERMINED"
             };
-            let _ = writeln!(
+            let _ = write!(
                 s,
-                "{name:<14} {:>18.10e} {:>12.3e} {:>10.2e} {tt:>18} {dev:>9}{flag}",
-                e.value, e.std, rel
+                "{name:<14} {:>18.10e} {:>11.3e} {:>9.2e} {:>11.3e}",
+                e.value, e.stderr, rel, e.std
             );
+            if with_crlb {
+                match e.crlb {
+                    Some(c) => {
+                        let _ = write!(s, " {c:>11.3e}");
+                    }
+                    None => {
+                        let _ = write!(s, " {:>11}", "");
+                    }
+                }
+            }
+            let _ = writeln!(s, " {tt:>18} {dev:>10}{flag}");
         };
         for (n, m) in &self.modes {
             let tm = truth.and_then(|t| t.modes.get(n));
@@ -641,10 +708,16 @@ impl Report {
                 }
             }
         }
+        for (m, shots) in &self.rejected_shots {
+            let _ = writeln!(s, "\nrejected from the pooled mean of {m}: shots {shots:?}");
+        }
+        for n in &self.notes {
+            let _ = writeln!(s, "note: {n}");
+        }
         if !self.outlier_shots.is_empty() {
             let _ = writeln!(
                 s,
-                "\noutlier shots (outside the IQR fences for some quantity): {:?}",
+                "\noutlier shots of the per-shot fits (outside the IQR fences for some quantity): {:?}",
                 self.outlier_shots
             );
         }
@@ -692,6 +765,9 @@ mod tests {
             value,
             std,
             stderr: std / 3.0,
+            crlb: Some(std / 3.1),
+            jackknife: None,
+            at_bound: false,
             identifiable,
             reason: (!identifiable).then(|| "the data do not determine it".to_string()),
             outlier_shots: vec![2],
@@ -710,6 +786,9 @@ mod tests {
             model: "model.hb".into(),
             dataset: "ds".into(),
             force_model: "free complex force per drive tone".into(),
+            estimator: "ml".into(),
+            rejected_shots: [("m".to_string(), vec![1])].into(),
+            notes: vec!["a note".into()],
             shots: 3,
             modes: [("q1".to_string(), mode)].into(),
             parameters: [

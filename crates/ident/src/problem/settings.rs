@@ -2,6 +2,7 @@
 
 use super::IdentError;
 use crate::dataset::Dataset;
+use crate::estimator::Estimator;
 use std::collections::BTreeMap;
 
 /// Which force model to use.
@@ -49,6 +50,13 @@ pub struct Settings {
     /// instead of the linearised one. On simulated nanostring data (0.1 nm, 50 shots, four
     /// seeds) it gave 10-25 % smaller per-shot scatter of Q1 and f1 than the linearised one.
     pub sample_covariance: bool,
+    /// The estimator of the reported values (default [`Estimator::Ml`]).
+    pub estimator: Estimator,
+    /// Compute and report the Cramér–Rao bound of every quantity at the estimate (default
+    /// false; the ml estimator computes it anyway for its standard errors).
+    pub crlb: bool,
+    /// Cross-check the standard errors by a linearised delete-one-shot jackknife (default true).
+    pub jackknife: bool,
 }
 
 impl Default for Settings {
@@ -63,6 +71,9 @@ impl Default for Settings {
             gls: true,
             gls_iterations: 1,
             sample_covariance: true,
+            estimator: Estimator::Ml,
+            crlb: false,
+            jackknife: true,
         }
     }
 }

@@ -1,0 +1,616 @@
+//! The estimate and its uncertainty: per-shot fits (diagnostic), pooled shots, the pooled
+//! equation-error fit (start, or the `linear` estimate), output-error maximum likelihood by
+//! harmonic balance (`ml`), Fisher-information standard errors, a linearised jackknife.
+//!
+//! See `docs/identification.md` ("Estimators and uncertainties") for the rules stated here.
+
+use crate::dataset::Dataset;
+use crate::fisher::{self, Noise};
+use crate::forward::{ForwardModel, ForwardSettings};
+use crate::ml::{self, MlFit, MlSettings};
+use crate::pool::{pool, Pooled};
+use crate::problem::{Fit, IdentError, Problem, Settings, Unknown};
+use crate::report::{Estimate, Report};
+use harmonid_model::Model;
+use nalgebra::DMatrix;
+use num_complex::Complex64;
+use std::f64::consts::TAU;
+
+/// Which estimate to report as `value`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Estimator {
+    /// Output-error maximum likelihood by harmonic balance, started from the pooled
+    /// equation-error fit (default; falls back to `Linear` with a warning when the model
+    /// cannot be simulated at the start).
+    #[default]
+    Ml,
+    /// The equation-error fit of the pooled shots.
+    Linear,
+}
+
+/// Relative standard error above which a quantity is reported as not determined.
+pub const MAX_REL_STDERR: f64 = 0.3;
+/// Relative disagreement of the jackknife and the Fisher standard error that is warned about.
+pub const JACKKNIFE_TOL: f64 = 0.3;
+
+/// Identifies `model`'s unknowns from `ds`; see the module documentation.
+pub fn identify(model: &Model, ds: &Dataset, settings: &Settings) -> Result<Report, IdentError> {
+    let prob = Problem::new(model, ds, settings)?;
+    let per_shot = prob.fit(ds)?;
+    let pooled = pool(ds);
+    let start = prob.fit(&pooled.mean)?;
+    let mut report = Report::new(&model.source, ds, &prob, &per_shot);
+    let mut notes = Vec::new();
+    let shots = per_shot.values.len();
+    for (mi, bad) in pooled.rejected.iter().enumerate() {
+        if !bad.is_empty() {
+            report
+                .rejected_shots
+                .insert(ds.measurements[mi].spec.name.clone(), bad.clone());
+            report.warnings.push(format!(
+                "measurement \"{}\": shot(s) {bad:?} rejected as disturbed (far from the median spectrum); the estimate uses the other {}",
+                ds.measurements[mi].spec.name, pooled.used[mi]
+            ));
+        }
+    }
+    if !pooled.noise_from_shots() {
+        notes.push(if shots <= 1 {
+            "one shot: no shot scatter; the noise is taken from the fit's residual".to_string()
+        } else {
+            "the shots do not scatter (noise-free data?): the noise is taken from the fit's residual".to_string()
+        });
+    }
+    let theta_lin = start.values[0].clone();
+    let mut final_theta = theta_lin.clone();
+    let mut estimator = settings.estimator;
+    let mut fisher_out: Option<FisherOut> = None;
+    if settings.estimator == Estimator::Ml || settings.crlb {
+        match ForwardModel::new(
+            model,
+            &pooled.mean,
+            prob.force_model,
+            &ForwardSettings {
+                nominal_hz: settings.nominal_hz.clone(),
+                ..ForwardSettings::default()
+            },
+        ) {
+            Ok(mut fwd) => {
+                fwd.start_from_data(&pooled.mean);
+                match run_ml(&prob, ds, &mut fwd, &pooled, &theta_lin, settings) {
+                    Ok(out) => {
+                        if settings.estimator == Estimator::Ml {
+                            final_theta = to_problem(&prob, &fwd, &out.fit.theta, &theta_lin);
+                        }
+                        fisher_out = Some(out);
+                    }
+                    Err(why) => {
+                        report.warnings.push(format!(
+                            "{why}; reporting the pooled equation-error (linear) estimate"
+                        ));
+                        estimator = Estimator::Linear;
+                    }
+                }
+            }
+            Err(e) => {
+                report.warnings.push(format!(
+                    "the model cannot be simulated for this dataset ({e}); reporting the pooled equation-error (linear) estimate"
+                ));
+                estimator = Estimator::Linear;
+            }
+        }
+    }
+    let value_fit = Fit {
+        values: vec![final_theta],
+        cov_diag: vec![start.cov_diag[0].clone()],
+        cov_lin: vec![start.cov_lin[0].clone()],
+        groups: start.groups.clone(),
+    };
+    let values = Report::new(&model.source, ds, &prob, &value_fit);
+    merge(
+        &mut report,
+        &prob,
+        &values,
+        &pooled,
+        estimator,
+        fisher_out.as_ref(),
+        settings,
+    );
+    report.notes.extend(notes);
+    Ok(report)
+}
+
+/// The ML estimate with its Fisher bounds and jackknife.
+struct FisherOut {
+    fit: MlFit,
+    bounds: fisher::Bounds,
+    /// `√max(1, χ²/dof)` when the noise came from the shot scatter; 1 otherwise.
+    inflation: f64,
+    /// Jackknife standard error by quantity name (`f_hz:q1`, `Q:q1`, parameter).
+    jackknife: Vec<(String, f64)>,
+    /// Drift-check warnings.
+    drift: Vec<String>,
+    /// Quantities held at a bound (names as in `jackknife`).
+    at_bound: Vec<String>,
+    /// Quantities the information at the estimate does not determine, with why.
+    unidentifiable: Vec<(String, String)>,
+    notes: Vec<String>,
+}
+
+/// Maps values of `prob`'s unknowns onto `fwd`'s layout (same [`Unknown`]s); unknowns the
+/// linear fit left undetermined start at 0 (parameters, forces) or at the nominal resonance.
+fn to_forward(prob: &Problem, fwd: &ForwardModel, theta: &[f64]) -> Vec<f64> {
+    fwd.unknowns()
+        .iter()
+        .enumerate()
+        .map(|(k, u)| {
+            if let Some(v) = fwd.fixed()[k] {
+                return v;
+            }
+            let v = prob.index_of(u).map_or(f64::NAN, |i| theta[i]);
+            if v.is_finite() {
+                return v;
+            }
+            match *u {
+                Unknown::OmegaSq(n) => (TAU * prob.nominal_hz[n]).powi(2),
+                Unknown::Gamma(n) => TAU * prob.nominal_hz[n] / 1e3,
+                _ => 0.0,
+            }
+        })
+        .collect()
+}
+
+fn to_problem(prob: &Problem, fwd: &ForwardModel, theta: &[f64], fallback: &[f64]) -> Vec<f64> {
+    let mut out = fallback.to_vec();
+    for (k, u) in fwd.unknowns().iter().enumerate() {
+        if let Some(i) = prob.index_of(u) {
+            if prob.fixed[i].is_nan() && !prob.not_identifiable.iter().any(|x| x.unknown == i) {
+                out[i] = theta[k];
+            }
+        }
+    }
+    out
+}
+
+/// The reported quantity an unknown is (`f_hz:q1` for ω², `Q:q1` for γ, the parameter's
+/// name), as [`fisher::Bound::name`] spells it.
+fn quantity_name(fwd: &ForwardModel, prob: &Problem, u: &Unknown) -> String {
+    match *u {
+        Unknown::OmegaSq(n) => format!("f_hz:{}", fwd.mode_names()[n]),
+        Unknown::Gamma(n) => format!("Q:{}", fwd.mode_names()[n]),
+        Unknown::Param(p) => prob.param_names[p].clone(),
+        _ => String::new(),
+    }
+}
+
+fn run_ml(
+    prob: &Problem,
+    ds_shots: &Dataset,
+    fwd: &mut ForwardModel,
+    pooled: &Pooled,
+    theta_lin: &[f64],
+    settings: &Settings,
+) -> Result<FisherOut, String> {
+    let ds = &pooled.mean;
+    let meas: Vec<Complex64> = ds
+        .measurements
+        .iter()
+        .flat_map(|m| m.data.iter().copied())
+        .collect();
+    let from_shots = pooled.noise_from_shots();
+    // Noise of the pooled mean per observation (forward order = a shot's data order).
+    let sigma: Vec<f64> = if from_shots {
+        pooled
+            .sigma
+            .iter()
+            .zip(&pooled.used)
+            .flat_map(|(s, &n)| {
+                s.iter()
+                    .flatten()
+                    .map(move |x| x / (n as f64).sqrt())
+                    .collect::<Vec<_>>()
+            })
+            .collect()
+    } else {
+        vec![1.0; meas.len()]
+    };
+    let theta0 = to_forward(prob, fwd, theta_lin);
+    let cols: Vec<usize> = fwd
+        .free()
+        .into_iter()
+        .filter(|&k| {
+            prob.index_of(&fwd.unknowns()[k])
+                .is_none_or(|i| !prob.not_identifiable.iter().any(|x| x.unknown == i))
+        })
+        .collect();
+    let bounds: Vec<(Option<f64>, Option<f64>)> = fwd
+        .unknowns()
+        .iter()
+        .map(|u| prob.index_of(u).map_or((None, None), |i| prob.bounds[i]))
+        .collect();
+    let fit = ml::refine(
+        fwd,
+        &meas,
+        &sigma,
+        &theta0,
+        &cols,
+        &bounds,
+        &MlSettings::default(),
+    )
+    .map_err(|e| format!("output-error fit: {e}"))?;
+    let mut notes = Vec::new();
+    let dof = fit.dof.max(1) as f64;
+    let (noise, inflation) = if from_shots {
+        let red = fit.chi2 / dof;
+        (Noise::PerObservation(sigma.clone()), red.max(1.0).sqrt())
+    } else {
+        let s = (fit.chi2 / dof).sqrt();
+        (
+            Noise::Uniform(if s > 0.0 { s } else { f64::MIN_POSITIVE }),
+            1.0,
+        )
+    };
+    let bounds_f = fisher::crlb(fwd, &fit.theta, &noise, 1)
+        .map_err(|e| format!("Fisher information at the estimate: {e}"))?;
+    let jackknife = if settings.jackknife && from_shots {
+        jackknife(fwd, prob, &fit, &sigma, ds_shots, pooled, &cols)
+    } else {
+        Vec::new()
+    };
+    let drift = if from_shots {
+        drift_warnings(fwd, &fit, &sigma, ds_shots, pooled)
+    } else {
+        Vec::new()
+    };
+    if !fit.converged {
+        notes.push(format!(
+            "the output-error fit stopped after {} steps before converging (χ² {:.4e} from {:.4e})",
+            fit.steps, fit.chi2, fit.chi2_start
+        ));
+    }
+    let at_bound = fit
+        .at_bound
+        .iter()
+        .map(|&k| quantity_name(fwd, prob, &fwd.unknowns()[k]))
+        .collect();
+    let unidentifiable = bounds_f
+        .unidentifiable
+        .iter()
+        .map(|u| {
+            (
+                quantity_name(fwd, prob, &fwd.unknowns()[u.unknown]),
+                format!("the data do not determine it at the estimate: {}", u.reason),
+            )
+        })
+        .filter(|(n, _)| !n.is_empty())
+        .collect();
+    Ok(FisherOut {
+        drift,
+        fit,
+        unidentifiable,
+        bounds: bounds_f,
+        inflation,
+        jackknife,
+        at_bound,
+        notes,
+    })
+}
+
+/// Linearised delete-one-shot jackknife: leaving shot `i` (of every measurement) out moves
+/// the pooled mean by `δX = (X̄ − X_i)/(n − 1)` and the estimate by one Gauss–Newton step
+/// `δθ = (AᵀA)⁻¹Aᵀ δX/σ`; the jackknife variance is `(n−1)/n Σ (δθ_i − mean)²`, propagated to
+/// f and Q to first order. It checks the noise model (per-line σ, correlations between lines
+/// that the diagonal weighting ignores) without refitting.
+fn jackknife(
+    fwd: &ForwardModel,
+    prob: &Problem,
+    fit: &MlFit,
+    sigma: &[f64],
+    ds: &Dataset,
+    pooled: &Pooled,
+    cols: &[usize],
+) -> Vec<(String, f64)> {
+    let nk = fwd.unknowns().len();
+    let n_obs = sigma.len();
+    let free: Vec<usize> = cols
+        .iter()
+        .copied()
+        .filter(|k| !fit.at_bound.contains(k))
+        .collect();
+    let nf = free.len();
+    let kept = pooled.kept(ds);
+    let groups = kept.iter().map(Vec::len).max().unwrap_or(0);
+    if nf == 0 || groups < 3 {
+        return Vec::new();
+    }
+    let mut a = DMatrix::<f64>::zeros(2 * n_obs, nf);
+    for o in 0..n_obs {
+        for (j, &k) in free.iter().enumerate() {
+            let z = fit.jac[o * nk + k] / sigma[o];
+            a[(2 * o, j)] = z.re;
+            a[(2 * o + 1, j)] = z.im;
+        }
+    }
+    let mut scale = vec![0.0; nf];
+    for (j, s) in scale.iter_mut().enumerate() {
+        let n = a.column(j).norm();
+        *s = if n > 0.0 { 1.0 / n } else { 0.0 };
+        a.column_mut(j).scale_mut(*s);
+    }
+    let svd = a.svd(true, true);
+    let mut b = DMatrix::<f64>::zeros(2 * n_obs, groups);
+    let mut offset = 0;
+    for (mi, m) in ds.measurements.iter().enumerate() {
+        let per = m.freqs_hz.len() * m.points.len();
+        let mean = &pooled.mean.measurements[mi].data;
+        let n = kept[mi].len();
+        for (g, &s) in kept[mi].iter().enumerate() {
+            if n < 2 {
+                break;
+            }
+            for o in 0..per {
+                let d = (mean[o] - m.data[s * per + o]) / ((n - 1) as f64 * sigma[offset + o]);
+                b[(2 * (offset + o), g)] = d.re;
+                b[(2 * (offset + o) + 1, g)] = d.im;
+            }
+        }
+        offset += per;
+    }
+    let Ok(y) = svd.solve(&b, 1e-14) else {
+        return Vec::new();
+    };
+    // δθ per group for every unknown (zero for those not fitted).
+    let delta = |g: usize, k: usize| -> f64 {
+        free.iter()
+            .position(|&x| x == k)
+            .map_or(0.0, |j| y[(j, g)] * scale[j])
+    };
+    let col = |u: &Unknown| fwd.unknowns().iter().position(|x| x == u);
+    let th = &fit.theta;
+    let mut out = Vec::new();
+    let mut push = |name: String, samples: Vec<f64>| {
+        let n = samples.len() as f64;
+        let mean = samples.iter().sum::<f64>() / n;
+        let var = (n - 1.0) / n * samples.iter().map(|x| (x - mean).powi(2)).sum::<f64>();
+        out.push((name, var.sqrt()));
+    };
+    for (n, name) in fwd.mode_names().iter().enumerate() {
+        let (Some(iw), Some(ig)) = (col(&Unknown::OmegaSq(n)), col(&Unknown::Gamma(n))) else {
+            continue;
+        };
+        let (w2, g) = (th[iw], fwd.gamma(th, n));
+        let (f, q) = (w2.sqrt() / TAU, w2.sqrt() / g);
+        if free.contains(&iw) {
+            push(
+                format!("f_hz:{name}"),
+                (0..groups).map(|s| f * delta(s, iw) / (2.0 * w2)).collect(),
+            );
+        }
+        if free.contains(&ig) {
+            push(
+                format!("Q:{name}"),
+                (0..groups)
+                    .map(|s| q * (delta(s, iw) / (2.0 * w2) - delta(s, ig) / g))
+                    .collect(),
+            );
+        }
+    }
+    for (k, u) in fwd.unknowns().iter().enumerate() {
+        if let Unknown::Param(p) = *u {
+            if free.contains(&k) {
+                push(
+                    prob.param_names[p].clone(),
+                    (0..groups).map(|s| delta(s, k)).collect(),
+                );
+            }
+        }
+    }
+    out
+}
+
+/// Drift check of every identified resonance frequency: per shot, `ω_n²` with everything else
+/// fixed at the estimate (one Gauss–Newton step on that shot's residual, per-line weights of
+/// one shot), tested for a trend and excess scatter ([`crate::drift`]). Shot `g` is the `g`-th
+/// kept shot of every measurement.
+fn drift_warnings(
+    fwd: &ForwardModel,
+    fit: &MlFit,
+    sigma_mean: &[f64],
+    ds: &Dataset,
+    pooled: &Pooled,
+) -> Vec<String> {
+    let nk = fwd.unknowns().len();
+    let kept = pooled.kept(ds);
+    let groups = kept.iter().map(Vec::len).min().unwrap_or(0);
+    let mut out = Vec::new();
+    if groups < 5 {
+        return out;
+    }
+    for (n, name) in fwd.mode_names().iter().enumerate() {
+        let Some(k) = fwd
+            .unknowns()
+            .iter()
+            .position(|u| *u == Unknown::OmegaSq(n))
+            .filter(|&k| fwd.fixed()[k].is_none())
+        else {
+            continue;
+        };
+        // Information of one shot and the per-shot projections.
+        let mut info = 0.0;
+        let mut delta = vec![0.0; groups];
+        let mut offset = 0;
+        for (mi, m) in ds.measurements.iter().enumerate() {
+            let per = m.freqs_hz.len() * m.points.len();
+            let nm = kept[mi].len() as f64;
+            for o in 0..per {
+                let a = fit.jac[(offset + o) * nk + k];
+                if a.norm_sqr() == 0.0 {
+                    continue;
+                }
+                // Noise variance of one shot at this line.
+                let v = sigma_mean[offset + o].powi(2) * nm;
+                info += a.norm_sqr() / v;
+                for (g, d) in delta.iter_mut().enumerate() {
+                    let r = m.data[kept[mi][g] * per + o] - fit.x[offset + o];
+                    *d += (a.conj() * r).re / v;
+                }
+            }
+            offset += per;
+        }
+        if info.is_nan() || info <= 0.0 {
+            continue;
+        }
+        for d in delta.iter_mut() {
+            *d /= info;
+        }
+        let w2 = fit.theta[k];
+        let hz = w2.sqrt() / TAU / (2.0 * w2);
+        if let Some(d) = crate::drift::check(&delta, 1.0 / info) {
+            if d.trend {
+                out.push(format!(
+                    "f of {name} drifts over the shots: {:+.3e} Hz per shot (t = {:.1}); pooling assumes a stationary device, so its stderr is too small",
+                    d.slope * hz,
+                    d.t
+                ));
+            }
+            if d.excess {
+                out.push(format!(
+                    "f of {name} scatters {:.1}× more from shot to shot than the noise explains (fitted per shot, the rest fixed); the device may drift or the noise is not stationary",
+                    d.scatter_ratio.sqrt()
+                ));
+            }
+        }
+    }
+    out
+}
+
+/// Fills `report`'s values from `values` (the final estimate's report), stderr from the
+/// Fisher bounds (ml) or the per-shot spread (linear), and identifiability.
+fn merge(
+    report: &mut Report,
+    prob: &Problem,
+    values: &Report,
+    pooled: &Pooled,
+    estimator: Estimator,
+    fo: Option<&FisherOut>,
+    settings: &Settings,
+) {
+    report.estimator = match estimator {
+        Estimator::Ml => "ml".into(),
+        Estimator::Linear => "linear".into(),
+    };
+    report.eom = values.eom.clone();
+    report.forces = values.forces.clone();
+    report.gains = values.gains.clone();
+    let n_used = pooled.used.iter().copied().min().unwrap_or(1).max(1) as f64;
+    let fisher_of = |name: &str| fo.and_then(|f| f.bounds.get(name).map(|b| b.std));
+    let jack_of =
+        |name: &str| fo.and_then(|f| f.jackknife.iter().find(|(n, _)| n == name).map(|x| x.1));
+    let mut warnings = Vec::new();
+    // Quantities no measurement (or the information at the estimate) determines, with why.
+    let mut structural: Vec<(String, String)> = prob
+        .not_identifiable
+        .iter()
+        .filter_map(|ni| {
+            let name = match prob.unknowns[ni.unknown] {
+                Unknown::OmegaSq(n) => format!("f_hz:{}", prob.mode_names[n]),
+                Unknown::Gamma(n) => format!("Q:{}", prob.mode_names[n]),
+                Unknown::Param(p) => prob.param_names[p].clone(),
+                _ => return None,
+            };
+            Some((name, ni.reason.clone()))
+        })
+        .collect();
+    if let Some(f) = fo {
+        structural.extend(f.unidentifiable.iter().cloned());
+    }
+    let mut apply = |name: String, e: &mut Estimate, v: &Estimate| {
+        let fixed = e.reason.as_deref() == Some("fixed by the model");
+        e.value = v.value;
+        if fixed {
+            return;
+        }
+        if let Some((_, why)) = structural.iter().find(|(n, _)| *n == name) {
+            e.identifiable = false;
+            e.reason = Some(why.clone());
+            e.stderr = f64::NAN;
+            return;
+        }
+        let bound = fisher_of(&name);
+        e.crlb = if settings.crlb || estimator == Estimator::Ml {
+            bound
+        } else {
+            None
+        };
+        e.jackknife = jack_of(&name);
+        e.stderr = match (estimator, bound, fo) {
+            (Estimator::Ml, Some(b), Some(f)) => b * f.inflation,
+            _ => e.std / n_used.sqrt(),
+        };
+        if estimator == Estimator::Ml && fo.is_some_and(|f| f.at_bound.contains(&name)) {
+            e.at_bound = true;
+            e.identifiable = false;
+            e.reason = Some(
+                "at its bound: the data favour a value beyond it (the estimate is the bound)"
+                    .into(),
+            );
+            return;
+        }
+        let rel = e.stderr / e.value.abs();
+        if rel.is_nan() || rel > MAX_REL_STDERR {
+            e.identifiable = false;
+            e.reason = Some(format!(
+                "relative standard error {rel:.2} above {MAX_REL_STDERR}: the data do not determine it"
+            ));
+        } else {
+            e.identifiable = true;
+            e.reason = None;
+        }
+        if let Some(j) = e.jackknife {
+            if (j / e.stderr - 1.0).abs() > JACKKNIFE_TOL {
+                warnings.push(format!(
+                    "{name}: the jackknife standard error {j:.3e} and the Fisher one {:.3e} disagree by more than {:.0} %",
+                    e.stderr,
+                    100.0 * JACKKNIFE_TOL
+                ));
+            }
+        }
+    };
+    for (n, m) in report.modes.iter_mut() {
+        if let Some(v) = values.modes.get(n) {
+            apply(format!("f_hz:{n}"), &mut m.f_hz, &v.f_hz);
+            apply(format!("Q:{n}"), &mut m.q, &v.q);
+        }
+    }
+    for (p, e) in report.parameters.iter_mut() {
+        if let Some(v) = values.parameters.get(p) {
+            apply(p.clone(), e, v);
+        }
+    }
+    // Warnings about undetermined quantities: rebuilt from the final state.
+    report.warnings.retain(|w| {
+        !(w.starts_with("parameter ") || w.starts_with("Q of ") || w.starts_with("f of "))
+    });
+    for (n, m) in &report.modes {
+        for (what, e) in [("f", &m.f_hz), ("Q", &m.q)] {
+            if !e.identifiable {
+                report.warnings.push(format!(
+                    "{what} of {n} is not determined by the data: {}",
+                    e.reason.clone().unwrap_or_default()
+                ));
+            }
+        }
+    }
+    for (p, e) in &report.parameters {
+        if !e.identifiable {
+            report.warnings.push(format!(
+                "parameter {p} is not determined: {}",
+                e.reason.clone().unwrap_or_default()
+            ));
+        }
+    }
+    report.warnings.extend(warnings);
+    if let Some(f) = fo {
+        report.notes.extend(f.notes.iter().cloned());
+        report.warnings.extend(f.drift.iter().cloned());
+    }
+}

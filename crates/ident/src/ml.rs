@@ -1,0 +1,267 @@
+//! Output-error maximum likelihood: the unknowns that make the harmonic-balance prediction of
+//! every measured line of every measurement match the (pooled) data, jointly.
+//!
+//! Minimises `χ²(θ) = Σ_o |X_o − X_o^HB(θ)|² / σ_o²` over the free unknowns by
+//! Levenberg–Marquardt with the Jacobian of [`crate::forward`] (implicit differentiation of the
+//! harmonic balance, never finite differences). Each step solves the damped, column-equilibrated
+//! least-squares problem `min ‖r − A D y‖² + λ ‖y‖²` (`A = J/σ` with real and imaginary rows,
+//! `D = diag(1/‖A_j‖)`, `δθ = D y`) by SVD, so unknowns spanning 25 decades (ω² ~ 1e12,
+//! couplings ~ 1e23, gains ~ 1) are steps of comparable size. A step is accepted when it lowers
+//! `χ²` (then `λ /= 3`), else `λ *= 4` and the step is recomputed; a trial at which the
+//! harmonic balance fails or a value leaves its physical range counts as a rejected step.
+//!
+//! **Bounds** are handled in the step (projection with an active set): an unknown at a bound
+//! whose gradient points outwards is held there and the step is recomputed without it; a step
+//! that would cross a bound stops the unknown at it. Unknowns held at a bound at the end are
+//! reported in [`MlFit::at_bound`].
+
+use crate::forward::{ForwardError, ForwardModel};
+use nalgebra::{DMatrix, DVector};
+use num_complex::Complex64;
+
+/// Settings of the refinement.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MlSettings {
+    /// Largest number of accepted and rejected steps (default 60).
+    pub max_steps: usize,
+    /// Stop when an accepted step lowers `χ²` by less than this fraction (default 1e-10).
+    pub rel_tol: f64,
+}
+
+impl Default for MlSettings {
+    fn default() -> Self {
+        MlSettings {
+            max_steps: 60,
+            rel_tol: 1e-10,
+        }
+    }
+}
+
+/// Result of [`refine`].
+#[derive(Debug, Clone)]
+pub struct MlFit {
+    /// Every unknown of the forward model at the estimate (fixed ones included).
+    pub theta: Vec<f64>,
+    /// Predictions at the estimate, m.
+    pub x: Vec<Complex64>,
+    /// Jacobian at the estimate, `jac[o·K + k]` (layout of [`ForwardModel::evaluate`]).
+    pub jac: Vec<Complex64>,
+    /// `χ²` at the start and at the estimate.
+    pub chi2_start: f64,
+    /// `χ²` at the estimate.
+    pub chi2: f64,
+    /// Real residuals minus fitted unknowns not at a bound.
+    pub dof: usize,
+    /// Unknowns held at a bound at the estimate.
+    pub at_bound: Vec<usize>,
+    /// Accepted steps.
+    pub steps: usize,
+    /// Whether the relative decrease of `χ²` fell below the tolerance.
+    pub converged: bool,
+}
+
+fn chi2(meas: &[Complex64], x: &[Complex64], sigma: &[f64]) -> f64 {
+    meas.iter()
+        .zip(x)
+        .zip(sigma)
+        .map(|((m, x), s)| (m - x).norm_sqr() / (s * s))
+        .sum()
+}
+
+/// One damped, equilibrated, bounded step: returns `δθ` for `cols` (zero for held ones) and
+/// the columns held at a bound.
+#[allow(clippy::too_many_arguments)]
+fn step(
+    jac: &[Complex64],
+    nk: usize,
+    resid: &[Complex64],
+    sigma: &[f64],
+    cols: &[usize],
+    theta: &[f64],
+    bounds: &[(Option<f64>, Option<f64>)],
+    lambda: f64,
+) -> (Vec<f64>, Vec<usize>) {
+    let n_obs = resid.len();
+    let mut held: Vec<usize> = Vec::new();
+    // Gradient direction of each column: (Aᵀ r)_j.
+    let grad = |k: usize| -> f64 {
+        (0..n_obs)
+            .map(|o| {
+                let a = jac[o * nk + k];
+                (a.re * resid[o].re + a.im * resid[o].im) / (sigma[o] * sigma[o])
+            })
+            .sum()
+    };
+    for &k in cols {
+        let (lo, hi) = bounds[k];
+        let g = grad(k);
+        if lo.is_some_and(|l| theta[k] <= l && g <= 0.0)
+            || hi.is_some_and(|h| theta[k] >= h && g >= 0.0)
+        {
+            held.push(k);
+        }
+    }
+    loop {
+        let free: Vec<usize> = cols.iter().copied().filter(|k| !held.contains(k)).collect();
+        let nf = free.len();
+        let mut delta = vec![0.0; nk];
+        if nf == 0 {
+            return (delta, held);
+        }
+        let rows = 2 * n_obs + nf;
+        let mut a = DMatrix::<f64>::zeros(rows, nf);
+        let mut b = DVector::<f64>::zeros(rows);
+        for o in 0..n_obs {
+            let w = 1.0 / sigma[o];
+            for (j, &k) in free.iter().enumerate() {
+                let z = jac[o * nk + k] * w;
+                a[(2 * o, j)] = z.re;
+                a[(2 * o + 1, j)] = z.im;
+            }
+            b[2 * o] = resid[o].re * w;
+            b[2 * o + 1] = resid[o].im * w;
+        }
+        let mut scale = vec![0.0; nf];
+        for (j, s) in scale.iter_mut().enumerate() {
+            let n = a.column(j).norm();
+            *s = if n > 0.0 && n.is_finite() {
+                1.0 / n
+            } else {
+                0.0
+            };
+            a.column_mut(j).scale_mut(*s);
+            a[(2 * n_obs + j, j)] = lambda.sqrt();
+        }
+        let svd = a.svd(true, true);
+        let y = svd.solve(&b, 1e-14).unwrap_or_else(|_| DVector::zeros(nf));
+        // The first bound the step crosses (fraction of the step, unknown, bound value).
+        let mut crossed: Option<(f64, usize, f64)> = None;
+        for (j, &k) in free.iter().enumerate() {
+            let d = y[j] * scale[j];
+            delta[k] = d;
+            let t = theta[k] + d;
+            let (lo, hi) = bounds[k];
+            let hit = lo.filter(|&l| t < l).or(hi.filter(|&h| t > h));
+            if let Some(bv) = hit {
+                let f = ((bv - theta[k]) / d).clamp(0.0, 1.0);
+                if crossed.is_none_or(|c| f < c.0) {
+                    crossed = Some((f, k, bv));
+                }
+            }
+        }
+        match crossed {
+            // Already at the bound: hold the unknown there and recompute the rest.
+            Some((f, k, _)) if f <= 0.0 => held.push(k),
+            // Stop the step at the first bound crossed, exactly on it.
+            Some((f, k, bv)) => {
+                for d in delta.iter_mut() {
+                    *d *= f;
+                }
+                delta[k] = bv - theta[k];
+                return (delta, held);
+            }
+            None => return (delta, held),
+        }
+    }
+}
+
+/// Refines `theta0` (every unknown of `fwd`, finite) by Levenberg–Marquardt over the unknowns
+/// `cols`, given the measured amplitudes `meas` (m, forward order) and their noise `sigma` (m
+/// per quadrature, of the data given: for a mean over `n` shots, `σ_shot/√n`). `bounds` per
+/// unknown of `fwd`. Errors only when the harmonic balance fails at `theta0` itself (the caller
+/// falls back to its starting estimate).
+pub fn refine(
+    fwd: &mut ForwardModel,
+    meas: &[Complex64],
+    sigma: &[f64],
+    theta0: &[f64],
+    cols: &[usize],
+    bounds: &[(Option<f64>, Option<f64>)],
+    settings: &MlSettings,
+) -> Result<MlFit, ForwardError> {
+    let nk = fwd.unknowns().len();
+    let n_obs = fwd.n_observations();
+    let mut theta = theta0.to_vec();
+    // Start inside the bounds.
+    for &k in cols {
+        let (lo, hi) = bounds[k];
+        if let Some(l) = lo {
+            theta[k] = theta[k].max(l);
+        }
+        if let Some(h) = hi {
+            theta[k] = theta[k].min(h);
+        }
+    }
+    let mut x = vec![Complex64::new(0.0, 0.0); n_obs];
+    let mut jac = vec![Complex64::new(0.0, 0.0); n_obs * nk];
+    fwd.evaluate(&theta, &mut x, Some(&mut jac))?;
+    let chi2_start = chi2(meas, &x, sigma);
+    let mut cost = chi2_start;
+    let mut lambda = 1e-3;
+    let mut steps = 0;
+    let mut converged = false;
+    let mut held = Vec::new();
+    let mut x_try = x.clone();
+    let mut jac_try = jac.clone();
+    for _ in 0..settings.max_steps {
+        let resid: Vec<Complex64> = meas.iter().zip(&x).map(|(m, x)| m - x).collect();
+        let (delta, h) = step(&jac, nk, &resid, sigma, cols, &theta, bounds, lambda);
+        held = h;
+        let trial: Vec<f64> = theta.iter().zip(&delta).map(|(t, d)| t + d).collect();
+        let moved = cols
+            .iter()
+            .any(|&k| delta[k] != 0.0 && theta[k] + delta[k] != theta[k]);
+        if !moved {
+            converged = true;
+            break;
+        }
+        match fwd.evaluate(&trial, &mut x_try, Some(&mut jac_try)) {
+            Ok(()) => {
+                let c = chi2(meas, &x_try, sigma);
+                if c <= cost {
+                    let rel = (cost - c) / cost.max(f64::MIN_POSITIVE);
+                    theta = trial;
+                    std::mem::swap(&mut x, &mut x_try);
+                    std::mem::swap(&mut jac, &mut jac_try);
+                    cost = c;
+                    steps += 1;
+                    lambda = (lambda / 3.0).max(1e-12);
+                    if rel < settings.rel_tol {
+                        converged = true;
+                        break;
+                    }
+                    continue;
+                }
+            }
+            Err(ForwardError::Hb { .. } | ForwardError::BadValue { .. }) => {}
+            Err(e) => return Err(e),
+        }
+        lambda *= 4.0;
+        if lambda > 1e12 {
+            // No downhill step left: the estimate is a (possibly bounded) minimum.
+            converged = true;
+            break;
+        }
+    }
+    // Leave the forward model's state at the estimate (a rejected trial moved it).
+    fwd.evaluate(&theta, &mut x, Some(&mut jac))?;
+    let at_bound: Vec<usize> = held
+        .into_iter()
+        .filter(|&k| {
+            let (lo, hi) = bounds[k];
+            lo.is_some_and(|l| theta[k] <= l) || hi.is_some_and(|h| theta[k] >= h)
+        })
+        .collect();
+    let dof = (2 * n_obs).saturating_sub(cols.len() - at_bound.len());
+    Ok(MlFit {
+        theta,
+        x,
+        jac,
+        chi2_start,
+        chi2: cost,
+        dof,
+        at_bound,
+        steps,
+        converged,
+    })
+}
