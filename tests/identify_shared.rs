@@ -124,3 +124,36 @@ fn noisy_nanostring_medians_and_scatter() {
         .iter()
         .any(|w| w.contains("Q of q1 is not determined")));
 }
+
+#[test]
+fn noisy_nanostring_ml_is_within_two_stderr_and_its_stderr_at_the_bound() {
+    let (r, ds) = run(&shared("nanostring_ls50_2mode_noisy"), ForceModel::Auto);
+    assert_eq!(r.estimator, "ml");
+    let t = ds.truth.as_ref().expect("truth.toml");
+    let shots = r.shots as f64;
+    // The independent one-shot bounds (σ = 0.1 nm, relative std at the truth), for the
+    // dataset's shots: bound/√N.
+    let cases = [
+        ("f_q1", &r.modes["q1"].f_hz, t.modes["q1"].f_hz, 3.3e-6),
+        ("Q_q1", &r.modes["q1"].q, t.modes["q1"].q, 0.087),
+        ("f_q2", &r.modes["q2"].f_hz, t.modes["q2"].f_hz, 3.9e-6),
+        ("Q_q2", &r.modes["q2"].q, t.modes["q2"].q, 0.63),
+        ("beta1", &r.parameters["beta1"], t.eom["q1"]["q1^3"], 0.39),
+        ("beta2", &r.parameters["beta2"], t.eom["q2"]["q2^3"], 2.0),
+        ("g12", &r.parameters["g12"], t.eom["q1"]["q1*q2^2"], 0.21),
+    ];
+    for (name, e, truth, bound1) in cases {
+        let dev = (e.value - truth) / e.stderr;
+        let ratio = e.stderr / truth.abs() / (bound1 / shots.sqrt());
+        println!(
+            "{name}: {:.6e} ± {:.3e}, (value − truth)/stderr = {dev:+.2}, stderr / independent bound = {ratio:.2}",
+            e.value, e.stderr
+        );
+        assert!(dev.abs() <= 2.0, "{name}: {dev:.2} stderr from the truth");
+        assert!(
+            (0.7..=1.5).contains(&ratio),
+            "{name}: stderr / bound = {ratio:.2}"
+        );
+        assert!(e.identifiable, "{name}: {:?}", e.reason);
+    }
+}
