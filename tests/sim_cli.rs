@@ -131,44 +131,60 @@ fn simulate_refuses_missing_values() {
 }
 
 #[test]
-fn check_stability_flags_the_unstable_three_tone_state() {
+fn unstable_three_tone_state_is_refused_unless_allowed() {
     // The shared dataset's README: with 4.5 N/kg per tone on mode 1 (and 1.81 N/kg on mode 2) the
     // three-tone steady state loses stability, the time-domain run drifting away from it about
-    // ×3.8 per 2 s (growth rate ln 3.8 / 2 s ≈ 0.67 /s). Slow-flow Hill's method must agree.
+    // ×3.8 per 2 s (growth rate ln 3.8 / 2 s ≈ 0.67 /s). Slow-flow Hill's method must agree, and
+    // simulate refuses to write it unless asked to.
     let dir = tempfile::tempdir().expect("tempdir");
     std::fs::write(dir.path().join("values.toml"), VALUES).expect("write");
     let plan = PLAN.replace("q1 = [3.5, 3.5, 0.0]", "q1 = [4.5, 4.5, 0.0]");
     std::fs::write(dir.path().join("plan.toml"), plan).expect("write");
-    let st = Command::new(env!("CARGO_BIN_EXE_harmonid"))
-        .arg("simulate")
-        .arg(model_path())
-        .arg("--values")
-        .arg(dir.path().join("values.toml"))
-        .arg("--plan")
-        .arg(dir.path().join("plan.toml"))
-        .arg("--out")
-        .arg(dir.path().join("ds"))
-        .arg("--check-stability")
-        .output()
-        .expect("runs");
-    let err = String::from_utf8_lossy(&st.stderr);
-    assert!(st.status.success(), "{err}");
-    assert!(err.contains("single_q1: stable"), "{err}");
-    let line = err
-        .lines()
-        .find(|l| l.contains("couple_q1_q2: the steady state is UNSTABLE"))
-        .unwrap_or_else(|| panic!("no instability warning: {err}"));
-    let rate: f64 = line
-        .split("grow at ")
+    let run = |extra: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_harmonid"))
+            .env("NO_COLOR", "1")
+            .arg("simulate")
+            .arg(model_path())
+            .arg("--values")
+            .arg(dir.path().join("values.toml"))
+            .arg("--plan")
+            .arg(dir.path().join("plan.toml"))
+            .arg("--out")
+            .arg(dir.path().join("ds"))
+            .args(extra)
+            .output()
+            .expect("runs")
+    };
+    let st = run(&[]);
+    let err = String::from_utf8_lossy(&st.stderr).replace(['│', '\n'], " ");
+    assert!(!st.status.success(), "{err}");
+    assert!(!dir.path().join("ds").exists(), "nothing written");
+    assert!(
+        err.contains("couple_q1_q2: the steady state is unstable"),
+        "{err}"
+    );
+    assert!(err.contains("--allow-unstable"), "{err}");
+    let rate: f64 = err
+        .split("grow")
         .nth(1)
-        .and_then(|s| s.split_whitespace().next())
+        .and_then(|s| s.split_whitespace().nth(1))
         .and_then(|s| s.parse().ok())
-        .expect("growth rate");
+        .unwrap_or_else(|| panic!("growth rate in {err}"));
     let want = 3.8f64.ln() / 2.0;
     assert!(
         (rate - want).abs() < 0.2 * want,
         "growth {rate} /s vs ≈{want} /s"
     );
+    let st = run(&["--allow-unstable"]);
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(st.status.success(), "{err}");
+    assert!(err.contains("single_q1: stable"), "{err}");
+    assert!(err.contains("couple_q1_q2: UNSTABLE"), "{err}");
+    assert!(
+        err.contains("warning: couple_q1_q2: the steady state is unstable"),
+        "{err}"
+    );
+    assert!(Dataset::load(dir.path().join("ds")).is_ok());
 }
 
 #[test]

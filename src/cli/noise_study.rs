@@ -1,26 +1,31 @@
 //! `harmonid noise-study`: the robustness study of the paper's Supplementary Note V as a command.
 //!
 //! The measurements of a plan (default: the three measurements of the two-mode nanostring
-//! identification, single_q1, single_q2 and couple_q1_q2) are simulated once without noise; then,
-//! for every noise level (RMS of white noise added to the time signal, nm) and every
-//! realisation, seeded Gaussian noise is added to the demodulated amplitudes and the model is
-//! re-identified. White noise of RMS `r` on `N` lock-in samples gives each quadrature of each
-//! amplitude an independent Gaussian error of std `r·sqrt(2/N)` ([`sim::lockin_noise_sigma`]),
-//! so the default route (harmonic balance + that noise) is statistically the same as adding the
-//! noise to the time signal and demodulating; `--time-domain` does the latter literally.
+//! identification, single_q1, single_q2 and couple_q1_q2) are simulated once without noise
+//! ([`harmonid_experiment::Plan::simulate`]); then, for every noise level and every realisation,
+//! seeded Gaussian noise is added to the demodulated amplitudes and the model is re-identified.
+//! Levels are given as the per-quadrature σ of the lock-in amplitudes (default), as an
+//! amplitude spectral density seen through the lock-in's equivalent noise bandwidth, or as the
+//! RMS of white noise on the time signal ([`harmonid_experiment::NoiseLevel`] converts each to
+//! σ). White noise demodulated over whole periods is exactly that Gaussian, so the default route
+//! is statistically the same as adding the noise to the time signal and demodulating;
+//! `--time-domain` does the latter literally.
 
 use crate::cli::common::write_atomic;
-use crate::cli::simulate::{
-    self, excitation, measured_hz, numeric_model, parse_plan, plan_manifest, plan_spec,
-    plan_steady_state, plan_unit, point_shapes, Plan,
+use crate::cli::simulate::read_plan;
+use harmonid_experiment::{
+    add_noise, values_from_toml, Engine, NoiseLevel, Plan, Settings, TimeDomain,
 };
-use harmonid_ident::{Dataset, ForceModel, Measurement, Problem, Report, Settings};
-use harmonid_sim::{self as sim, NoiseGen, NumericModel, Start, TdSettings};
+use harmonid_ident::{Dataset, ForceModel, Problem, Report, Settings as IdentSettings};
+use harmonid_sim::{self as sim, NoiseGen, NumericModel};
 use miette::{miette, IntoDiagnostic, WrapErr};
-use num_complex::Complex64;
 use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::path::PathBuf;
+
+/// The default model: the two-mode nanostring example, compiled in so the command runs from any
+/// folder.
+pub const DEFAULT_MODEL: &str = include_str!("../../examples/nanostring_2mode/model.hb");
 
 /// Parameter values of the paper's Table S2 (the nanostring with 50 µm supports), used when no
 /// `--values` file is given: the two-mode example's own values file.
@@ -56,12 +61,20 @@ force = { q1 = [3.5, 3.5, 0.0], q2 = [0.0, 0.0, 1.81] }
 measure_hz = [207492.5, 207512.5, 207532.5, 207552.5, 207572.5, 207592.5, 207612.5, 207632.5, 207652.5, 207672.5, 415761.5, 415781.5, 415801.5, 415821.5, 415841.5, 415861.5, 415881.5, 415901.5, 415921.5]
 "#;
 
+/// Most realisations per level.
+const MAX_REALISATIONS: usize = 10_000;
+/// Most noise levels.
+const MAX_LEVELS: usize = 64;
+/// Most identifications of one study.
+const MAX_TASKS: usize = 200_000;
+/// Most time-domain runs of one study (about a second each).
+const MAX_TD_RUNS: usize = 2_000;
+
 /// Arguments of `harmonid noise-study`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The model file (`*.hb`).
-    #[arg(default_value = "examples/nanostring_2mode/model.hb")]
-    pub model: PathBuf,
+    /// The model file (`*.hb`); default: the two-mode nanostring example (built in).
+    pub model: Option<PathBuf>,
     /// Parameter values (TOML as for `harmonid simulate`, or a result JSON); default: the
     /// paper's Table S2 values of the two-mode nanostring.
     #[arg(long)]
@@ -70,8 +83,22 @@ pub struct Args {
     /// Supplementary Note V. Its [noise] table is ignored.
     #[arg(long)]
     pub plan: Option<PathBuf>,
-    /// Noise levels: RMS of the white noise in the time signal, nm, comma separated
-    /// (default: one per decade from 1e-3 to 1e2).
+    /// Noise levels as the standard deviation of each quadrature (re, im) of the lock-in
+    /// amplitudes, comma separated, in metres or with a unit (`5e-14`, `0.05pm`); default: one
+    /// per decade from 1e-15 to 1e-10 m.
+    #[arg(long, value_delimiter = ',', value_name = "SIGMA,..", conflicts_with_all = ["asd", "levels_nm"])]
+    pub sigma: Option<Vec<String>>,
+    /// Noise levels as a one-sided amplitude spectral density, m/√Hz (or with a length unit:
+    /// `10fm` = 10 fm/√Hz), comma separated; σ = ASD·√(2·ENBW) (see --enbw-hz).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "ASD,..",
+        conflicts_with = "levels_nm"
+    )]
+    pub asd: Option<Vec<String>>,
+    /// Noise levels as the RMS of white noise on the time signal, nm, comma separated;
+    /// σ = RMS·√(2/N) with N = --sample-rate-hz × --window-s samples per lock-in window.
     #[arg(long, value_delimiter = ',', value_name = "NM,NM,..")]
     pub levels_nm: Option<Vec<f64>>,
     /// Noise realisations (independent identifications) per level.
@@ -83,15 +110,20 @@ pub struct Args {
     /// Lock-in integration time per measurement, s (200 ms as in the paper).
     #[arg(long, default_value_t = 0.2)]
     pub window_s: f64,
-    /// Sample rate of the time signal, Hz (default: 8 samples per period of the highest
-    /// measured frequency, as the time-domain lock-in emulation samples).
+    /// Equivalent noise bandwidth of the lock-in, Hz, for --asd (default: 1/(2·window), the
+    /// boxcar average over the window).
+    #[arg(long)]
+    pub enbw_hz: Option<f64>,
+    /// Sample rate of the time signal, Hz, for --levels-nm (default: 8 samples per period of
+    /// the highest measured frequency, as the time-domain lock-in emulation samples; at least
+    /// twice the highest measured frequency).
     #[arg(long)]
     pub sample_rate_hz: Option<f64>,
     /// Simulate every realisation in the time domain with noise added to the samples and
     /// demodulate (faithful to the paper, much slower: seconds per measurement and
     /// realisation; the window is then the lock-in's, a whole number of periods of every
-    /// frequency, not --window-s).
-    #[arg(long)]
+    /// frequency, not --window-s). Levels as --levels-nm.
+    #[arg(long, conflicts_with_all = ["sigma", "asd"])]
     pub time_domain: bool,
     /// Intermodulation order of the harmonic-balance lattice.
     #[arg(long, default_value_t = 9)]
@@ -103,6 +135,78 @@ pub struct Args {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// A length with an optional unit suffix (`m`, `um`, `nm`, `pm`, `fm`), in metres.
+fn parse_length(s: &str, option: &str) -> miette::Result<f64> {
+    let t = s.trim();
+    let (num, scale) = [
+        ("fm", 1e-15),
+        ("pm", 1e-12),
+        ("nm", 1e-9),
+        ("um", 1e-6),
+        ("µm", 1e-6),
+        ("m", 1.0),
+    ]
+    .iter()
+    .find_map(|(u, k)| t.strip_suffix(u).map(|n| (n.trim(), *k)))
+    .unwrap_or((t, 1.0));
+    let v: f64 = num.parse().map_err(|_| {
+        miette!("{option} {s}: expected a number in metres or with a unit (fm, pm, nm, um, m)")
+    })?;
+    if !(v.is_finite() && v >= 0.0) {
+        return Err(miette!("{option} {s}: not a noise level (finite, ≥ 0)"));
+    }
+    Ok(v * scale)
+}
+
+/// The study's noise levels as given, sorted.
+fn levels(args: &Args) -> miette::Result<Vec<NoiseLevel>> {
+    let mut out: Vec<NoiseLevel> = if let Some(l) = &args.levels_nm {
+        let mut v = Vec::new();
+        for &x in l {
+            if !(x.is_finite() && x >= 0.0) {
+                return Err(miette!(
+                    "--levels-nm: {x} is not a noise RMS (finite, ≥ 0, in nm)"
+                ));
+            }
+            v.push(NoiseLevel::TimeRms(x * 1e-9));
+        }
+        v
+    } else if args.time_domain {
+        (-3..=2)
+            .map(|e| NoiseLevel::TimeRms(10f64.powi(e) * 1e-9))
+            .collect()
+    } else if let Some(l) = &args.asd {
+        l.iter()
+            .map(|s| parse_length(s, "--asd").map(NoiseLevel::Asd))
+            .collect::<miette::Result<_>>()?
+    } else if let Some(l) = &args.sigma {
+        l.iter()
+            .map(|s| parse_length(s, "--sigma").map(NoiseLevel::SigmaPerQuadrature))
+            .collect::<miette::Result<_>>()?
+    } else {
+        (-15..=-10)
+            .map(|e| NoiseLevel::SigmaPerQuadrature(10f64.powi(e)))
+            .collect()
+    };
+    if out.is_empty() || out.len() > MAX_LEVELS {
+        return Err(miette!(
+            "{} noise levels: give between 1 and {MAX_LEVELS}",
+            out.len()
+        ));
+    }
+    out.sort_by(|a, b| a.value().total_cmp(&b.value()));
+    Ok(out)
+}
+
+/// How a level is labelled in the tables.
+fn level_unit(l: &NoiseLevel) -> &'static str {
+    match l {
+        NoiseLevel::SigmaPerQuadrature(_) => "sigma per quadrature (m)",
+        NoiseLevel::Asd(_) => "ASD (m/√Hz)",
+        NoiseLevel::TimeRms(_) => "time-signal RMS (m)",
+    }
 }
 
 /// Statistics of one quantity at one noise level.
@@ -158,145 +262,142 @@ fn estimates(model: &NumericModel, prob: &Problem, rep: &Report) -> Vec<f64> {
     out
 }
 
-/// Runs the subcommand.
-pub fn run(args: Args) -> miette::Result<()> {
-    let dir = tempfile::tempdir().into_diagnostic()?;
-    let values_path = match &args.values {
-        Some(p) => p.clone(),
-        None => {
-            let p = dir.path().join("values.toml");
-            std::fs::write(&p, DEFAULT_VALUES).into_diagnostic()?;
-            p
-        }
-    };
-    let model = numeric_model(&args.model, &values_path)?;
-    let values = simulate::read_values(&values_path)?;
-    let ast = harmonid_model::load(&args.model).map_err(miette::Report::new)?;
-    let (plan_text, origin) = match &args.plan {
+/// The study's inputs, each from its file or the built-in default.
+struct Inputs {
+    model_origin: String,
+    ast: harmonid_model::Model,
+    values: sim::ModelValues,
+    plan: Plan,
+}
+
+fn inputs(args: &Args) -> miette::Result<Inputs> {
+    let (ast, model_origin) = match &args.model {
         Some(p) => (
-            std::fs::read_to_string(p)
-                .into_diagnostic()
-                .wrap_err_with(|| format!("cannot read the plan {}", p.display()))?,
+            harmonid_model::load(p).map_err(miette::Report::new)?,
             p.display().to_string(),
         ),
-        None => (DEFAULT_PLAN.to_string(), "the default plan".to_string()),
+        None => {
+            let origin = "examples/nanostring_2mode/model.hb (built in)";
+            (
+                harmonid_model::parse_str(DEFAULT_MODEL, origin).map_err(miette::Report::new)?,
+                origin.to_string(),
+            )
+        }
     };
-    let plan: Plan = parse_plan(&plan_text, &origin)?;
-    let unit = plan_unit(&plan, &origin)?;
-    let mut levels: Vec<f64> = args
-        .levels_nm
-        .clone()
-        .unwrap_or_else(|| (-3..=2).map(|e| 10f64.powi(e)).collect());
-    levels.sort_by(f64::total_cmp);
-    if let Some(l) = levels.iter().find(|l| !(l.is_finite() && **l >= 0.0)) {
+    let values = match &args.values {
+        Some(p) => crate::cli::simulate::read_values(p)?,
+        None => values_from_toml(DEFAULT_VALUES, "the built-in Table S2 values")?,
+    };
+    let mut plan = match &args.plan {
+        Some(p) => read_plan(p)?,
+        None => Plan::from_toml(DEFAULT_PLAN, "the default plan")?,
+    };
+    plan.noise = Default::default();
+    Ok(Inputs {
+        model_origin,
+        ast,
+        values,
+        plan,
+    })
+}
+
+/// Runs the subcommand.
+pub fn run(args: Args) -> miette::Result<()> {
+    let levels = levels(&args)?;
+    if !(2..=MAX_REALISATIONS).contains(&args.realisations) {
         return Err(miette!(
-            "--levels-nm: {l} is not a noise RMS (finite, ≥ 0, in nm)"
-        ));
-    }
-    if args.realisations < 2 {
-        return Err(miette!(
-            "--realisations {}: at least 2 are needed for a spread",
+            "--realisations {}: at least 2 are needed for a spread, at most {MAX_REALISATIONS}",
             args.realisations
         ));
     }
-    if !(args.window_s.is_finite() && args.window_s > 0.0) {
-        return Err(miette!("--window-s must be a positive time in seconds"));
+    let n_tasks = levels.len() * args.realisations;
+    if n_tasks > MAX_TASKS {
+        return Err(miette!(
+            "{} levels × {} realisations = {n_tasks} identifications; at most {MAX_TASKS}",
+            levels.len(),
+            args.realisations
+        ));
     }
-    let shapes = point_shapes(&model, &plan);
-    let mut manifest = plan_manifest(&model, &plan);
-
-    // Clean amplitudes, [measurement][point][freq], in metres, and the HB states.
-    let mut clean = Vec::new();
-    let mut states = Vec::new();
-    let mut f_hi: f64 = 0.0;
-    for pm in &plan.measurements {
-        let (st, drive) = plan_steady_state(&model, pm, args.order)?;
-        let freqs = measured_hz(
-            &model,
-            &drive,
-            pm,
-            &st,
-            sim::HbSettings::default().lattice.window_rel,
-        );
-        f_hi = freqs.iter().copied().fold(f_hi, f64::max);
-        let v: Vec<Vec<Complex64>> = shapes
-            .iter()
-            .map(|s| freqs.iter().map(|&f| st.at_point(s, f)).collect())
-            .collect();
-        clean.push((plan_spec(pm), freqs, v));
-        states.push(st);
+    if !(args.window_s.is_finite() && args.window_s > 0.0 && args.window_s <= 1e4) {
+        return Err(miette!(
+            "--window-s {}: expected a positive time in seconds (at most 1e4)",
+            args.window_s
+        ));
     }
-    manifest.measurements = clean.iter().map(|c| c.0.clone()).collect();
-    let fs = args.sample_rate_hz.unwrap_or(8.0 * f_hi);
-    if !(fs.is_finite() && fs > 0.0) {
-        return Err(miette!("--sample-rate-hz must be a positive frequency"));
+    let Inputs {
+        model_origin,
+        ast,
+        values,
+        plan,
+    } = inputs(&args)?;
+    let model = NumericModel::from_model(&ast, &values)
+        .into_diagnostic()
+        .wrap_err_with(|| format!("cannot evaluate {model_origin} with the values"))?;
+    if args.time_domain && n_tasks * plan.measurements.len() > MAX_TD_RUNS {
+        return Err(miette!(
+            "--time-domain: {n_tasks} realisations × {} measurements are as many time-domain runs (about a second each); at most {MAX_TD_RUNS}",
+            plan.measurements.len()
+        ));
     }
-    let n_samples = fs * args.window_s;
-    let settings = Settings {
-        force_model: ForceModel::Auto,
-        min_shots_for_weights: 0,
+    let clean_settings = Settings {
+        order: args.order,
+        noise: false,
         ..Settings::default()
     };
-
-    // One dataset of a realisation: clean + noise (HB) or a noisy time-domain run.
-    let n_points = plan.points.len();
-    let make = |level: usize, r: usize| -> miette::Result<Dataset> {
-        let rms_m = levels[level] * 1e-9;
-        let stream = args
-            .seed
-            .wrapping_mul(0x9E37_79B9_7F4A_7C15)
-            .wrapping_add((level as u64) << 32 | r as u64);
-        let mut gen = NoiseGen::new(stream);
-        let sigma_m = sim::lockin_noise_sigma(rms_m, n_samples);
-        let mut measurements = Vec::new();
-        for (mi, (spec, freqs, v)) in clean.iter().enumerate() {
-            let noisy: Vec<Vec<Complex64>> = if args.time_domain {
-                let pm = &plan.measurements[mi];
-                let drive = excitation(&model, pm)?;
-                let (q, vel) = states[mi].state_at(0.0);
-                let ts = TdSettings {
-                    steps_per_period: 16,
-                    noise_rms: rms_m,
-                    seed: stream.wrapping_add(mi as u64),
-                    ..TdSettings::default()
-                };
-                sim::simulate_lockin(
-                    &model,
-                    &drive,
-                    freqs,
-                    &shapes,
-                    &Start::State { q, v: vel },
-                    &ts,
-                )
-                .into_diagnostic()
-                .wrap_err_with(|| format!("measurement {}", pm.name))?
-                .points
-            } else {
-                v.iter()
-                    .map(|row| row.iter().map(|&z| z + gen.complex(sigma_m)).collect())
-                    .collect()
-            };
-            let mut meas =
-                Measurement::zeros(spec.clone(), freqs.clone(), (0..n_points).collect(), 1);
-            for (f, _) in freqs.iter().enumerate() {
-                for (p, row) in noisy.iter().enumerate() {
-                    *meas.amplitude_mut(0, f, p) = row[f] / unit;
-                }
-            }
-            measurements.push(meas);
-        }
-        Ok(Dataset {
-            dir: PathBuf::from("noise-study"),
-            manifest: manifest.clone(),
-            measurements,
-            truth: None,
-        })
+    let clean = plan.simulate_numeric(&model, &clean_settings)?.dataset;
+    let f_hi = clean
+        .measurements
+        .iter()
+        .flat_map(|m| m.freqs_hz.iter().copied())
+        .fold(0.0, f64::max);
+    let fs = args.sample_rate_hz.unwrap_or(8.0 * f_hi);
+    if !(fs.is_finite() && fs > 2.0 * f_hi) {
+        return Err(miette!(
+            "--sample-rate-hz {fs}: the time signal must be sampled faster than twice the highest measured frequency ({:.6e} Hz)",
+            2.0 * f_hi
+        ));
+    }
+    let enbw = args.enbw_hz.unwrap_or(0.5 / args.window_s);
+    if !(enbw.is_finite() && enbw > 0.0) {
+        return Err(miette!(
+            "--enbw-hz {enbw}: expected a positive bandwidth in Hz"
+        ));
+    }
+    let n_samples = fs * args.window_s;
+    let sigmas: Vec<f64> = levels.iter().map(|l| l.sigma_m(enbw, n_samples)).collect();
+    let settings = IdentSettings {
+        force_model: ForceModel::Auto,
+        min_shots_for_weights: 0,
+        ..IdentSettings::default()
     };
-
-    // Problem structure from the clean data.
-    let ds0 = make_clean(&clean, &manifest, unit, n_points);
-    let prob = Problem::new(&ast, &ds0, &settings).map_err(|e| miette!("{e}"))?;
+    let prob = Problem::new(&ast, &clean, &settings).map_err(|e| miette!("{e}"))?;
     let quants = quantities(&model, &prob, &values);
+    let stream = |level: usize, r: usize| {
+        args.seed
+            .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            .wrapping_add((level as u64) << 32 | r as u64)
+    };
+    // One dataset of a realisation: clean + noise (HB) or a noisy time-domain run.
+    let make = |level: usize, r: usize| -> miette::Result<Dataset> {
+        if args.time_domain {
+            let td = Settings {
+                engine: Engine::TimeDomain(TimeDomain {
+                    noise_rms_m: levels[level].value(),
+                    ..TimeDomain::default()
+                }),
+                seed: stream(level, r),
+                ..clean_settings.clone()
+            };
+            let td = Settings { noise: true, ..td };
+            return Ok(plan.simulate_numeric(&model, &td)?.dataset);
+        }
+        let mut ds = clean.clone();
+        let mut gen = NoiseGen::new(stream(level, r));
+        for m in &mut ds.measurements {
+            add_noise(m, sigmas[level], &mut gen);
+        }
+        Ok(ds)
+    };
 
     let tasks: Vec<(usize, usize)> = (0..levels.len())
         .flat_map(|l| (0..args.realisations).map(move |r| (l, r)))
@@ -318,7 +419,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         .map(|&(l, r)| {
             let ds = make(l, r)?;
             let fit = prob.fit(&ds).map_err(|e| miette::miette!("{e}"))?;
-            let rep = Report::new(&args.model.display().to_string(), &ds, &prob, &fit);
+            let rep = Report::new(&model_origin, &ds, &prob, &fit);
             bar.inc(1);
             Ok(estimates(&model, &prob, &rep))
         })
@@ -341,11 +442,7 @@ pub fn run(args: Args) -> miette::Result<()> {
                 .collect()
         })
         .collect();
-    let sigmas: Vec<f64> = levels
-        .iter()
-        .map(|&l| sim::lockin_noise_sigma(l * 1e-9, n_samples))
-        .collect();
-    let md = markdown(&levels, &stats);
+    let md = markdown(&levels, &sigmas, &stats);
     println!(
         "noise study: {} levels × {} realisations, {} identifications in {:.2} s ({})",
         levels.len(),
@@ -356,8 +453,8 @@ pub fn run(args: Args) -> miette::Result<()> {
             "time domain with noisy samples".to_string()
         } else {
             format!(
-                "harmonic balance + lock-in noise, {:.3e} samples per window of {} s",
-                n_samples, args.window_s
+                "harmonic balance + lock-in noise; window {} s, ENBW {enbw:.3} Hz, {n_samples:.3e} samples per window",
+                args.window_s
             )
         }
     );
@@ -370,39 +467,6 @@ pub fn run(args: Args) -> miette::Result<()> {
         println!("wrote {} and {}", out.display(), md_path.display());
     }
     Ok(())
-}
-
-/// One clean measurement: spec, measured frequencies, amplitudes `[point][freq]` (m).
-type Clean = (
-    harmonid_ident::MeasurementSpec,
-    Vec<f64>,
-    Vec<Vec<Complex64>>,
-);
-
-fn make_clean(
-    clean: &[Clean],
-    manifest: &harmonid_ident::Manifest,
-    unit: f64,
-    n_points: usize,
-) -> Dataset {
-    let measurements = clean
-        .iter()
-        .map(|(spec, freqs, v)| {
-            let mut m = Measurement::zeros(spec.clone(), freqs.clone(), (0..n_points).collect(), 1);
-            for f in 0..freqs.len() {
-                for (p, row) in v.iter().enumerate() {
-                    *m.amplitude_mut(0, f, p) = row[f] / unit;
-                }
-            }
-            m
-        })
-        .collect();
-    Dataset {
-        dir: PathBuf::from("noise-study"),
-        manifest: manifest.clone(),
-        measurements,
-        truth: None,
-    }
 }
 
 /// Mean and spread of the finite values.
@@ -428,16 +492,17 @@ pub fn level_stat(name: &str, truth: f64, vals: &[f64]) -> LevelStat {
     }
 }
 
-fn csv(levels: &[f64], sigmas: &[f64], stats: &[Vec<LevelStat>]) -> String {
+fn csv(levels: &[NoiseLevel], sigmas: &[f64], stats: &[Vec<LevelStat>]) -> String {
     let mut s = String::from(
-        "noise_rms_nm,sigma_per_quadrature_m,quantity,truth,mean,std,mean_minus_3std,mean_plus_3std,rel_bias,rel_3std,n\n",
+        "level,level_unit,sigma_per_quadrature_m,quantity,truth,mean,std,mean_minus_3std,mean_plus_3std,rel_bias,rel_3std,n\n",
     );
     for (l, row) in stats.iter().enumerate() {
         for st in row {
             let _ = writeln!(
                 s,
-                "{:e},{:e},{},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{}",
-                levels[l],
+                "{:e},{},{:e},{},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{}",
+                levels[l].value(),
+                level_unit(&levels[l]),
                 sigmas[l],
                 st.quantity,
                 st.truth,
@@ -454,26 +519,26 @@ fn csv(levels: &[f64], sigmas: &[f64], stats: &[Vec<LevelStat>]) -> String {
     s
 }
 
-fn markdown(levels: &[f64], stats: &[Vec<LevelStat>]) -> String {
+fn markdown(levels: &[NoiseLevel], sigmas: &[f64], stats: &[Vec<LevelStat>]) -> String {
     let mut s = String::new();
-    let Some(first) = stats.first() else {
+    let (Some(first), Some(l0)) = (stats.first(), levels.first()) else {
         return s;
     };
-    let _ = write!(s, "| noise RMS (nm) |");
+    let _ = write!(s, "| {} | σ per quadrature (m) |", level_unit(l0));
     for st in first {
         let _ = write!(s, " {} |", st.quantity);
     }
-    let _ = write!(s, "\n|---|");
+    let _ = write!(s, "\n|---|---|");
     for _ in first {
         let _ = write!(s, "---|");
     }
-    let _ = write!(s, "\n| truth |");
+    let _ = write!(s, "\n| truth | |");
     for st in first {
         let _ = write!(s, " {:.6e} |", st.truth);
     }
     s.push('\n');
     for (l, row) in stats.iter().enumerate() {
-        let _ = write!(s, "| {:.0e} |", levels[l]);
+        let _ = write!(s, "| {:.0e} | {:.2e} |", levels[l].value(), sigmas[l]);
         for st in row {
             let _ = write!(
                 s,
@@ -501,7 +566,7 @@ fn rel(x: f64) -> String {
 
 /// Per quantity: the highest noise level up to which every level has the mean within 1 % of the
 /// truth and 3σ below 10 % of it.
-fn summary(levels: &[f64], stats: &[Vec<LevelStat>]) -> String {
+fn summary(levels: &[NoiseLevel], stats: &[Vec<LevelStat>]) -> String {
     let mut s = String::from("\nreliable (|bias| < 1 % and 3σ < 10 % of the truth) up to:\n");
     let Some(first) = stats.first() else {
         return s;
@@ -513,9 +578,9 @@ fn summary(levels: &[f64], stats: &[Vec<LevelStat>]) -> String {
             st.n > 1 && (st.mean - st.truth).abs() < 0.01 * t && 3.0 * st.std < 0.1 * t
         };
         let mut best: Option<f64> = None;
-        for (l, &level) in levels.iter().enumerate() {
+        for (l, level) in levels.iter().enumerate() {
             if ok(l) {
-                best = Some(level);
+                best = Some(level.value());
             } else {
                 break;
             }
@@ -525,7 +590,7 @@ fn summary(levels: &[f64], stats: &[Vec<LevelStat>]) -> String {
             "  {:<12} {}",
             st0.quantity,
             match best {
-                Some(b) => format!("{b:.0e} nm RMS"),
+                Some(b) => format!("{b:.0e} ({})", level_unit(&levels[0])),
                 None => "not even at the lowest level".into(),
             }
         );

@@ -1,14 +1,12 @@
-//! A small dataset generator for round-trip tests and benches: harmonic-balance steady states
-//! (harmonid-sim) under designed multi-tone drives, measured at one point, written as a
-//! [`Dataset`] in memory.
+//! Designed drive plans for round-trip tests and benches, simulated by the experiment layer
+//! (`harmonid_experiment::Plan::simulate`: harmonic balance, truncation and stability checks,
+//! seeded noise) into an in-memory [`Dataset`].
 #![allow(dead_code)]
 
-use harmonid_ident::{Dataset, Manifest, Measurement, MeasurementSpec, Point, Truth, TruthMode};
+use harmonid_experiment::{Plan, PlanMeasurement, PlanNoise, Settings};
+use harmonid_ident::{Dataset, Measurement, Point};
 use harmonid_model::Model;
-use harmonid_sim::{
-    steady_state, Excitation, HbSettings, ModeValues, ModelValues, NoiseGen, NumericModel,
-};
-use num_complex::Complex64;
+use harmonid_sim::{ModeValues, ModelValues};
 use std::collections::BTreeMap;
 
 /// One designed measurement: tones as (frequency Hz, mode index, force N/kg).
@@ -30,7 +28,7 @@ pub struct Values {
 
 /// Standard designs: one two-tone measurement per mode (tones at f_n ∓ `detune_lw` linewidths),
 /// one three-tone measurement per pair `(n, m)` in `pairs` (two tones near n, one at f_m +
-/// `detune_lw/2` linewidths), and `extra` designs as given.
+/// `detune_lw/2` linewidths).
 pub fn designs(
     v: &Values,
     names: &[String],
@@ -63,10 +61,77 @@ pub fn designs(
     out
 }
 
-/// Simulates every design and returns the dataset (one point with `shape`, `shots` shots with
-/// Gaussian noise `sigma` per quadrature, metres). Measured: the drive tones and every lattice
-/// frequency within 0.4 % of the resonance of a driven or observed mode whose amplitude at the
-/// point exceeds 1e-7 of the largest (the sideband clusters a lock-in would record).
+/// The model's values as a values file would give them.
+pub fn model_values(model: &Model, v: &Values) -> ModelValues {
+    let mut mv = ModelValues::default();
+    for (n, m) in model.modes.iter().enumerate() {
+        mv.modes.insert(
+            m.name.clone(),
+            ModeValues {
+                f_hz: Some(v.f_hz[n]),
+                q: Some(v.q[n]),
+            },
+        );
+    }
+    mv.parameters = v.params.clone();
+    mv
+}
+
+/// The designs as a measurement plan: one point with `shape`, the model's nominal frequencies,
+/// every tone's force as its drive level (phase 0), `shots` shots of Gaussian noise `sigma` per
+/// quadrature (m). Measured: the default lines (drive tones and lattice lines near a resonance).
+pub fn plan(
+    model: &Model,
+    v: &Values,
+    designs: &[Design],
+    shape: &[f64],
+    sigma: f64,
+    shots: usize,
+) -> Plan {
+    let names: Vec<String> = model.modes.iter().map(|m| m.name.clone()).collect();
+    Plan {
+        description: "synthetic round trip".into(),
+        displacement_unit: "m".into(),
+        points: vec![Point {
+            name: "p0".into(),
+            shape: names.iter().cloned().zip(shape.iter().copied()).collect(),
+        }],
+        nominal_hz: names
+            .iter()
+            .enumerate()
+            .map(|(n, name)| (name.clone(), model.modes[n].nominal_hz.unwrap_or(v.f_hz[n])))
+            .collect(),
+        noise: PlanNoise {
+            sigma_per_quadrature: sigma,
+            shots,
+        },
+        measurements: designs
+            .iter()
+            .map(|d| {
+                let mut force = BTreeMap::new();
+                for (k, &(_, n, f)) in d.tones.iter().enumerate() {
+                    force
+                        .entry(names[n].clone())
+                        .or_insert_with(|| vec![0.0; d.tones.len()])[k] = f;
+                }
+                PlanMeasurement {
+                    name: d.name.clone(),
+                    drives_hz: d.tones.iter().map(|t| t.0).collect(),
+                    force,
+                    phase_rad: BTreeMap::new(),
+                    measure_hz: None,
+                    drive_levels_v: Some(d.tones.iter().map(|t| t.2).collect()),
+                    drive_phases_rad: Some(vec![0.0; d.tones.len()]),
+                    bandwidth_hz: None,
+                }
+            })
+            .collect(),
+    }
+}
+
+/// Simulates every design (see [`plan`]) and returns the dataset. Kept per measurement: the drive
+/// tones and the default lines near the resonance of a driven or observed mode whose amplitude
+/// exceeds 1e-7 of the measurement's largest (the sideband clusters a lock-in would record).
 pub fn simulate(
     model: &Model,
     v: &Values,
@@ -76,107 +141,42 @@ pub fn simulate(
     shots: usize,
     seed: u64,
 ) -> Dataset {
-    let names: Vec<String> = model.modes.iter().map(|m| m.name.clone()).collect();
-    let mut mv = ModelValues::default();
-    for (n, name) in names.iter().enumerate() {
-        mv.modes.insert(
-            name.clone(),
-            ModeValues {
-                f_hz: Some(v.f_hz[n]),
-                q: Some(v.q[n]),
-            },
-        );
-    }
-    mv.parameters = v.params.clone();
-    let num = NumericModel::from_model(model, &mv).expect("numeric model");
-    let mut manifest = Manifest::new("synthetic round trip");
-    manifest.points.push(Point {
-        name: "p0".into(),
-        shape: names.iter().cloned().zip(shape.iter().copied()).collect(),
-    });
-    for (n, name) in names.iter().enumerate() {
-        manifest
-            .nominal_hz
-            .insert(name.clone(), model.modes[n].nominal_hz.unwrap_or(v.f_hz[n]));
-    }
-    let mut rng = NoiseGen::new(seed);
-    let mut measurements = Vec::new();
-    for d in designs {
-        let nm = names.len();
-        let mut force = vec![vec![Complex64::new(0.0, 0.0); d.tones.len()]; nm];
-        for (k, &(_, n, f)) in d.tones.iter().enumerate() {
-            force[n][k] = Complex64::new(f, 0.0);
-        }
-        let exc = Excitation {
-            tones_hz: d.tones.iter().map(|t| t.0).collect(),
-            force,
-        };
-        let ss = steady_state(&num, &exc, &HbSettings::default()).expect("steady state");
-        assert!(
-            ss.converged(),
-            "{}: harmonic balance did not converge: {:?}",
-            d.name,
-            ss.status
-        );
-        let x: Vec<Complex64> = ss
-            .lattice_hz
-            .iter()
-            .map(|&f| ss.at_point(shape, f))
-            .collect();
-        let xmax = x.iter().map(|z| z.norm()).fold(0.0, f64::max);
-        let mut freqs = Vec::new();
-        let mut vals = Vec::new();
-        for (r, &f) in ss.lattice_hz.iter().enumerate() {
-            let near = d
-                .tones
+    let settings = Settings {
+        seed,
+        min_line_rel: 1e-7,
+        ..Settings::default()
+    };
+    let mut ds = plan(model, v, designs, shape, sigma, shots)
+        .simulate(model, &model_values(model, v), &settings)
+        .unwrap_or_else(|e| panic!("{e}"))
+        .dataset;
+    for (m, d) in ds.measurements.iter_mut().zip(designs) {
+        let near = |f: f64| {
+            d.tones
                 .iter()
                 .map(|t| t.1)
                 .chain(d.observe.iter().copied())
-                .any(|n| (f - v.f_hz[n]).abs() <= 0.004 * v.f_hz[n]);
-            let drive = d.tones.iter().any(|t| (t.0 - f).abs() < 1e-6);
-            if drive || (near && x[r].norm() > 1e-7 * xmax) {
-                freqs.push(f);
-                vals.push(x[r]);
-            }
-        }
-        let spec = MeasurementSpec {
-            name: d.name.clone(),
-            file: None,
-            drives_hz: exc.tones_hz.clone(),
-            drive_levels_v: Some(d.tones.iter().map(|t| t.2).collect()),
-            drive_phases_rad: Some(vec![0.0; d.tones.len()]),
-            bandwidth_hz: None,
+                .any(|n| (f - v.f_hz[n]).abs() <= 0.005 * v.f_hz[n])
         };
-        let nf = freqs.len();
-        let mut m = Measurement::zeros(spec, freqs, vec![0], shots);
-        for s in 0..shots {
-            for (r, val) in vals.iter().enumerate().take(nf) {
-                let noise = if sigma > 0.0 {
-                    rng.complex(sigma)
-                } else {
-                    Complex64::new(0.0, 0.0)
-                };
-                *m.amplitude_mut(s, r, 0) = val + noise;
+        let keep: Vec<usize> = (0..m.freqs_hz.len())
+            .filter(|&f| near(m.freqs_hz[f]))
+            .collect();
+        let mut kept = Measurement::zeros(
+            m.spec.clone(),
+            keep.iter().map(|&f| m.freqs_hz[f]).collect(),
+            m.points.clone(),
+            m.n_shots,
+        );
+        for s in 0..m.n_shots {
+            for (k, &f) in keep.iter().enumerate() {
+                for p in 0..m.points.len() {
+                    *kept.amplitude_mut(s, k, p) = m.amplitude(s, f, p);
+                }
             }
         }
-        measurements.push(m);
+        *m = kept;
     }
-    let mut truth = Truth::default();
-    for (n, name) in names.iter().enumerate() {
-        truth.modes.insert(
-            name.clone(),
-            TruthMode {
-                f_hz: v.f_hz[n],
-                q: v.q[n],
-            },
-        );
-    }
-    Dataset {
-        dir: std::path::PathBuf::from("synthetic"),
-        manifest,
-        measurements,
-        truth: Some(truth),
-    }
+    ds
 }
 
 /// Mode shapes of a string at x = L/10 for modes 1..5: sin(nπ/10).

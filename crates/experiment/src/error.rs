@@ -1,0 +1,127 @@
+//! Errors of the virtual experiment: a plan that breaks a rule (located in its file), values
+//! that cannot be read, and steady states that must not be written (unstable, unconverged, or
+//! truncated too coarsely).
+
+use miette::{Diagnostic, NamedSource, SourceSpan};
+
+/// A plan that breaks a rule: where (file, the key's path and, when read from text, its span)
+/// and what was expected.
+#[derive(Debug, thiserror::Error, Diagnostic)]
+#[error("{origin}: {path}: {message}")]
+#[diagnostic(code(harmonid::plan))]
+pub struct PlanError {
+    /// Where the plan came from (file name, or a description).
+    pub origin: String,
+    /// The key that breaks the rule (`measurement[2] "couple".drives_hz[1]`), or `plan`.
+    pub path: String,
+    /// What is wrong and what was expected.
+    pub message: String,
+    /// What to try.
+    #[help]
+    pub help: Option<String>,
+    /// The plan's text, when it was read from text.
+    #[source_code]
+    pub src: Option<NamedSource<String>>,
+    /// The offending key or value in `src`.
+    #[label("here")]
+    pub span: Option<SourceSpan>,
+}
+
+/// What can go wrong between a plan and a dataset.
+#[derive(Debug, thiserror::Error, Diagnostic)]
+#[non_exhaustive]
+pub enum ExperimentError {
+    /// The plan breaks a rule.
+    #[error(transparent)]
+    #[diagnostic(transparent)]
+    Plan(#[from] PlanError),
+    /// A values file or result could not be read.
+    #[error("{origin}: {message}")]
+    #[diagnostic(code(harmonid::values))]
+    Values {
+        /// The file.
+        origin: String,
+        /// What is wrong and what was expected.
+        message: String,
+    },
+    /// The simulation crate refused (a value, a shape, a blow-up).
+    #[error("{context}: {source}")]
+    #[diagnostic(code(harmonid::simulate))]
+    Sim {
+        /// What was being done (measurement name).
+        context: String,
+        /// The cause.
+        #[source]
+        source: harmonid_sim::SimError,
+    },
+    /// Newton did not reach the full drive.
+    #[error("measurement {measurement}: the harmonic balance did not converge: the drive ramp stopped at {:.1} % of the full drive (force balance error {residual:.2e})", 100.0 * drive_fraction)]
+    #[diagnostic(
+        code(harmonid::not_converged),
+        help("try a smaller drive, a higher --order, or --time-domain")
+    )]
+    NotConverged {
+        /// Measurement name.
+        measurement: String,
+        /// Fraction of the full drive reached.
+        drive_fraction: f64,
+        /// Relative force balance error of the last state.
+        residual: f64,
+    },
+    /// The steady state is unstable (Hill).
+    #[error("measurement {measurement}: the steady state is unstable: perturbations grow at {growth_rate:.3e} 1/s (the linear resonator decays at {linear_decay_rate:.3e} 1/s), so an experiment would not stay on it")]
+    #[diagnostic(
+        code(harmonid::unstable),
+        help("try a smaller drive, the other side of the fold, or --time-domain --from-rest to see where the motion settles; --allow-unstable writes it anyway")
+    )]
+    Unstable {
+        /// Measurement name.
+        measurement: String,
+        /// Largest real part of the Floquet exponents, 1/s.
+        growth_rate: f64,
+        /// `min ω/2Q`, 1/s.
+        linear_decay_rate: f64,
+    },
+    /// Widening the lattice keeps changing the measured lines.
+    #[error("measurement {measurement}: the harmonic balance's spectrum is truncated too coarsely: widening it from order {order} ({lines} lines) to order {wider_order} ({wider_lines} lines) still changes the measured lines by {change:.2e} of the largest (tolerance {tol:.0e}){why}")]
+    #[diagnostic(
+        code(harmonid::truncation),
+        help("try a smaller drive or a higher --order; --allow-truncation writes it anyway")
+    )]
+    Truncated {
+        /// Measurement name.
+        measurement: String,
+        /// Last order tried.
+        order: usize,
+        /// Its lattice lines.
+        lines: usize,
+        /// The widened order compared with.
+        wider_order: usize,
+        /// Its lattice lines.
+        wider_lines: usize,
+        /// The change, relative to the largest measured amplitude.
+        change: f64,
+        /// The tolerance.
+        tol: f64,
+        /// Why the order was not raised further (empty when the order limit was reached).
+        why: String,
+    },
+    /// A simulated amplitude is not finite.
+    #[error("measurement {measurement}: a simulated amplitude is not finite; nothing written")]
+    #[diagnostic(code(harmonid::non_finite))]
+    NonFinite {
+        /// Measurement name.
+        measurement: String,
+    },
+    /// A setting is outside what bounded work allows.
+    #[error("{what} = {value}: {why}")]
+    #[diagnostic(code(harmonid::settings))]
+    Setting {
+        /// The setting (as the command line spells it).
+        what: String,
+        /// Its value.
+        value: String,
+        /// The rule.
+        why: String,
+    },
+}
