@@ -56,18 +56,7 @@ fn simulate_writes_a_dataset_matching_the_reference() {
     std::fs::write(dir.path().join("values.toml"), VALUES).expect("write");
     std::fs::write(dir.path().join("plan.toml"), PLAN).expect("write");
     let out = dir.path().join("ds");
-    let st = Command::new(env!("CARGO_BIN_EXE_harmonid"))
-        .arg("simulate")
-        .arg(model_path())
-        .arg("--values")
-        .arg(dir.path().join("values.toml"))
-        .arg("--plan")
-        .arg(dir.path().join("plan.toml"))
-        .arg("--out")
-        .arg(&out)
-        .arg("--check-stability")
-        .output()
-        .expect("runs");
+    let st = simulate_in(dir.path(), &["--check-stability"]);
     let err = String::from_utf8_lossy(&st.stderr);
     assert!(st.status.success(), "{err}");
     // The three measurements of the shared dataset are stable states (its README).
@@ -140,22 +129,7 @@ fn unstable_three_tone_state_is_refused_unless_allowed() {
     std::fs::write(dir.path().join("values.toml"), VALUES).expect("write");
     let plan = PLAN.replace("q1 = [3.5, 3.5, 0.0]", "q1 = [4.5, 4.5, 0.0]");
     std::fs::write(dir.path().join("plan.toml"), plan).expect("write");
-    let run = |extra: &[&str]| {
-        Command::new(env!("CARGO_BIN_EXE_harmonid"))
-            .env("NO_COLOR", "1")
-            .arg("simulate")
-            .arg(model_path())
-            .arg("--values")
-            .arg(dir.path().join("values.toml"))
-            .arg("--plan")
-            .arg(dir.path().join("plan.toml"))
-            .arg("--out")
-            .arg(dir.path().join("ds"))
-            .args(extra)
-            .output()
-            .expect("runs")
-    };
-    let st = run(&[]);
+    let st = simulate_in(dir.path(), &[]);
     let err = String::from_utf8_lossy(&st.stderr).replace(['│', '\n'], " ");
     assert!(!st.status.success(), "{err}");
     assert!(!dir.path().join("ds").exists(), "nothing written");
@@ -175,7 +149,7 @@ fn unstable_three_tone_state_is_refused_unless_allowed() {
         (rate - want).abs() < 0.2 * want,
         "growth {rate} /s vs ≈{want} /s"
     );
-    let st = run(&["--allow-unstable"]);
+    let st = simulate_in(dir.path(), &["--allow-unstable"]);
     let err = String::from_utf8_lossy(&st.stderr);
     assert!(st.status.success(), "{err}");
     assert!(err.contains("single_q1: stable"), "{err}");
@@ -240,4 +214,21 @@ fn harmonid_ok(args: &[&std::ffi::OsStr]) {
         "{}",
         String::from_utf8_lossy(&st.stderr)
     );
+}
+
+/// Runs `harmonid simulate` on `dir`'s values.toml and plan.toml into `dir/ds`, plus `extra`.
+fn simulate_in(dir: &std::path::Path, extra: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_harmonid"))
+        .env("NO_COLOR", "1")
+        .arg("simulate")
+        .arg(model_path())
+        .arg("--values")
+        .arg(dir.join("values.toml"))
+        .arg("--plan")
+        .arg(dir.join("plan.toml"))
+        .arg("--out")
+        .arg(dir.join("ds"))
+        .args(extra)
+        .output()
+        .expect("runs")
 }

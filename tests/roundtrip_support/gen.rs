@@ -77,19 +77,27 @@ pub fn model_values(model: &Model, v: &Values) -> ModelValues {
     mv
 }
 
-/// The designs as a measurement plan: one point with `shape`, the model's nominal frequencies,
-/// every tone's force as its drive level (phase 0), `shots` shots of Gaussian noise `sigma` per
-/// quadrature (m). Measured: the default lines (drive tones and lattice lines near a resonance).
-pub fn plan(
+/// Simulates every design as one measurement plan and returns the dataset: one point with
+/// `shape`, the model's nominal frequencies, every tone's force as its drive level (phase 0),
+/// `shots` shots of Gaussian noise `sigma` per quadrature (m). Kept per measurement: the drive
+/// tones and the default lines near the resonance of a driven or observed mode whose amplitude
+/// exceeds 1e-7 of the measurement's largest (the sideband clusters a lock-in would record).
+pub fn simulate(
     model: &Model,
     v: &Values,
     designs: &[Design],
     shape: &[f64],
     sigma: f64,
     shots: usize,
-) -> Plan {
+    seed: u64,
+) -> Dataset {
+    let settings = Settings {
+        seed,
+        min_line_rel: 1e-7,
+        ..Settings::default()
+    };
     let names: Vec<String> = model.modes.iter().map(|m| m.name.clone()).collect();
-    Plan {
+    let plan = Plan {
         description: "synthetic round trip".into(),
         displacement_unit: "m".into(),
         points: vec![Point {
@@ -126,27 +134,8 @@ pub fn plan(
                 }
             })
             .collect(),
-    }
-}
-
-/// Simulates every design (see [`plan`]) and returns the dataset. Kept per measurement: the drive
-/// tones and the default lines near the resonance of a driven or observed mode whose amplitude
-/// exceeds 1e-7 of the measurement's largest (the sideband clusters a lock-in would record).
-pub fn simulate(
-    model: &Model,
-    v: &Values,
-    designs: &[Design],
-    shape: &[f64],
-    sigma: f64,
-    shots: usize,
-    seed: u64,
-) -> Dataset {
-    let settings = Settings {
-        seed,
-        min_line_rel: 1e-7,
-        ..Settings::default()
     };
-    let mut ds = plan(model, v, designs, shape, sigma, shots)
+    let mut ds = plan
         .simulate(model, &model_values(model, v), &settings)
         .unwrap_or_else(|e| panic!("{e}"))
         .dataset;

@@ -252,18 +252,11 @@ impl PlanMeasurement {
             .chain(self.phase_rad.keys().map(|k| ("phase_rad", k)))
         {
             if !model.mode_names.contains(k) {
-                return Err(PlanError {
-                    origin: "the plan".into(),
-                    path: format!("measurement `{}`.{table}.{k}", self.name),
-                    message: format!(
-                        "`{k}` is not a mode of the model ({})",
-                        model.mode_names.join(", ")
-                    ),
-                    help: None,
-                    src: None,
-                    span: None,
-                }
-                .into());
+                return Err(not_a_mode(
+                    format!("measurement `{}`.{table}.{k}", self.name),
+                    k,
+                    model,
+                ));
             }
         }
         let zeros = vec![0.0; nd];
@@ -396,6 +389,22 @@ impl PlanMeasurement {
     }
 }
 
+/// A plan key naming a mode the model does not declare.
+fn not_a_mode(path: String, mode: &str, model: &NumericModel) -> ExperimentError {
+    PlanError {
+        origin: "the plan".into(),
+        path,
+        message: format!(
+            "`{mode}` is not a mode of the model ({})",
+            model.mode_names.join(", ")
+        ),
+        help: None,
+        src: None,
+        span: None,
+    }
+    .into()
+}
+
 /// `max |X − X'| / max |X|` over every mode at the frequencies `at_hz`.
 fn lines_change(a: &SteadyState, b: &SteadyState, at_hz: &[f64]) -> f64 {
     let (mut big, mut diff) = (0.0f64, 0.0f64);
@@ -486,18 +495,7 @@ impl Plan {
         let shapes = self.point_shapes(model);
         for (i, p) in self.points.iter().enumerate() {
             if let Some(k) = p.shape.keys().find(|k| !model.mode_names.contains(k)) {
-                return Err(PlanError {
-                    origin: "the plan".into(),
-                    path: format!("point[{i}].shape.{k}"),
-                    message: format!(
-                        "`{k}` is not a mode of the model ({})",
-                        model.mode_names.join(", ")
-                    ),
-                    help: None,
-                    src: None,
-                    span: None,
-                }
-                .into());
+                return Err(not_a_mode(format!("point[{i}].shape.{k}"), k, model));
             }
         }
         let shots = self.noise.shots;
