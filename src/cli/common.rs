@@ -1,24 +1,23 @@
-//! Helpers shared by the subcommands: atomic output files.
+//! Helpers shared by the subcommands: safe output files (see the `harmonid-files` crate).
 
-use miette::{miette, IntoDiagnostic, WrapErr};
-use std::io::Write;
 use std::path::Path;
 
-/// Writes `bytes` to `path` atomically: a temporary file in the same folder, renamed over the
-/// target only once fully written, so an interrupted run never leaves a partial file.
+/// Writes `bytes` to `path` atomically (a staging file renamed into place), only over a regular
+/// file, with the umask's permissions. Use [`write_output`] when the run has input files.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> miette::Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let mut tmp = tempfile::NamedTempFile::new_in(dir)
-        .into_diagnostic()
-        .wrap_err_with(|| format!("cannot create a temporary file in {}", dir.display()))?;
-    tmp.write_all(bytes)
-        .and_then(|()| tmp.flush())
-        .into_diagnostic()
-        .wrap_err_with(|| format!("cannot write {}", path.display()))?;
-    tmp.persist(path)
-        .map_err(|e| miette!("cannot write {}: {}", path.display(), e.error))?;
+    write_output(path, bytes, &[])
+}
+
+/// [`write_atomic`] that also refuses to overwrite any of the run's `inputs`.
+pub fn write_output(path: &Path, bytes: &[u8], inputs: &[&Path]) -> miette::Result<()> {
+    harmonid_files::write_file(path, bytes, inputs).map_err(miette::Report::new)
+}
+
+/// Checks, before any work, that every one of `outputs` can be written as a file: its folder
+/// exists, nothing but a regular file is at the path, and it is none of `inputs`.
+pub fn check_outputs(outputs: &[&Path], inputs: &[&Path]) -> miette::Result<()> {
+    for out in outputs {
+        harmonid_files::check_output_file(out, inputs).map_err(miette::Report::new)?;
+    }
     Ok(())
 }

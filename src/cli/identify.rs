@@ -1,7 +1,7 @@
 //! `harmonid identify MODEL DATASET --out result.json`: identify the model's unknowns from a
 //! measured dataset (sequential stages by default), print a summary table, write the result.
 
-use crate::cli::common::write_atomic;
+use crate::cli::common::{check_outputs, write_output};
 use harmonid_ident::{identify, Dataset, Estimator, ForceModel, Settings};
 use miette::miette;
 use std::collections::BTreeMap;
@@ -65,7 +65,23 @@ pub enum EstimatorArg {
 /// Runs the subcommand.
 pub fn run(args: Args) -> miette::Result<()> {
     let model = harmonid_model::load(&args.model).map_err(miette::Report::new)?;
-    let ds = Dataset::load(&args.dataset).map_err(|e| miette!("{e}"))?;
+    let ds = Dataset::load(&args.dataset).map_err(miette::Report::new)?;
+    // Refuse unwritable outputs (or ones that are inputs) before the fit, not after it.
+    let dataset_files = ds.input_files();
+    let mut inputs: Vec<&std::path::Path> = vec![args.model.as_path()];
+    inputs.extend(dataset_files.iter().map(|p| p.as_path()));
+    let outputs: Vec<&std::path::Path> = [&args.out, &args.per_shot]
+        .into_iter()
+        .flatten()
+        .map(|p| p.as_path())
+        .collect();
+    check_outputs(&outputs, &inputs)?;
+    if !(args.near_rel.is_finite() && args.near_rel > 0.0 && args.near_rel < 1.0) {
+        return Err(miette!(
+            "--near-rel {}: expected a relative distance between 0 and 1, e.g. --near-rel 0.05",
+            args.near_rel
+        ));
+    }
     let mut nominal_hz = BTreeMap::new();
     for s in &args.nominal {
         let (name, hz) = s.split_once('=').ok_or_else(|| {
@@ -109,11 +125,11 @@ pub fn run(args: Args) -> miette::Result<()> {
     report.model = args.model.display().to_string();
     print!("{}", report.summary(ds.truth.as_ref()));
     if let Some(out) = &args.out {
-        write_atomic(out, report.to_json().as_bytes())?;
+        write_output(out, report.to_json().as_bytes(), &inputs)?;
         println!("wrote {}", out.display());
     }
     if let Some(path) = &args.per_shot {
-        write_atomic(path, report.per_shot_csv().as_bytes())?;
+        write_output(path, report.per_shot_csv().as_bytes(), &inputs)?;
         println!("wrote {}", path.display());
     }
     Ok(())

@@ -1,0 +1,333 @@
+//! Reading one measurement's CSV, streamed: one reused record buffer, 40 bytes kept per row
+//! while reading and 16 per value after.
+
+use super::*;
+
+/// Largest amplitude accepted, in metres (after unit conversion). Larger values are not
+/// displacements of a resonator, and their powers overflow the fit's column scaling.
+pub const MAX_AMPLITUDE_M: f64 = 1e3;
+/// Largest frequency accepted, Hz (ω² and its products must stay finite).
+pub const MAX_FREQ_HZ: f64 = 1e15;
+
+/// One CSV value as kept while reading.
+#[derive(Clone, Copy)]
+struct Cell {
+    freq_hz: f64,
+    x: Complex64,
+    shot: u32,
+    point: u32,
+    row: u32,
+}
+
+/// At most this many characters of a field or header are quoted in a message.
+const SHOWN_CHARS: usize = 40;
+
+/// `text`, shortened to [`SHOWN_CHARS`] characters with "…" when longer.
+pub(super) fn shown(text: &str) -> String {
+    if text.chars().count() <= SHOWN_CHARS {
+        text.to_string()
+    } else {
+        let mut s: String = text.chars().take(SHOWN_CHARS).collect();
+        s.push('…');
+        s
+    }
+}
+
+/// A number for a message: plain when moderate, in exponent form when very large or small
+/// (`{}` of 1e300 prints 301 digits).
+pub(super) fn num_text(x: f64) -> String {
+    if x != 0.0 && x.is_finite() && !(1e-4..1e9).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
+}
+
+pub(super) fn read_csv<R: std::io::Read>(
+    reader: R,
+    path: &Path,
+    spec: &MeasurementSpec,
+    manifest: &Manifest,
+    scale: f64,
+) -> Result<Measurement, DatasetError> {
+    let row_err = |row: usize, message: String| DatasetError::Row {
+        path: path.to_path_buf(),
+        row,
+        message,
+    };
+    let mut rdr = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .trim(csv::Trim::All)
+        .from_reader(reader);
+    let headers = rdr
+        .headers()
+        .map_err(|e| row_err(1, format!("cannot read the header: {e}")))?
+        .clone();
+    let found = shown(&headers.iter().collect::<Vec<_>>().join(","));
+    let col = |name: &str| -> Result<Option<usize>, DatasetError> {
+        let mut idx = headers.iter().enumerate().filter(|(_, h)| *h == name);
+        let first = idx.next().map(|(i, _)| i);
+        if idx.next().is_some() {
+            return Err(row_err(
+                1,
+                format!("column \"{name}\" appears more than once in the header"),
+            ));
+        }
+        Ok(first)
+    };
+    let req = |name: &str| -> Result<usize, DatasetError> {
+        col(name)?.ok_or_else(|| DatasetError::MissingColumn {
+            path: path.to_path_buf(),
+            column: name.to_string(),
+            found: found.clone(),
+        })
+    };
+    let (c_shot, c_freq, c_re, c_im) = (req("shot")?, req("freq_hz")?, req("re")?, req("im")?);
+    let c_point = col("point")?;
+    let point_index: HashMap<&str, usize> = manifest
+        .points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| (p.name.as_str(), i))
+        .collect();
+
+    let mut cells: Vec<Cell> = Vec::new();
+    let mut rec = csv::StringRecord::new();
+    let mut row = 1usize;
+    loop {
+        row += 1;
+        let more = rdr.read_record(&mut rec).map_err(|e| {
+            row_err(
+                row,
+                match e.kind() {
+                    csv::ErrorKind::UnequalLengths {
+                        expected_len, len, ..
+                    } => format!(
+                        "{len} fields, but the header has {expected_len} columns (a missing or extra column)"
+                    ),
+                    _ => e.to_string(),
+                },
+            )
+        })?;
+        if !more {
+            break;
+        }
+        let row32 = u32::try_from(row)
+            .map_err(|_| row_err(row, "more than 4,294,967,295 rows in one file".into()))?;
+        let field = |c: usize, name: &str| -> Result<&str, DatasetError> {
+            rec.get(c)
+                .ok_or_else(|| row_err(row, format!("no value in column \"{name}\"")))
+        };
+        let num = |c: usize, name: &str| -> Result<f64, DatasetError> {
+            let t = field(c, name)?;
+            let v: f64 = t.parse().map_err(|_| {
+                row_err(
+                    row,
+                    format!("column \"{name}\": \"{}\" is not a number", shown(t)),
+                )
+            })?;
+            if !v.is_finite() {
+                return Err(row_err(
+                    row,
+                    format!("column \"{name}\": {} is not finite", shown(t)),
+                ));
+            }
+            Ok(v)
+        };
+        let st = field(c_shot, "shot")?;
+        let shot: u32 = st.parse().map_err(|_| {
+            row_err(
+                row,
+                format!(
+                    "column \"shot\": \"{}\" is not a shot number (0, 1, 2, ...)",
+                    shown(st)
+                ),
+            )
+        })?;
+        let f = num(c_freq, "freq_hz")?;
+        if f <= 0.0 {
+            return Err(row_err(
+                row,
+                format!("freq_hz = {}: frequencies must be positive", num_text(f)),
+            ));
+        }
+        if f > MAX_FREQ_HZ {
+            return Err(row_err(
+                row,
+                format!(
+                    "freq_hz = {}: above the largest frequency accepted, {MAX_FREQ_HZ:e} Hz",
+                    num_text(f)
+                ),
+            ));
+        }
+        let x = Complex64::new(num(c_re, "re")?, num(c_im, "im")?) * scale;
+        if x.re.abs() > MAX_AMPLITUDE_M || x.im.abs() > MAX_AMPLITUDE_M {
+            return Err(row_err(
+                row,
+                format!(
+                    "amplitude {} {} is more than {MAX_AMPLITUDE_M:e} m: not a resonator's displacement; check the value and displacement_unit = \"{}\"",
+                    shown(field(c_re, "re")?),
+                    shown(field(c_im, "im")?),
+                    manifest.displacement_unit
+                ),
+            ));
+        }
+        let p = match c_point {
+            Some(c) if !field(c, "point")?.is_empty() => {
+                let name = field(c, "point")?;
+                *point_index.get(name).ok_or_else(|| {
+                    row_err(
+                        row,
+                        format!(
+                            "point \"{}\" is not declared in dataset.toml (declared: {})",
+                            shown(name),
+                            shown(
+                                &manifest
+                                    .points
+                                    .iter()
+                                    .map(|p| p.name.as_str())
+                                    .collect::<Vec<_>>()
+                                    .join(", ")
+                            )
+                        ),
+                    )
+                })?
+            }
+            _ => 0,
+        };
+        cells.push(Cell {
+            freq_hz: f,
+            x,
+            shot,
+            // Fewer than 2^32 points: the manifest holds them.
+            point: u32::try_from(p).unwrap_or(u32::MAX),
+            row: row32,
+        });
+    }
+    if cells.is_empty() {
+        return Err(DatasetError::Inconsistent {
+            path: path.to_path_buf(),
+            message: format!("measurement \"{}\" has no data rows", spec.name),
+        });
+    }
+    cells.sort_unstable_by(|a, b| {
+        (a.shot, a.point)
+            .cmp(&(b.shot, b.point))
+            .then(a.freq_hz.total_cmp(&b.freq_hz))
+    });
+    let group_of = |c: &Cell| (c.shot, c.point);
+    let groups: Vec<&[Cell]> = cells.chunk_by(|a, b| group_of(a) == group_of(b)).collect();
+
+    let mut shots: Vec<u32> = groups.iter().map(|g| g[0].shot).collect();
+    shots.dedup();
+    if shots
+        .iter()
+        .enumerate()
+        .any(|(i, &s)| i as u64 != u64::from(s))
+    {
+        let listed: Vec<String> = shots.iter().take(10).map(|s| s.to_string()).collect();
+        return Err(DatasetError::Inconsistent {
+            path: path.to_path_buf(),
+            message: format!(
+                "shots must be numbered 0..S-1 without gaps; found {}{}",
+                listed.join(", "),
+                if shots.len() > 10 { ", ..." } else { "" }
+            ),
+        });
+    }
+    let n_shots = shots.len();
+    let mut points: Vec<usize> = groups.iter().map(|g| g[0].point as usize).collect();
+    points.sort_unstable();
+    points.dedup();
+    let pname = |p: usize| {
+        manifest
+            .points
+            .get(p)
+            .map(|q| q.name.clone())
+            .unwrap_or_else(|| "(modal)".into())
+    };
+    for g in &groups {
+        for w in g.windows(2) {
+            if (w[1].freq_hz - w[0].freq_hz).abs() <= FREQ_REL_TOL * w[1].freq_hz {
+                return Err(row_err(
+                    w[1].row as usize,
+                    format!(
+                        "frequency {} Hz appears twice in the same shot and point (also row {})",
+                        w[1].freq_hz, w[0].row
+                    ),
+                ));
+            }
+        }
+    }
+    if groups.len() != n_shots * points.len() {
+        for &s in &shots {
+            for &p in &points {
+                if !groups
+                    .iter()
+                    .any(|g| g[0].shot == s && g[0].point as usize == p)
+                {
+                    return Err(DatasetError::Inconsistent {
+                        path: path.to_path_buf(),
+                        message: format!("shot {s} has no rows for point \"{}\"", pname(p)),
+                    });
+                }
+            }
+        }
+    }
+    let reference = groups[0];
+    let (s0, p0) = (reference[0].shot, reference[0].point as usize);
+    let freqs: Vec<f64> = reference.iter().map(|c| c.freq_hz).collect();
+    for g in &groups {
+        let same = g.len() == freqs.len()
+            && g.iter()
+                .zip(&freqs)
+                .all(|(c, f)| (c.freq_hz - f).abs() <= FREQ_REL_TOL * f);
+        if !same {
+            let (s, p) = (g[0].shot, g[0].point as usize);
+            let extra = g.iter().find(|c| {
+                !freqs
+                    .iter()
+                    .any(|f| (c.freq_hz - f).abs() <= FREQ_REL_TOL * f)
+            });
+            let detail = match extra {
+                Some(c) => format!(
+                    "{} Hz (row {}) is not measured in shot {s0}",
+                    c.freq_hz, c.row
+                ),
+                None => format!(
+                    "it lists {} frequencies, shot {s0} lists {}",
+                    g.len(),
+                    freqs.len()
+                ),
+            };
+            return Err(DatasetError::Inconsistent {
+                path: path.to_path_buf(),
+                message: format!(
+                    "shot {s}, point \"{}\" has a different frequency set from shot {s0}, point \"{}\": {detail}; every shot must list the same frequencies",
+                    pname(p),
+                    pname(p0)
+                ),
+            });
+        }
+    }
+    check_drives_measured(spec, &freqs, path)?;
+    let nf = freqs.len();
+    let np = points.len();
+    let mut data = vec![Complex64::new(0.0, 0.0); n_shots * nf * np];
+    for g in &groups {
+        let s = g[0].shot as usize;
+        let pl = points.binary_search(&(g[0].point as usize)).unwrap_or(0);
+        for (f, c) in g.iter().enumerate() {
+            data[(s * nf + f) * np + pl] = c.x;
+        }
+    }
+    drop(groups);
+    drop(cells);
+    Ok(Measurement {
+        spec: spec.clone(),
+        freqs_hz: freqs,
+        points,
+        n_shots,
+        data,
+    })
+}

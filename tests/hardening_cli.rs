@@ -1,0 +1,202 @@
+//! Hostile inputs to the command line (issue 11): outputs never destroy a file, inputs never
+//! escape their folder, and bad arguments are refused with a message naming them.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn example(path: &str) -> PathBuf {
+    root().join("examples/nanostring_2mode").join(path)
+}
+
+fn run(args: &[&str]) -> (bool, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_harmonid"))
+        .args(args)
+        .env("NO_COLOR", "1")
+        .output()
+        .expect("run harmonid");
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // miette wraps long lines with a frame; join them back for the assertions.
+    let words: Vec<&str> = text.split_whitespace().filter(|w| *w != "│").collect();
+    (out.status.success(), words.join(" "))
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+/// A copy of the shipped model in a fresh folder.
+fn copied_model(dir: &Path) -> PathBuf {
+    let m = dir.join("model.hb");
+    std::fs::copy(example("model.hb"), &m).expect("copy model");
+    m
+}
+
+#[test]
+fn identify_never_overwrites_its_own_model() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let m = copied_model(tmp.path());
+    let before = std::fs::read(&m).expect("read");
+    let data = example("data");
+    let (ok, text) = run(&["identify", s(&m), s(&data), "--out", s(&m)]);
+    assert!(!ok, "{text}");
+    assert!(text.contains("is an input of this run"), "{text}");
+    assert_eq!(std::fs::read(&m).expect("read"), before);
+    // Nor a file of the dataset, under another spelling of its path.
+    let csv = data.join(".").join("single_q1.csv");
+    let (ok, text) = run(&["identify", s(&m), s(&data), "--per-shot", s(&csv)]);
+    assert!(!ok && text.contains("is an input of this run"), "{text}");
+}
+
+#[test]
+fn per_shot_into_a_missing_folder_fails_before_writing() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let m = copied_model(tmp.path());
+    let out = tmp.path().join("result.json");
+    let shots = tmp.path().join("missing/shots.csv");
+    let (ok, text) = run(&[
+        "identify",
+        s(&m),
+        s(&example("data")),
+        "--out",
+        s(&out),
+        "--per-shot",
+        s(&shots),
+    ]);
+    assert!(!ok, "{text}");
+    assert!(
+        text.contains("does not exist") && text.contains("missing"),
+        "{text}"
+    );
+    assert!(!out.exists(), "the result was written before the failure");
+}
+
+#[cfg(unix)]
+#[test]
+fn outputs_write_only_regular_files() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let m = copied_model(tmp.path());
+    let target = tmp.path().join("precious.txt");
+    std::fs::write(&target, "keep").expect("write");
+    let link = tmp.path().join("result.json");
+    std::os::unix::fs::symlink(&target, &link).expect("symlink");
+    let (ok, text) = run(&["identify", s(&m), s(&example("data")), "--out", s(&link)]);
+    assert!(!ok && text.contains("symbolic link"), "{text}");
+    assert_eq!(std::fs::read(&target).expect("read"), b"keep");
+    assert!(std::fs::symlink_metadata(&link)
+        .expect("meta")
+        .file_type()
+        .is_symlink());
+    let (ok, text) = run(&["identify", s(&m), s(&example("data")), "--out", "/dev/null"]);
+    assert!(!ok && text.contains("device node"), "{text}");
+    let (ok, text) = run(&[
+        "identify",
+        s(&m),
+        s(&example("data")),
+        "--out",
+        s(tmp.path()),
+    ]);
+    assert!(!ok && text.contains("is a folder"), "{text}");
+}
+
+#[cfg(unix)]
+#[test]
+fn outputs_follow_the_umask() {
+    use std::os::unix::fs::PermissionsExt;
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let m = copied_model(tmp.path());
+    let out = tmp.path().join("result.json");
+    let (ok, text) = run(&["identify", s(&m), s(&example("data")), "--out", s(&out)]);
+    assert!(ok, "{text}");
+    let mode = std::fs::metadata(&out).expect("meta").permissions().mode() & 0o777;
+    // The test harness's umask applies to both: the output matches a plain new file.
+    let probe = tmp.path().join("probe");
+    std::fs::write(&probe, "x").expect("write");
+    let plain = std::fs::metadata(&probe)
+        .expect("meta")
+        .permissions()
+        .mode()
+        & 0o777;
+    assert_eq!(
+        mode, plain,
+        "output mode {mode:o}, a new file gets {plain:o}"
+    );
+}
+
+#[test]
+fn identify_refuses_a_non_finite_near_rel() {
+    let (ok, text) = run(&[
+        "identify",
+        s(&example("model.hb")),
+        s(&example("data")),
+        "--near-rel",
+        "nan",
+    ]);
+    assert!(!ok && text.contains("--near-rel NaN"), "{text}");
+}
+
+fn sweep(extra: &[&str]) -> (bool, String) {
+    let model = example("model.hb");
+    let values = example("values.toml");
+    let mut args = vec!["sweep", s(&model), "--values", s(&values)];
+    args.extend_from_slice(extra);
+    run(&args)
+}
+
+#[test]
+fn sweep_refuses_bad_numbers_naming_them() {
+    let (ok, text) = sweep(&["--from", "207000", "--to", "208500", "--force", "q1=nan"]);
+    assert!(!ok && text.contains("not a finite number"), "{text}");
+    let (ok, text) = sweep(&["--from=-10", "--to", "208500", "--force", "q1=1"]);
+    assert!(
+        !ok && text.contains("start frequency") && text.contains("-10"),
+        "{text}"
+    );
+    let (ok, text) = sweep(&["--from", "207000", "--to", "0", "--force", "q1=1"]);
+    assert!(!ok && text.contains("stop frequency"), "{text}");
+    let (ok, text) = sweep(&[
+        "--from",
+        "207000",
+        "--to",
+        "208500",
+        "--force",
+        "q1=1",
+        "--points",
+        "100000000",
+    ]);
+    assert!(!ok && text.contains("number of sweep points"), "{text}");
+    let (ok, text) = sweep(&[
+        "--from",
+        "207000",
+        "--to",
+        "208500",
+        "--force",
+        "q1=1",
+        "--harmonics",
+        "1000",
+    ]);
+    assert!(!ok && text.contains("highest harmonic"), "{text}");
+}
+
+#[test]
+fn sweep_far_beyond_the_weakly_nonlinear_regime_is_not_marked_converged() {
+    // With --force q1=1e9 and 3 harmonics the curve had h3/h1 = 0.21 and was marked stable.
+    let (ok, text) = sweep(&[
+        "--from", "207000", "--to", "208500", "--force", "q1=1e9", "--points", "50",
+    ]);
+    if ok {
+        assert!(text.contains("recomputing with --harmonics"), "{text}");
+    } else {
+        assert!(
+            text.contains("not converged") || text.contains("Newton"),
+            "{text}"
+        );
+    }
+}
