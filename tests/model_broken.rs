@@ -187,6 +187,29 @@ const EXPECTED: &[(&str, Code, &[&str])] = &[
         Code::BadNumber,
         &["1e60 cannot be represented exactly"],
     ),
+    (
+        "negative_frequency",
+        Code::Syntax,
+        &[
+            "expected a number, found `-`",
+            "must be positive",
+            "negative_frequency.hb:1:12",
+        ],
+    ),
+    (
+        "non_ascii_name",
+        Code::Syntax,
+        &["U+00E9", "ASCII", "non_ascii_name.hb:2:8"],
+    ),
+    (
+        "invisible_character",
+        Code::Syntax,
+        &[
+            "the character U+00A0",
+            "ASCII",
+            "invisible_character.hb:2:6",
+        ],
+    ),
 ];
 
 fn render(e: &ModelErrors) -> String {

@@ -73,6 +73,8 @@ pub const MAX_FILE_BYTES: u64 = 256 * 1024 * 1024;
 /// errors (unknown or duplicate names, undeclared modes, non-polynomial terms, families out of
 /// range, resource limits, an empty model).
 pub fn parse_str(source: &str, origin: &str) -> Result<Model, ModelErrors> {
+    // A byte-order mark is not part of the text (editors on Windows add one).
+    let source = source.strip_prefix('\u{FEFF}').unwrap_or(source);
     let file = syntax::parse(source).map_err(|d| ModelErrors::new(origin, source, d))?;
     sema::lower(&file, source, origin).map_err(|d| ModelErrors::new(origin, source, d))
 }
@@ -118,17 +120,23 @@ pub fn load(path: &Path) -> Result<Model, ModelErrors> {
             "check that the path exists and is readable",
         )
     })?;
-    match String::from_utf8(bytes) {
-        Ok(text) => parse_str(&text, &origin),
-        Err(e) => {
-            let err = e.utf8_error();
+    parse_bytes(&bytes, &origin)
+}
+
+/// Parses and checks a model given as raw bytes (the content of a file); `origin` names it in
+/// messages. Bytes that are not UTF-8 are a diagnostic pointing at the first bad byte; a leading
+/// UTF-8 byte-order mark (written by some editors) is skipped.
+pub fn parse_bytes(bytes: &[u8], origin: &str) -> Result<Model, ModelErrors> {
+    match std::str::from_utf8(bytes) {
+        Ok(text) => parse_str(text, origin),
+        Err(err) => {
             let at = err.valid_up_to();
             let bad = err.error_len().unwrap_or(1);
-            let lossy = String::from_utf8_lossy(e.as_bytes()).into_owned();
+            let lossy = String::from_utf8_lossy(bytes).into_owned();
             // The lossy text equals the original up to `at`; the replacement character that
             // stands for the bad bytes takes 3 bytes.
             Err(ModelErrors::new(
-                &origin,
+                origin,
                 &lossy,
                 vec![ModelDiagnostic {
                     code: Code::NotUtf8,

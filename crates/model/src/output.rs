@@ -178,7 +178,7 @@ impl Model {
         let mut out = String::new();
         let _ = writeln!(out, "model {}", self.source);
         let _ = writeln!(out, "\nmodes ({}):", self.modes.len());
-        let width = self.modes.iter().map(|m| m.name.len()).max().unwrap_or(0);
+        let width = column_width(self.modes.iter().map(|m| m.name.as_str()));
         for m in &self.modes {
             let s = mode_suffix(&m.name);
             let mut parts = Vec::new();
@@ -205,7 +205,7 @@ impl Model {
             "\nparameters ({unknown} unknown, {} fixed):",
             self.params.len() - unknown
         );
-        let width = self.params.iter().map(|p| p.name.len()).max().unwrap_or(0);
+        let width = column_width(self.params.iter().map(|p| p.name.as_str()));
         for p in &self.params {
             let mut desc = match p.kind {
                 ParamKind::Unknown => "unknown".to_string(),
@@ -361,4 +361,10 @@ fn coeff_json(c: &Coeff, params: &[&str]) -> String {
         })
         .collect();
     format!("{{{}}}", parts.join(", "))
+}
+
+/// Width of a name column: the longest name, at most 40 characters (a longer name overflows its
+/// column instead; a formatting width must stay small, and 65,536 would panic).
+fn column_width<'a>(names: impl Iterator<Item = &'a str>) -> usize {
+    names.map(|n| n.chars().count()).max().unwrap_or(0).min(40)
 }

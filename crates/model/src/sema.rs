@@ -22,9 +22,10 @@ pub fn equations_from_potential(u: &Poly, n_modes: usize) -> Result<Vec<Poly>, O
 }
 
 fn add_potential_derivatives(u: &Poly, eom: &mut [Poly]) -> Result<(), Overflow> {
-    // The terms of ∂U/∂q_v arrive in canonical order (dividing by q_v keeps a monomial order),
-    // so each slot is built by appending, then merged once with the directly written terms.
-    let mut slots = vec![Poly::zero(); eom.len()];
+    // Each slot collects the terms of ∂U/∂q_v, then sorts and sums them once (many terms on
+    // one monomial, e.g. a family of parameters, are summed as a balanced tree: n log n), and is
+    // merged once with the directly written terms.
+    let mut slots: Vec<PolyBuilder<Coeff>> = (0..eom.len()).map(|_| PolyBuilder::new()).collect();
     for (m, c) in u.terms() {
         for &(v, _) in m.factors() {
             let Some(slot) = slots.get_mut(v.index()) else {
@@ -36,11 +37,12 @@ fn add_potential_derivatives(u: &Poly, eom: &mut [Poly]) -> Result<(), Overflow>
                 } else {
                     Ring::checked_scale(c, &Rational::from_integer(i128::from(k)))?
                 };
-                slot.add_term(rest, c)?;
+                slot.push(rest, c);
             }
         }
     }
     for (eq, slot) in eom.iter_mut().zip(slots) {
+        let slot = slot.finish()?;
         *eq = if eq.is_zero() {
             slot
         } else {

@@ -149,6 +149,14 @@ fn syntax_error(source: &str, e: pest::error::Error<Rule>) -> ModelDiagnostic {
     let end = pos + found.len().max(1).min(source.len().saturating_sub(pos));
     let found_words = if found.is_empty() {
         "the end of the file".to_string()
+    } else if let Some(c) = found.chars().find(|c| !c.is_ascii()) {
+        // Shown by code point: it may be invisible (a byte-order mark, a zero-width space, a
+        // non-breaking space) or look like an ASCII character.
+        if found.chars().count() == 1 {
+            format!("the character U+{:04X}", c as u32)
+        } else {
+            format!("`{found}` (with the character U+{:04X})", c as u32)
+        }
     } else {
         format!("`{found}`")
     };
@@ -179,6 +187,15 @@ fn found_text(source: &str, pos: usize) -> String {
 }
 
 fn syntax_help(found: &str, expected: &[&str]) -> String {
+    if let Some(c) = found.chars().find(|c| !c.is_ascii()) {
+        return format!(
+            "the model language is ASCII: names are letters, digits and `_`; U+{:04X} is not one of them (retype the line, or save the file as plain text)",
+            c as u32
+        );
+    }
+    if found == "-" && expected.contains(&"a number") {
+        return "this number must be positive (a frequency or a quality factor): write it without a sign, as in `at 207.58 kHz` or `Q = 1e5`; signed numbers are for parameter values and bounds (`param b = -2`, `param g >= -1`)".to_string();
+    }
     if expected.contains(&"`*` or `/`")
         && found
             .chars()

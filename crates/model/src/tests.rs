@@ -259,6 +259,51 @@ const TOKENS: &[&str] = &[
     "\u{0}",
 ];
 
+#[test]
+fn a_very_long_name_prints_without_panicking() {
+    // A 65,536-character name used to panic in the name column's formatting width.
+    let name = format!("q{}", "x".repeat(65_536));
+    let m = ok(&format!(
+        "mode {name} at 1 kHz\nparam b{}\neom {name} += b{} * {name}^3\n",
+        "y".repeat(65_536),
+        "y".repeat(65_536)
+    ));
+    let text = m.to_text();
+    assert!(text.contains(&name));
+}
+
+#[test]
+fn a_byte_order_mark_is_skipped() {
+    let m = ok("\u{FEFF}mode q1 at 1 kHz\n");
+    assert_eq!(m.mode_names(), ["q1"]);
+    let m = crate::parse_bytes(b"\xEF\xBB\xBFmode q1 at 1 kHz\n", "bom.hb").expect("bom");
+    assert_eq!(m.mode_names(), ["q1"]);
+}
+
+#[test]
+fn bytes_that_are_not_utf8_are_located() {
+    let e = crate::parse_bytes(b"mode q1\n\xFF\n", "bad.hb").expect_err("not utf-8");
+    assert_eq!(e.diagnostics()[0].code, Code::NotUtf8);
+    assert!(
+        e.render_plain(80).contains("bad.hb:2:1"),
+        "{}",
+        e.render_plain(80)
+    );
+}
+
+#[test]
+fn many_parameters_on_one_monomial_are_summed() {
+    // 490,000 parameters on one monomial was quadratic in the coefficient's length (many
+    // minutes); summed as a balanced tree it is n log n. 20,000 here keep the test short.
+    let n = 20_000;
+    let m = ok(&format!(
+        "mode q1 at 1 kHz\nfor i in 1..{n}: param c[i]\nfor i in 1..{n}: potential: c[i]/4*q1^4\n"
+    ));
+    let eq = m.equation_text(0);
+    assert!(eq.contains("c1 + c2 + c3"), "{}", &eq[..eq.len().min(200)]);
+    assert!(eq.contains(&format!("c{n}")));
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 512, ..ProptestConfig::default() })]
 

@@ -64,22 +64,38 @@ impl<C: Ring> PolyBuilder<C> {
             pending.sort_by(|a, b| a.0.cmp(&b.0));
         }
         let mut terms: Terms<C> = SmallVec::with_capacity(pending.len());
-        for (m, c) in pending {
-            match terms.last_mut() {
-                Some((last, acc)) if *last == m => *acc = acc.checked_add(&c)?,
-                _ => {
-                    if terms.last().is_some_and(|(_, acc)| acc.is_zero()) {
-                        terms.pop();
-                    }
-                    terms.push((m, c));
-                }
+        let mut pending = pending.into_iter().peekable();
+        while let Some((m, c)) = pending.next() {
+            // All coefficients of one power product, summed as a balanced tree: n coefficients
+            // that are themselves sums (e.g. one parameter each) cost n log n, not n².
+            let mut run = vec![c];
+            while let Some((_, c)) = pending.next_if(|(next, _)| *next == m) {
+                run.push(c);
             }
-        }
-        if terms.last().is_some_and(|(_, acc)| acc.is_zero()) {
-            terms.pop();
+            let c = balanced_sum(run)?;
+            if !c.is_zero() {
+                terms.push((m, c));
+            }
         }
         Ok(SparsePoly { terms })
     }
+}
+
+/// `Σ values` by pairwise sums (a balanced tree), so that sums whose size grows with each
+/// addition cost `n log n` in total instead of `n²`. An empty list gives zero.
+fn balanced_sum<C: Ring>(mut values: Vec<C>) -> Result<C, Overflow> {
+    while values.len() > 1 {
+        let mut next = Vec::with_capacity(values.len().div_ceil(2));
+        let mut it = values.into_iter();
+        while let Some(a) = it.next() {
+            next.push(match it.next() {
+                Some(b) => a.checked_add(&b)?,
+                None => a,
+            });
+        }
+        values = next;
+    }
+    Ok(values.pop().unwrap_or_else(C::zero))
 }
 
 impl<C: Ring> SparsePoly<C> {
