@@ -8,6 +8,11 @@ use num_complex::Complex64;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
+/// A curve is accepted when its highest harmonic stays below this fraction of the largest.
+const TRUNCATION_TOL: f64 = 1e-3;
+/// Harmonics are raised automatically (3, 7, 15, 31) up to this order.
+const MAX_AUTO_HARMONICS: usize = 31;
+
 /// Arguments of `harmonid sweep`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -63,20 +68,42 @@ pub fn run(args: Args) -> miette::Result<()> {
         let a: f64 = v
             .trim()
             .parse()
-            .map_err(|_| miette!("--force {f}: `{v}` is not a number"))?;
+            .ok()
+            .filter(|a: &f64| a.is_finite())
+            .ok_or_else(|| miette!("--force {f}: `{v}` is not a finite number of N/kg"))?;
         force[n] = Complex64::new(a, 0.0);
     }
     if let Some(spacing) = args.two_tone {
         return two_tone(&args, &model, force, spacing);
     }
-    let s = SweepSettings {
+    let mut s = SweepSettings {
         f_start_hz: args.from,
         f_stop_hz: args.to,
         points: args.points,
         harmonics: args.harmonics,
         ..SweepSettings::default()
     };
-    let r = sim::sweep(&model, &force, &s).into_diagnostic()?;
+    // The curve is kept only once the highest harmonic kept is small: otherwise its amplitudes
+    // and stability verdicts depend on the truncation. Raise the harmonics until it is.
+    let r = loop {
+        let r = sim::sweep(&model, &force, &s).into_diagnostic()?;
+        let (ratio, at_hz, h) = r.truncation();
+        if ratio <= TRUNCATION_TOL {
+            break r;
+        }
+        let next = (2 * s.harmonics + 1).min(MAX_AUTO_HARMONICS);
+        if next <= s.harmonics {
+            return Err(miette!(
+                help = "lower the force (--force): the response is far beyond the weakly nonlinear regime the harmonic balance resolves",
+                "harmonic {h} still reaches {ratio:.2e} of the largest harmonic at {at_hz:.6} Hz with {} harmonics (tolerance {TRUNCATION_TOL:e}): the curve is not converged",
+                s.harmonics
+            ));
+        }
+        eprintln!(
+            "harmonic {h} reaches {ratio:.2e} of the largest harmonic at {at_hz:.6} Hz: recomputing with --harmonics {next}"
+        );
+        s.harmonics = next;
+    };
     let mut csv = String::from("f_hz,stable");
     for n in &model.mode_names {
         for &h in &r.harmonics {

@@ -45,7 +45,10 @@ pub use lattice::{choose_lattice, measured_lines, LatticeSettings, LINE_TOL_HZ};
 pub use noise::{lockin_noise_sigma, NoiseGen};
 pub use numeric::{parse_monomial, ModeValues, ModelValues, NumericModel, Term};
 pub use sensitivity::{Observation, SensParam, Sensitivity};
-pub use sweep::{backbone, sweep, Fold, SweepPoint, SweepResult, SweepSettings};
+pub use sweep::{
+    backbone, sweep, Fold, SweepPoint, SweepResult, SweepSettings, MAX_SWEEP_HARMONICS,
+    MAX_SWEEP_HZ, MAX_SWEEP_POINTS,
+};
 pub use sweep_two_tone::{
     sweep_two_tone, TwoToneCurve, TwoToneJump, TwoTonePoint, TwoToneSettings, TwoToneStatus,
     TwoToneSweep,

@@ -98,6 +98,31 @@ impl SweepResult {
             .collect();
         (up, down)
     }
+
+    /// How far the harmonic truncation is from converged: over every point and mode, the
+    /// largest amplitude of the highest harmonic kept relative to that mode's largest harmonic
+    /// amplitude at the point, with the point's frequency (Hz) and the harmonic. 0 for a curve
+    /// with one harmonic only. Above ~1e-3 the curve (and its stability verdicts) depend on the
+    /// truncation: raise `harmonics`.
+    pub fn truncation(&self) -> (f64, f64, usize) {
+        let Some(&h_top) = self.harmonics.last() else {
+            return (0.0, 0.0, 0);
+        };
+        if self.harmonics.len() < 2 {
+            return (0.0, 0.0, h_top);
+        }
+        let mut worst = (0.0, 0.0, h_top);
+        for p in &self.points {
+            for row in &p.amplitudes {
+                let peak = row.iter().map(|z| z.norm()).fold(0.0, f64::max);
+                let top = row.last().map_or(0.0, |z| z.norm());
+                if peak > 0.0 && top / peak > worst.0 {
+                    worst = (top / peak, p.f_hz, h_top);
+                }
+            }
+        }
+        worst
+    }
 }
 
 /// Alternating frequency–time harmonic balance for one tone.
@@ -290,6 +315,74 @@ fn det_sign(lu: &[f64], n: usize, piv: &[usize]) -> f64 {
     s
 }
 
+/// Most curve points a sweep may ask for.
+pub const MAX_SWEEP_POINTS: usize = 100_000;
+/// Highest harmonic a sweep may keep.
+pub const MAX_SWEEP_HARMONICS: usize = 63;
+/// Highest frequency a sweep may reach, Hz.
+pub const MAX_SWEEP_HZ: f64 = 1e15;
+
+/// Checks a sweep's inputs: each end of the range a positive finite frequency (each named in
+/// its own message), finite forces, and sizes within [`MAX_SWEEP_POINTS`] and
+/// [`MAX_SWEEP_HARMONICS`].
+fn check_settings(
+    model: &NumericModel,
+    force: &[Complex64],
+    settings: &SweepSettings,
+) -> Result<(), SimError> {
+    for (what, f) in [
+        ("sweep start frequency (Hz)", settings.f_start_hz),
+        ("sweep stop frequency (Hz)", settings.f_stop_hz),
+    ] {
+        if !(f.is_finite() && f > 0.0 && f <= MAX_SWEEP_HZ) {
+            return Err(SimError::BadValue {
+                what: what.into(),
+                value: f,
+                why: format!("a frequency must be positive and at most {MAX_SWEEP_HZ:e} Hz"),
+            });
+        }
+    }
+    for (n, z) in force.iter().enumerate() {
+        if !(z.re.is_finite() && z.im.is_finite()) {
+            let name = model.mode_names.get(n).map_or("?", |s| s.as_str());
+            return Err(SimError::BadValue {
+                what: format!("force on {name} (N/kg)"),
+                value: if z.re.is_finite() { z.im } else { z.re },
+                why: "a force must be a finite number".into(),
+            });
+        }
+    }
+    if !force.iter().any(|z| z.norm() > 0.0) {
+        return Err(SimError::BadValue {
+            what: "force (N/kg)".into(),
+            value: 0.0,
+            why: "every force is zero: the response is zero; give a non-zero force".into(),
+        });
+    }
+    if settings.points == 0 || settings.points > MAX_SWEEP_POINTS {
+        return Err(SimError::BadValue {
+            what: "number of sweep points".into(),
+            value: settings.points as f64,
+            why: format!("give between 1 and {MAX_SWEEP_POINTS}"),
+        });
+    }
+    if settings.harmonics == 0 || settings.harmonics > MAX_SWEEP_HARMONICS {
+        return Err(SimError::BadValue {
+            what: "highest harmonic".into(),
+            value: settings.harmonics as f64,
+            why: format!("give between 1 and {MAX_SWEEP_HARMONICS}"),
+        });
+    }
+    if !(settings.tol.is_finite() && settings.tol > 0.0) {
+        return Err(SimError::BadValue {
+            what: "Newton tolerance".into(),
+            value: settings.tol,
+            why: "give a small positive number, e.g. 1e-10".into(),
+        });
+    }
+    Ok(())
+}
+
 /// Computes the single-tone response curve to the force `force[n]` (complex, N/kg, on each
 /// mode) over `[f_start, f_stop]` by pseudo-arclength continuation, with stability and folds.
 pub fn sweep(
@@ -304,11 +397,12 @@ pub fn sweep(
         )));
     }
     let (f0, f1) = (settings.f_start_hz, settings.f_stop_hz);
-    if !(f0.is_finite() && f1.is_finite() && f0 > 0.0 && f1 > 0.0 && f0 != f1) {
+    check_settings(model, force, settings)?;
+    if f0 == f1 {
         return Err(SimError::BadValue {
-            what: "sweep range".into(),
+            what: "sweep stop frequency (Hz)".into(),
             value: f1,
-            why: "start and stop must be distinct positive frequencies".into(),
+            why: "it equals the start; give distinct start and stop frequencies".into(),
         });
     }
     let mut aft = Aft::new(model, force, settings.harmonics);
