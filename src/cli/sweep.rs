@@ -122,10 +122,10 @@ pub fn run(args: Args) -> miette::Result<()> {
     }
     let (up, down) = r.jumps();
     eprintln!(
-        "{} points; folds: up-sweep jumps at {:?} Hz, down-sweep jumps at {:?} Hz{}",
+        "{} points; folds: up-sweep jumps at [{}] Hz, down-sweep jumps at [{}] Hz{}",
         r.points.len(),
-        up,
-        down,
+        hz_list(&up),
+        hz_list(&down),
         if r.complete {
             ""
         } else {
@@ -140,6 +140,14 @@ pub fn run(args: Args) -> miette::Result<()> {
             Ok(())
         }
     }
+}
+
+/// `207652.079, 207589.143` (for messages).
+fn hz_list(v: &[f64]) -> String {
+    v.iter()
+        .map(|f| format!("{f:.3}"))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 fn two_tone(

@@ -70,7 +70,61 @@ pub enum SimError {
         /// Longest window tried, s.
         max_s: f64,
     },
-    /// The harmonic-balance problem could not be set up.
+    /// The harmonic-balance problem could not be set up (a free-text reason; prefer a typed
+    /// variant below in new code).
     #[error("harmonic balance: {0}")]
     Hb(String),
+    /// The products of the model's terms could not be planned on the lattice.
+    #[error("cannot plan the products of the model's terms: {0}")]
+    Spectral(#[from] harmonid_spectral::SpectralError),
+    /// A size that drives the work is above its limit.
+    #[error("{what}: {count}, more than the {limit} supported; {help}")]
+    TooLarge {
+        /// What was counted.
+        what: &'static str,
+        /// How many were asked for.
+        count: usize,
+        /// The limit.
+        limit: usize,
+        /// What to do.
+        help: &'static str,
+    },
+    /// A drive tone is not a line of the lattice the state is solved on.
+    #[error("drive tone {hz} Hz is not on the lattice")]
+    NotOnLattice {
+        /// The tone, Hz.
+        hz: f64,
+    },
+    /// Two lines of a lattice coincide (or one reaches DC).
+    #[error("at centre {centre_hz} Hz two lattice lines coincide (or one reaches DC); move the extra tones off the swept combinations or lower the order")]
+    CoincidentLines {
+        /// Centre frequency of the tone pair, Hz.
+        centre_hz: f64,
+    },
+    /// Newton's method found no steady state where the computation must start.
+    #[error("harmonic balance: Newton did not converge at the start frequency {f_hz} Hz; start the sweep further from resonance or lower the drive")]
+    NoStart {
+        /// The start frequency, Hz.
+        f_hz: f64,
+    },
+    /// A steady state has non-finite amplitudes, so nothing can be said about its stability.
+    #[error("the steady state has non-finite amplitudes; no stability verdict")]
+    NonFiniteState,
+    /// The eigenvalues of the slow flow could not be computed.
+    #[error("the eigenvalues of the slow flow did not converge; no stability verdict for this steady state")]
+    NoEigenvalues,
+    /// The Jacobian of the harmonic-balance equations is singular at a steady state.
+    #[error("the Jacobian of the harmonic-balance equations is singular at this steady state (a fold or a bifurcation): its sensitivities are unbounded")]
+    SingularJacobian,
+    /// A steady state was solved on another lattice than the one it is used with.
+    #[error("the steady state was not solved on this lattice")]
+    OtherLattice,
+    /// A mode index is out of range.
+    #[error("mode index {index} is out of range (the model has {n_modes} modes)")]
+    ModeIndex {
+        /// The index given (0-based).
+        index: usize,
+        /// Number of modes.
+        n_modes: usize,
+    },
 }

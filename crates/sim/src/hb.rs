@@ -98,6 +98,18 @@ pub enum HbStatus {
     },
 }
 
+/// For messages: "converged in N iterations", "stopped at 90.0 % of the drive".
+impl std::fmt::Display for HbStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            HbStatus::Converged { iterations } => write!(f, "converged in {iterations} iterations"),
+            HbStatus::NotConverged { drive_fraction } => {
+                write!(f, "stopped at {:.1} % of the drive", 100.0 * drive_fraction)
+            }
+        }
+    }
+}
+
 /// A harmonic-balance steady state.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SteadyState {
@@ -251,16 +263,18 @@ impl HbSolver {
         let nm = model.n_modes();
         drive.check(nm)?;
         if nm > MAX_MODES {
-            return Err(SimError::Hb(format!(
-                "{nm} modes; at most {MAX_MODES} are supported"
-            )));
+            return Err(SimError::TooLarge {
+                what: "modes",
+                count: nm,
+                limit: MAX_MODES,
+                help: "split the model or keep the modes the measurement sees",
+            });
         }
         let nr = lattice.len();
         let mut degrees: Vec<usize> = model.terms().iter().map(|t| t.degree() as usize).collect();
         degrees.sort_unstable();
         degrees.dedup();
-        let plan = ProductPlan::for_degrees(&lattice, &lattice, &degrees)
-            .map_err(|e| SimError::Hb(format!("cannot plan the products: {e}")))?;
+        let plan = ProductPlan::for_degrees(&lattice, &lattice, &degrees)?;
         let terms: Vec<_> = model
             .terms()
             .iter()
@@ -272,8 +286,7 @@ impl HbSolver {
                 (t.eq, PowerProduct::from_exponents(&e), t.coef)
             })
             .collect();
-        let system = SystemPlan::new(plan, nm, nm, &terms)
-            .map_err(|e| SimError::Hb(format!("cannot plan the products: {e}")))?;
+        let system = SystemPlan::new(plan, nm, nm, &terms)?;
         let scratch = system.scratch();
         let mut lin = vec![Z; nm * nr];
         for n in 0..nm {
@@ -287,9 +300,7 @@ impl HbSolver {
         for (d, &f) in drive.tones_hz.iter().enumerate() {
             let i = lattice.partition_point(|&x| x < f - LINE_TOL_HZ);
             if lattice.get(i).is_none_or(|&x| (x - f).abs() > LINE_TOL_HZ) {
-                return Err(SimError::Hb(format!(
-                    "drive tone {f} Hz is not on the lattice"
-                )));
+                return Err(SimError::NotOnLattice { hz: f });
             }
             for n in 0..nm {
                 force[n * nr + i] += drive.force[n][d];
@@ -431,13 +442,9 @@ impl HbSolver {
             -if i % 2 == 0 { z.re } else { z.im }
         });
         if a.col_iter().any(|col| col.iter().any(|v| !v.is_finite())) {
-            return Err(SimError::Hb(
-                "the steady state has non-finite amplitudes; no stability verdict".into(),
-            ));
+            return Err(SimError::NonFiniteState);
         }
-        let eig = a
-            .eigenvalues()
-            .map_err(|e| SimError::Hb(format!("eigenvalues of the slow flow: {e:?}")))?;
+        let eig = a.eigenvalues().map_err(|_| SimError::NoEigenvalues)?;
         let growth = eig.iter().map(|z| z.re).fold(f64::NEG_INFINITY, f64::max);
         let decay = (0..nm)
             .map(|n| 0.5 * self.model.gamma(n))
@@ -462,9 +469,7 @@ impl HbSolver {
                 .zip(&self.lattice)
                 .any(|(a, b)| (a - b).abs() > LINE_TOL_HZ)
         {
-            return Err(SimError::Shape(
-                "the steady state was not solved on this lattice".into(),
-            ));
+            return Err(SimError::OtherLattice);
         }
         for n in 0..nm {
             self.x[n * nr..(n + 1) * nr].copy_from_slice(&state.amplitudes[n]);
@@ -479,9 +484,7 @@ impl HbSolver {
         self.load_state(state)?;
         self.have_lu = false;
         if !self.jacobian() {
-            return Err(SimError::Hb(
-                "the Jacobian of the harmonic-balance equations is singular at this steady state (a fold or a bifurcation): its sensitivities are unbounded".into(),
-            ));
+            return Err(SimError::SingularJacobian);
         }
         self.have_lu = true;
         self.fresh = true;
@@ -947,6 +950,15 @@ mod tests {
             }],
         )
         .expect("model")
+    }
+
+    #[test]
+    fn status_reads_as_words() {
+        let s = HbStatus::NotConverged {
+            drive_fraction: 0.8996,
+        };
+        assert_eq!(s.to_string(), "stopped at 90.0 % of the drive");
+        assert!(!s.to_string().contains('{'));
     }
 
     #[test]

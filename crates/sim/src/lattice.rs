@@ -97,10 +97,12 @@ pub fn choose_lattice(
         }
     });
     if err {
-        return Err(SimError::Hb(format!(
-            "order {} with {nd} tones gives more than {MAX_CANDIDATES} combinations; use a lower order",
-            s.order
-        )));
+        return Err(SimError::TooLarge {
+            what: "combination frequencies of the lattice",
+            count: MAX_CANDIDATES + 1,
+            limit: MAX_CANDIDATES,
+            help: "use a lower order or fewer tones",
+        });
     }
     if dc {
         out.push(0.0);

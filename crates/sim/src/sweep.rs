@@ -456,7 +456,7 @@ pub fn sweep(
         }
     }
     if !ok {
-        return Err(SimError::Hb(format!("Newton did not converge at the start frequency {f0} Hz; start the sweep further from resonance or lower the drive")));
+        return Err(SimError::NoStart { f_hz: f0 });
     }
     // Scaled variables z = (u / a_s, (w − w0)/w_s); tangent from [J_u  J_w] t = 0.
     let mut tangent = vec![0.0; na];
@@ -626,7 +626,17 @@ pub fn backbone(
 ) -> Result<Vec<Option<f64>>, SimError> {
     let nm = model.n_modes();
     if n >= nm {
-        return Err(SimError::Shape(format!("mode index {n} out of range")));
+        return Err(SimError::ModeIndex {
+            index: n,
+            n_modes: nm,
+        });
+    }
+    if harmonics == 0 || harmonics > MAX_SWEEP_HARMONICS {
+        return Err(SimError::BadValue {
+            what: "highest harmonic".into(),
+            value: harmonics as f64,
+            why: format!("give between 1 and {MAX_SWEEP_HARMONICS}"),
+        });
     }
     let zero = vec![Complex64::new(0.0, 0.0); nm];
     let mut aft = Aft::new(model, &zero, harmonics);
@@ -636,7 +646,11 @@ pub fn backbone(
         .harm
         .iter()
         .position(|&h| h == 1)
-        .ok_or_else(|| SimError::Hb("no fundamental harmonic".into()))?;
+        .ok_or(SimError::BadValue {
+            what: "highest harmonic".into(),
+            value: harmonics as f64,
+            why: "the fundamental must be kept".into(),
+        })?;
     let k_re = 2 * (n * nh + i1);
     let k_im = k_re + 1; // this unknown is replaced by ω
     let mut u = vec![0.0; nu];

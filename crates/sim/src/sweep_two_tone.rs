@@ -178,9 +178,7 @@ impl Problem<'_> {
         }
         let lattice: Vec<f64> = order.iter().map(|&i| f[i]).collect();
         if lattice[0] <= LINE_TOL_HZ || lattice.windows(2).any(|w| w[1] - w[0] <= LINE_TOL_HZ) {
-            return Err(SimError::Hb(format!(
-                "at centre {c} Hz two lattice lines coincide (or one reaches DC); move the extra tones off the swept combinations or lower the order"
-            )));
+            return Err(SimError::CoincidentLines { centre_hz: c });
         }
         let mut tones = vec![c - 0.5 * set.spacing_hz, c + 0.5 * set.spacing_hz];
         tones.extend_from_slice(&set.extra_tones_hz);
