@@ -161,28 +161,14 @@ fn sweep_refuses_bad_numbers_naming_them() {
     );
     let (ok, text) = sweep(&["--from", "207000", "--to", "0", "--force", "q1=1"]);
     assert!(!ok && text.contains("stop frequency"), "{text}");
-    let (ok, text) = sweep(&[
-        "--from",
-        "207000",
-        "--to",
-        "208500",
-        "--force",
-        "q1=1",
-        "--points",
-        "100000000",
-    ]);
-    assert!(!ok && text.contains("number of sweep points"), "{text}");
-    let (ok, text) = sweep(&[
-        "--from",
-        "207000",
-        "--to",
-        "208500",
-        "--force",
-        "q1=1",
-        "--harmonics",
-        "1000",
-    ]);
-    assert!(!ok && text.contains("highest harmonic"), "{text}");
+    for (option, value, words) in [
+        ("--points", "100000000", "number of sweep points"),
+        ("--harmonics", "1000", "highest harmonic"),
+    ] {
+        let range = ["--from", "207000", "--to", "208500", "--force", "q1=1"];
+        let (ok, text) = sweep(&[&range[..], &[option, value]].concat());
+        assert!(!ok && text.contains(words), "{option} {value}: {text}");
+    }
 }
 
 #[test]
