@@ -12,7 +12,7 @@ use std::path::PathBuf;
 pub struct Args {
     /// The model file (`*.hb`), e.g. examples/nanostring_2mode/model.hb.
     pub model: PathBuf,
-    /// The dataset folder (with dataset.toml; layout in DATA_FORMAT.md).
+    /// The dataset folder (with dataset.toml; layout in docs/data-format.md).
     pub dataset: PathBuf,
     /// Where to write the result (JSON, `harmonid-result/1`); written atomically.
     #[arg(long)]

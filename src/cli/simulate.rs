@@ -1,5 +1,5 @@
 //! `harmonid simulate MODEL --values V --plan P --out DIR`: simulate measurements and write a
-//! dataset folder (DATA_FORMAT layout, with truth.toml). The work is
+//! dataset folder (the layout of docs/data-format.md, with truth.toml). The work is
 //! [`harmonid_experiment::Plan::simulate`]; this file parses arguments and prints.
 
 use harmonid_experiment::{self as experiment, Engine, Plan, Settings, TimeDomain, Truncation};
