@@ -129,31 +129,33 @@ fn slug(heading: &str) -> String {
         .collect()
 }
 
-fn anchors(markdown: &str) -> Vec<String> {
+/// The lines of a markdown text outside fenced code blocks.
+fn prose_lines(markdown: &str) -> Vec<&str> {
     let mut in_code = false;
-    let mut v = Vec::new();
-    for l in markdown.lines() {
-        if l.starts_with("```") {
-            in_code = !in_code;
-        } else if !in_code && l.starts_with('#') {
-            v.push(slug(l.trim_start_matches('#')));
-        }
-    }
-    v
+    markdown
+        .lines()
+        .filter(|l| {
+            if l.starts_with("```") {
+                in_code = !in_code;
+                return false;
+            }
+            !in_code
+        })
+        .collect()
+}
+
+fn anchors(markdown: &str) -> Vec<String> {
+    prose_lines(markdown)
+        .into_iter()
+        .filter(|l| l.starts_with('#'))
+        .map(|l| slug(l.trim_start_matches('#')))
+        .collect()
 }
 
 /// Every `](target)` of a markdown text, outside fenced code.
 fn links(markdown: &str) -> Vec<String> {
-    let mut in_code = false;
     let mut v = Vec::new();
-    for l in markdown.lines() {
-        if l.starts_with("```") {
-            in_code = !in_code;
-            continue;
-        }
-        if in_code {
-            continue;
-        }
+    for l in prose_lines(markdown) {
         let mut rest = l;
         while let Some(i) = rest.find("](") {
             let tail = &rest[i + 2..];
