@@ -1,0 +1,151 @@
+//! Figures of harmonid as SVG and PNG, in one shared style.
+//!
+//! Every figure is a plain data struct that implements [`Figure`]; [`to_svg`] renders it to an
+//! SVG string and [`save`] writes it as `.svg` or `.png` (chosen by the extension). The style
+//! (fonts, palette, axes) lives in [`style`], so a new figure is a short `draw` function:
+//!
+//! - [`Spectrum`]: a measured multi-tone spectrum, log |X| against frequency, each line marked as
+//!   drive tone, sideband or mixing product with its combination, the harmonic-balance
+//!   reconstruction overlaid and the residuals below (the method's Fig. 1b–c);
+//! - [`Histogram`]: per-shot estimates with the normal fit, outliers, value ± stderr and the
+//!   truth (Fig. 3c–f);
+//! - [`ResponseCurve`]: a frequency-response curve, stable solid, unstable dashed, jumps and
+//!   backbone (Fig. 3g);
+//! - [`NoiseStudy`]: estimates ± 3σ against the noise level (Fig. S3);
+//! - [`PotentialMatrix`]: pairwise 2-D maps of a potential (Fig. 5c).
+//!
+//! The bitmap backend draws text with DejaVu Sans compiled into the crate (no system fonts
+//! needed); SVG text names the `sans-serif` family and is drawn by the viewer.
+//!
+//! ```
+//! use harmonid_plot::{to_svg, Histogram};
+//! let h = Histogram {
+//!     name: "beta1".into(),
+//!     unit: "1/(m² s²)".into(),
+//!     values: vec![1.0, 1.1, 0.9, 1.05, 0.95, 3.0],
+//!     outliers: vec![5],
+//!     value: 1.0,
+//!     stderr: 0.03,
+//!     std: 0.07,
+//!     truth: Some(1.02),
+//! };
+//! let svg = to_svg(&h).unwrap();
+//! assert!(svg.starts_with("<svg") && svg.contains("beta1"));
+//! ```
+
+#![warn(missing_docs)]
+
+mod histogram;
+mod noise;
+mod potential;
+mod response;
+mod spectrum;
+pub mod style;
+
+/// The plotting library the figures are drawn with (for [`Figure`] implementations elsewhere).
+pub use plotters;
+
+pub use histogram::Histogram;
+pub use noise::{NoisePanel, NoiseStudy};
+pub use potential::{PotentialCell, PotentialMatrix};
+pub use response::{Branch, Jump, ResponseCurve};
+pub use spectrum::{LineKind, Spectrum, SpectrumLine};
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::path::{Path, PathBuf};
+
+/// Errors of rendering a figure.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PlotError {
+    /// The drawing backend failed.
+    #[error("cannot draw the figure: {0}")]
+    Draw(String),
+    /// The file extension is neither `.svg` nor `.png`.
+    #[error("{}: unknown figure format (use a .svg or .png file name)", path.display())]
+    Format {
+        /// The path given.
+        path: PathBuf,
+    },
+    /// The figure has nothing to draw.
+    #[error("the figure \"{what}\" has no data to draw")]
+    Empty {
+        /// Which figure.
+        what: String,
+    },
+    /// Writing the file failed.
+    #[error("cannot write {}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+}
+
+/// Turns a plotters error into a [`PlotError`].
+pub(crate) trait Drawn<T> {
+    fn drawn(self) -> Result<T, PlotError>;
+}
+
+impl<T, E: std::fmt::Display> Drawn<T> for Result<T, E> {
+    fn drawn(self) -> Result<T, PlotError> {
+        self.map_err(|e| PlotError::Draw(e.to_string()))
+    }
+}
+
+/// A figure: a size in pixels and a function that draws it on any plotters backend.
+pub trait Figure {
+    /// Width and height, px.
+    fn size(&self) -> (u32, u32);
+    /// Draws the figure on `root` (already filled white).
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), PlotError>;
+}
+
+/// Renders `fig` as an SVG document.
+pub fn to_svg(fig: &impl Figure) -> Result<String, PlotError> {
+    style::init();
+    let mut s = String::new();
+    {
+        let root = SVGBackend::with_string(&mut s, fig.size()).into_drawing_area();
+        root.fill(&WHITE).drawn()?;
+        fig.draw(&root)?;
+        root.present().drawn()?;
+    }
+    Ok(s)
+}
+
+/// Renders `fig` as a PNG file at `path`.
+pub fn to_png(fig: &impl Figure, path: &Path) -> Result<(), PlotError> {
+    style::init();
+    let root = BitMapBackend::new(path, fig.size()).into_drawing_area();
+    root.fill(&WHITE).drawn()?;
+    fig.draw(&root)?;
+    root.present().map_err(|e| PlotError::Io {
+        path: path.to_path_buf(),
+        source: std::io::Error::other(e.to_string()),
+    })
+}
+
+/// Writes `fig` to `path` as SVG or PNG, by the extension (`.svg`, `.png`).
+pub fn save(fig: &impl Figure, path: &Path) -> Result<(), PlotError> {
+    match path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .as_deref()
+    {
+        Some("svg") => {
+            let s = to_svg(fig)?;
+            std::fs::write(path, s).map_err(|source| PlotError::Io {
+                path: path.to_path_buf(),
+                source,
+            })
+        }
+        Some("png") => to_png(fig, path),
+        _ => Err(PlotError::Format {
+            path: path.to_path_buf(),
+        }),
+    }
+}

@@ -1,0 +1,298 @@
+//! Every figure renders from small hand-made data: SVG structure (element counts, texts) is
+//! snapshotted, not pixels; the PNGs go to the test's temporary folder for looking at.
+
+use harmonid_plot::*;
+use std::path::PathBuf;
+
+fn spectrum() -> Spectrum {
+    let mut lines = Vec::new();
+    let f1 = 207_582.0;
+    let f2 = 415_842.0;
+    // Two tones at f1 ± 10 Hz and their sidebands; one tone at f2 and its mixing products.
+    for (k, amp) in [
+        (-3i32, 2e-11),
+        (-1, 4e-9),
+        (1, 3e-9),
+        (3, 1.5e-11),
+        (5, 3e-13),
+        (-5, 4e-13),
+    ] {
+        let f = f1 + 10.0 * k as f64;
+        let kind = if k.abs() == 1 {
+            LineKind::Drive
+        } else {
+            LineKind::Sideband
+        };
+        let label = match k {
+            -1 => "fa".into(),
+            1 => "fb".into(),
+            _ => format!("{}fa{:+}fb", (1 - k) / 2, (k + 1) / 2),
+        };
+        lines.push(SpectrumLine {
+            f_hz: f,
+            measured: amp,
+            reconstructed: Some(amp * 1.05),
+            residual: Some(amp * 0.06),
+            kind,
+            label,
+        });
+    }
+    for (k, amp) in [(-2i32, 2e-12), (0, 5e-9), (2, 2.2e-12)] {
+        lines.push(SpectrumLine {
+            f_hz: f2 + 10.0 * k as f64,
+            measured: amp,
+            reconstructed: Some(amp * 0.97),
+            residual: Some(amp * 0.03 + 1e-14),
+            kind: if k == 0 {
+                LineKind::Drive
+            } else {
+                LineKind::Mixing
+            },
+            label: if k == 0 {
+                "fc".into()
+            } else {
+                format!("fc{:+}(fb−fa)", k / 2)
+            },
+        });
+    }
+    Spectrum {
+        title: "coupled_q1q2 at p0".into(),
+        unit: "m".into(),
+        lines,
+        noise_floor: Some(1e-13),
+    }
+}
+
+fn histogram() -> Histogram {
+    // Deterministic pseudo-normal values around 2.1e10.
+    let mut values: Vec<f64> = (0..30)
+        .map(|i| {
+            let u = ((i * 37 % 30) as f64 + 0.5) / 30.0 - 0.5;
+            2.1e10 * (1.0 + 0.02 * (u * 3.0))
+        })
+        .collect();
+    values.push(2.6e10);
+    Histogram {
+        name: "gamma12".into(),
+        unit: "1/(m² s²)".into(),
+        values,
+        outliers: vec![30],
+        value: 2.1e10,
+        stderr: 2.1e10 * 0.004,
+        std: 2.1e10 * 0.018,
+        truth: Some(2.12e10),
+    }
+}
+
+fn response() -> ResponseCurve {
+    // A hardening Duffing curve parametrised by amplitude (frequency as a function of a).
+    let (f0, g, bw, fa) = (1000.0f64, 4.0, 2.0, 1.0);
+    let mut f = Vec::new();
+    let mut a = Vec::new();
+    let mut st = Vec::new();
+    let n = 400;
+    for i in 0..n {
+        let amp = 0.02 + 1.4 * i as f64 / n as f64;
+        let fb = f0 + g * amp * amp;
+        let d2 = (fa / amp).powi(2) - bw * bw;
+        if d2 < 0.0 {
+            continue;
+        }
+        f.push(fb - d2.sqrt());
+        a.push(amp);
+        st.push(true);
+    }
+    for i in (0..n).rev() {
+        let amp = 0.02 + 1.4 * i as f64 / n as f64;
+        let fb = f0 + g * amp * amp;
+        let d2 = (fa / amp).powi(2) - bw * bw;
+        if d2 < 0.0 {
+            continue;
+        }
+        f.push(fb + d2.sqrt());
+        a.push(amp);
+        st.push(amp > 0.3 || amp < 0.25);
+    }
+    ResponseCurve {
+        title: "Duffing response".into(),
+        y_label: "|q1| at f (m)".into(),
+        branches: vec![Branch {
+            label: "q1".into(),
+            f_hz: f,
+            amp: a,
+            stable: st,
+        }],
+        jumps: vec![
+            Jump {
+                f_hz: 1004.0,
+                from: 0.9,
+                to: 0.2,
+                up: true,
+            },
+            Jump {
+                f_hz: 1001.0,
+                from: 0.25,
+                to: 0.6,
+                up: false,
+            },
+        ],
+        backbone: (0..50)
+            .map(|i| {
+                let amp = 1.4 * i as f64 / 50.0;
+                (f0 + g * amp * amp, amp)
+            })
+            .collect(),
+        measured: Vec::new(),
+    }
+}
+
+fn noise() -> NoiseStudy {
+    let levels: Vec<f64> = (0..6).map(|k| 10f64.powi(k - 3)).collect();
+    let panel = |name: &str, truth: f64| NoisePanel {
+        name: name.into(),
+        unit: "Hz".into(),
+        truth: Some(truth),
+        levels: levels.clone(),
+        estimates: levels
+            .iter()
+            .map(|l| {
+                (0..10)
+                    .map(|i| truth * (1.0 + 1e-3 * l * (i as f64 - 4.5)))
+                    .collect()
+            })
+            .collect(),
+    };
+    NoiseStudy {
+        title: "noise study".into(),
+        level_label: "noise σ (nm)".into(),
+        panels: vec![
+            panel("f1", 207_582.0),
+            panel("Q1", 5000.0),
+            panel("beta1", 3e9),
+            panel("gamma12", 2e10),
+        ],
+    }
+}
+
+fn potential() -> PotentialMatrix {
+    let modes = vec!["q1".to_string(), "q2".to_string(), "q3".to_string()];
+    let g = 15;
+    let cell = |a: f64| PotentialCell::Map {
+        n: g,
+        x: (-1.0, 1.0),
+        y: (-1.0, 1.0),
+        values: (0..g * g)
+            .map(|k| {
+                let (x, y) = ((k % g) as f64 / 7.0 - 1.0, (k / g) as f64 / 7.0 - 1.0);
+                0.25 * (x.powi(4) + y.powi(4)) + 0.5 * a * x * x * y * y
+            })
+            .collect(),
+    };
+    let curve = PotentialCell::Curve {
+        q: (0..21).map(|i| i as f64 / 10.0 - 1.0).collect(),
+        u: (0..21)
+            .map(|i| 0.25 * (i as f64 / 10.0 - 1.0).powi(4))
+            .collect(),
+    };
+    let cells = (0..3)
+        .map(|i| {
+            (0..3)
+                .map(|j| {
+                    if i == j {
+                        curve.clone()
+                    } else {
+                        cell(1.0 + (i + j) as f64)
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    PotentialMatrix {
+        title: "U_nl".into(),
+        modes,
+        cells,
+        note: "lower: identified · upper: truth".into(),
+    }
+}
+
+/// Counts of SVG elements and the texts, a structure that changes only when the figure does.
+fn structure(svg: &str) -> String {
+    let mut out = String::new();
+    for tag in [
+        "<rect",
+        "<circle",
+        "<polyline",
+        "<polygon",
+        "<line",
+        "<path",
+        "<text",
+    ] {
+        out += &format!("{tag}: {}\n", svg.matches(tag).count());
+    }
+    let mut texts: Vec<&str> = svg
+        .split("<text")
+        .skip(1)
+        .filter_map(|t| {
+            t.split_once('>')
+                .and_then(|(_, r)| r.split_once("</text>"))
+                .map(|(t, _)| t)
+        })
+        .collect();
+    texts.dedup();
+    out += &texts.join("\n");
+    out
+}
+
+fn out_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("figures")
+}
+
+fn check(name: &str, fig: &impl Figure) {
+    let svg = to_svg(fig).expect("renders");
+    assert!(svg.starts_with("<svg"), "{name}: not an SVG");
+    insta::assert_snapshot!(name, structure(&svg));
+    std::fs::create_dir_all(out_dir()).expect("temp dir");
+    save(fig, &out_dir().join(format!("{name}.png"))).expect("png");
+    let png = std::fs::read(out_dir().join(format!("{name}.png"))).expect("png written");
+    assert_eq!(&png[1..4], b"PNG");
+}
+
+#[test]
+fn spectrum_renders() {
+    check("spectrum", &spectrum());
+}
+
+#[test]
+fn histogram_renders() {
+    check("histogram", &histogram());
+}
+
+#[test]
+fn response_renders() {
+    check("response", &response());
+}
+
+#[test]
+fn noise_renders() {
+    check("noise", &noise());
+}
+
+#[test]
+fn potential_renders() {
+    check("potential", &potential());
+}
+
+#[test]
+fn empty_figures_are_errors() {
+    let s = Spectrum {
+        title: "x".into(),
+        unit: "m".into(),
+        lines: vec![],
+        noise_floor: None,
+    };
+    assert!(matches!(to_svg(&s), Err(PlotError::Empty { .. })));
+    assert!(matches!(
+        save(&histogram(), std::path::Path::new("a.pdf")),
+        Err(PlotError::Format { .. })
+    ));
+}
