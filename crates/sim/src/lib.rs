@@ -50,7 +50,7 @@ pub use sweep::{
     MAX_SWEEP_HZ, MAX_SWEEP_POINTS,
 };
 pub use sweep_two_tone::{
-    sweep_two_tone, TwoToneCurve, TwoToneJump, TwoTonePoint, TwoToneSettings, TwoToneStatus,
-    TwoToneSweep,
+    sweep_two_tone, ModeLine, TwoToneCurve, TwoToneJump, TwoTonePoint, TwoToneSettings,
+    TwoToneStatus, TwoToneSweep,
 };
 pub use time_domain::{simulate_lockin, LockinResult, Start, TdSettings};

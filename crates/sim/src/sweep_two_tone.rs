@@ -76,8 +76,9 @@ impl Default for TwoToneSettings {
 pub struct TwoTonePoint {
     /// Centre of the pair, Hz.
     pub centre_hz: f64,
-    /// `amplitudes[n][l]`: complex amplitude (m, peak) of mode `n` at `centre_hz +
-    /// lines_offset_hz[l]`.
+    /// `amplitudes[n][l]`: complex amplitude (m, peak) of mode `n` at its own line
+    /// [`TwoToneSweep::mode_lines`]`[n][l]` (for a mode near the pair: `centre_hz +
+    /// lines_offset_hz[l]`).
     pub amplitudes: Vec<Vec<Complex64>>,
     /// Whether the steady state is stable (Hill's method, [`HbSolver::stability`]).
     pub stable: bool,
@@ -127,11 +128,36 @@ pub struct TwoToneCurve {
     pub status: TwoToneStatus,
 }
 
+/// A line a mode is reported at: `f = centre_factor · c + offset_hz` for the pair's centre `c`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModeLine {
+    /// Multiple of the centre (1 near the pair, 2 near its second harmonic, 0 for an extra tone).
+    pub centre_factor: f64,
+    /// Offset, Hz.
+    pub offset_hz: f64,
+    /// The combination of the low tone `fa`, the high tone `fb` and the extra tones `g1`, `g2`,
+    /// ... (ASCII, e.g. `2fa-fb`, `fa+fb`, `g1`), or `c+15Hz` for a reported offset that no
+    /// combination reaches.
+    pub label: String,
+}
+
+impl ModeLine {
+    /// The line's frequency at centre `c`, Hz.
+    pub fn hz(&self, centre_hz: f64) -> f64 {
+        self.centre_factor * centre_hz + self.offset_hz
+    }
+}
+
 /// Result of [`sweep_two_tone`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct TwoToneSweep {
-    /// The reported lines, offsets from the centre, Hz.
+    /// The reported lines of the modes near the pair, offsets from the centre, Hz.
     pub lines_offset_hz: Vec<f64>,
+    /// `mode_lines[n]`: the lines mode `n` is reported at, those of [`TwoToneSweep::points`]'
+    /// `amplitudes[n]`. A mode whose resonance the pair sweeps past gets `lines_offset_hz`; any
+    /// other mode gets the lattice lines that come near its own resonance in the range (the
+    /// mixing products that reach it), lowest intermodulation orders first.
+    pub mode_lines: Vec<Vec<ModeLine>>,
     /// Number of lattice lines (the same at every centre).
     pub lattice_lines: usize,
     /// Increasing centre.
@@ -140,19 +166,64 @@ pub struct TwoToneSweep {
     pub down: TwoToneCurve,
 }
 
-/// A lattice line: `f(c) = s·c + off`.
-#[derive(Debug, Clone, Copy)]
+/// A lattice line: `f(c) = s·c + off`, and the combination `(a, b, e_1, ...)` of the low tone,
+/// the high tone and the extra tones that makes it (empty for a reported offset no combination
+/// reaches).
+#[derive(Debug, Clone)]
 struct Line {
     s: f64,
     off: f64,
+    k: Vec<i64>,
+}
+
+impl Line {
+    fn order(&self) -> i64 {
+        if self.k.is_empty() {
+            i64::MAX
+        } else {
+            self.k.iter().map(|x| x.abs()).sum()
+        }
+    }
+
+    /// `2fa-fb`, `fa+g1`, ... (`c+15Hz` without a combination).
+    fn label(&self) -> String {
+        if self.k.is_empty() {
+            return format!("c{:+}Hz", self.off);
+        }
+        let mut out = String::new();
+        for (i, &k) in self.k.iter().enumerate() {
+            if k == 0 {
+                continue;
+            }
+            let name = match i {
+                0 => "fa".to_string(),
+                1 => "fb".to_string(),
+                j => format!("g{}", j - 1),
+            };
+            let sign = if k < 0 {
+                "-"
+            } else if out.is_empty() {
+                ""
+            } else {
+                "+"
+            };
+            let mag = if k.abs() == 1 {
+                String::new()
+            } else {
+                k.abs().to_string()
+            };
+            out += &format!("{sign}{mag}{name}");
+        }
+        out
+    }
 }
 
 struct Problem<'a> {
     model: &'a NumericModel,
     set: &'a TwoToneSettings,
     lines: Vec<Line>,
-    /// Lattice index of each reported line.
-    report: Vec<usize>,
+    /// `report[n]`: lattice index of each reported line of mode `n`.
+    report: Vec<Vec<usize>>,
 }
 
 /// A solved point in line order: `x[n][i]` at line `i`.
@@ -289,7 +360,8 @@ impl Problem<'_> {
             amplitudes: s
                 .x
                 .iter()
-                .map(|row| self.report.iter().map(|&i| row[i]).collect())
+                .zip(&self.report)
+                .map(|(row, rep)| rep.iter().map(|&i| row[i]).collect())
                 .collect(),
             stable: s.stable,
             growth_rate: s.growth,
@@ -440,10 +512,29 @@ fn choose_lines(model: &NumericModel, set: &TwoToneSettings, offsets: &[f64]) ->
     let odd_only = model.terms().iter().all(|t| t.degree() % 2 == 1);
     let dmax = model.max_degree().max(1) as i64;
     let half = 0.5 * set.spacing_hz;
-    let mut lines = vec![Line { s: 1.0, off: -half }, Line { s: 1.0, off: half }];
-    lines.extend(set.extra_tones_hz.iter().map(|&g| Line { s: 0.0, off: g }));
-    lines.extend(offsets.iter().map(|&o| Line { s: 1.0, off: o }));
     let nd = 2 + set.extra_tones_hz.len();
+    let unit = |d: usize| {
+        let mut k = vec![0i64; nd];
+        k[d] = 1;
+        k
+    };
+    let mut lines = vec![
+        Line {
+            s: 1.0,
+            off: -half,
+            k: unit(0),
+        },
+        Line {
+            s: 1.0,
+            off: half,
+            k: unit(1),
+        },
+    ];
+    lines.extend(set.extra_tones_hz.iter().enumerate().map(|(j, &g)| Line {
+        s: 0.0,
+        off: g,
+        k: unit(2 + j),
+    }));
     let order = set.hb.lattice.order as i64;
     let w = set.hb.lattice.window_rel;
     let mut k = vec![0i64; nd];
@@ -469,20 +560,106 @@ fn choose_lines(model: &NumericModel, set: &TwoToneSettings, offsets: &[f64]) ->
             .iter()
             .any(|&fnn| fmax >= fnn * (1.0 - w) && fmin <= fnn * (1.0 + w));
         if near || (set.hb.lattice.harmonics && ord <= dmax) {
-            lines.push(Line { s, off });
+            lines.push(Line {
+                s,
+                off,
+                k: k.to_vec(),
+            });
         }
     });
+    // Reported offsets no combination reaches are kept as lines of their own.
+    lines.extend(offsets.iter().map(|&o| Line {
+        s: 1.0,
+        off: o,
+        k: Vec::new(),
+    }));
+    // One line per frequency, made by its lowest-order combination.
     let mut out: Vec<Line> = Vec::with_capacity(lines.len());
     for l in lines {
-        if !out
-            .iter()
-            .any(|m| m.s == l.s && (m.off - l.off).abs() <= LINE_TOL_HZ)
+        match out
+            .iter_mut()
+            .find(|m| m.s == l.s && (m.off - l.off).abs() <= LINE_TOL_HZ)
         {
-            out.push(l);
+            Some(m) if l.order() < m.order() => *m = l,
+            Some(_) => {}
+            None => out.push(l),
         }
     }
     out
 }
+
+/// The lines each mode is reported at (see [`TwoToneSweep::mode_lines`]): lattice indices.
+/// A mode is near the pair when its resonance lies within `window_rel · f_n` of a tone somewhere
+/// in the range; otherwise its lines are the lattice lines within `window_rel · f_n` of `f_n`
+/// somewhere in the range, sorted by order and offset, at most [`MAX_MODE_LINES`].
+fn mode_lines(
+    model: &NumericModel,
+    set: &TwoToneSettings,
+    lines: &[Line],
+    offsets: &[f64],
+) -> Vec<Vec<usize>> {
+    let (lo, hi) = (
+        set.c_start_hz.min(set.c_end_hz),
+        set.c_start_hz.max(set.c_end_hz),
+    );
+    let half = 0.5 * set.spacing_hz;
+    let w = set.hb.lattice.window_rel;
+    let reach = |l: &Line, f_n: f64| {
+        let (f0, f1) = (l.s * lo + l.off, l.s * hi + l.off);
+        f0.max(f1) >= f_n * (1.0 - w) && f0.min(f1) <= f_n * (1.0 + w)
+    };
+    model
+        .f_hz
+        .iter()
+        .map(|&f_n| {
+            let near_pair = reach(
+                &Line {
+                    s: 1.0,
+                    off: -half,
+                    k: Vec::new(),
+                },
+                f_n,
+            ) || reach(
+                &Line {
+                    s: 1.0,
+                    off: half,
+                    k: Vec::new(),
+                },
+                f_n,
+            );
+            if near_pair {
+                return offsets
+                    .iter()
+                    .map(|&o| {
+                        lines
+                            .iter()
+                            .position(|l| l.s == 1.0 && (l.off - o).abs() <= LINE_TOL_HZ)
+                            .unwrap_or(0)
+                    })
+                    .collect();
+            }
+            let mut own: Vec<usize> = (0..lines.len())
+                .filter(|&i| !lines[i].k.is_empty() && reach(&lines[i], f_n))
+                .collect();
+            own.sort_by(|&a, &b| {
+                let (la, lb) = (&lines[a], &lines[b]);
+                la.order()
+                    .cmp(&lb.order())
+                    .then(la.s.total_cmp(&lb.s))
+                    .then(la.off.total_cmp(&lb.off))
+            });
+            own.truncate(MAX_MODE_LINES);
+            own.sort_by(|&a, &b| {
+                let (la, lb) = (&lines[a], &lines[b]);
+                la.s.total_cmp(&lb.s).then(la.off.total_cmp(&lb.off))
+            });
+            own
+        })
+        .collect()
+}
+
+/// Most lines reported for a mode away from the pair.
+pub const MAX_MODE_LINES: usize = 6;
 
 /// Sweeps the centre of a tone pair up and down (see the module docs). Errors: bad settings
 /// (non-finite or non-positive range/spacing, force shapes), lattice set-up failures. Newton and
@@ -556,13 +733,17 @@ pub fn sweep_two_tone(
         return Err(bad("a reported line offset", o, "must be finite"));
     }
     let lines = choose_lines(model, settings, &offsets);
-    let report = offsets
+    let report = mode_lines(model, settings, &lines, &offsets);
+    let described = report
         .iter()
-        .map(|&o| {
-            lines
-                .iter()
-                .position(|l| l.s == 1.0 && (l.off - o).abs() <= LINE_TOL_HZ)
-                .unwrap_or(0)
+        .map(|rep| {
+            rep.iter()
+                .map(|&i| ModeLine {
+                    centre_factor: lines[i].s,
+                    offset_hz: lines[i].off,
+                    label: lines[i].label(),
+                })
+                .collect()
         })
         .collect();
     let p = Problem {
@@ -575,8 +756,97 @@ pub fn sweep_two_tone(
     let down = p.sweep(false)?;
     Ok(TwoToneSweep {
         lines_offset_hz: offsets,
+        mode_lines: described,
         lattice_lines: p.lines.len(),
         up,
         down,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{linear_response, Term};
+    use std::f64::consts::TAU;
+
+    /// Mode 2 near twice mode 1, driven through `c·q1²` in its equation: swept around mode 1,
+    /// mode 2 is reported at its own lines 2fa, fa+fb, 2fb, and at weak drive its amplitude there
+    /// is the closed form `−c·X_a·X_b·(½ if a = b) / (ω2² − ω² + iγ2·ω)` with `X` mode 1's
+    /// linear response.
+    #[test]
+    fn a_mode_at_twice_the_frequency_is_reported_at_its_own_lines() {
+        let (f1, f2, q1, q2, c) = (1000.0, 2010.0, 200.0, 300.0, 1.0e9);
+        let model = NumericModel::new(
+            vec!["q1".into(), "q2".into()],
+            vec![f1, f2],
+            vec![q1, q2],
+            vec![Term {
+                eq: 1,
+                coef: c,
+                factors: vec![(0, 2)],
+            }],
+        )
+        .expect("model");
+        let force = 1e-3;
+        let set = TwoToneSettings {
+            c_start_hz: 995.0,
+            c_end_hz: 1005.0,
+            spacing_hz: 2.0,
+            force_low: vec![Complex64::new(force, 0.0), Complex64::new(0.0, 0.0)],
+            force_high: vec![Complex64::new(force, 0.0), Complex64::new(0.0, 0.0)],
+            points: 10,
+            ..TwoToneSettings::default()
+        };
+        let r = sweep_two_tone(&model, &set).expect("sweep");
+        assert_eq!(r.up.status, TwoToneStatus::Complete);
+        let labels: Vec<&str> = r.mode_lines[1].iter().map(|l| l.label.as_str()).collect();
+        for want in ["2fa", "fa+fb", "2fb"] {
+            assert!(
+                labels.contains(&want),
+                "mode 2's lines {labels:?} miss {want}"
+            );
+        }
+        // Mode 1 keeps the pair's lines.
+        assert_eq!(r.mode_lines[0].len(), r.lines_offset_hz.len());
+        assert_eq!(r.mode_lines[0][1].label, "fa");
+        let (w1, g1) = (TAU * f1, TAU * f1 / q1);
+        let (w2, g2) = (TAU * f2, TAU * f2 / q2);
+        let mut worst: f64 = 0.0;
+        for p in &r.up.points {
+            let c0 = p.centre_hz;
+            let xa = linear_response(w1, g1, c0 - 1.0, Complex64::new(force, 0.0));
+            let xb = linear_response(w1, g1, c0 + 1.0, Complex64::new(force, 0.0));
+            for (l, line) in r.mode_lines[1].iter().enumerate() {
+                let prod = match line.label.as_str() {
+                    "2fa" => 0.5 * xa * xa,
+                    "fa+fb" => xa * xb,
+                    "2fb" => 0.5 * xb * xb,
+                    _ => continue,
+                };
+                let want = linear_response(w2, g2, line.hz(c0), -c * prod);
+                let got = p.amplitudes[1][l];
+                worst = worst.max((got - want).norm() / want.norm());
+            }
+        }
+        assert!(
+            worst < 1e-3,
+            "worst relative deviation from the closed form {worst:.2e}"
+        );
+    }
+
+    #[test]
+    fn labels_name_the_combination() {
+        let l = Line {
+            s: 1.0,
+            off: -15.0,
+            k: vec![2, -1, 0],
+        };
+        assert_eq!(l.label(), "2fa-fb");
+        let l = Line {
+            s: 0.0,
+            off: 5.0,
+            k: vec![1, -1, 1],
+        };
+        assert_eq!(l.label(), "fa-fb+g1");
+    }
 }
