@@ -26,6 +26,8 @@ enum Command {
     Sweep(cli::sweep::Args),
     /// Robustness of the identification to measurement noise (Supplementary Note V).
     NoiseStudy(cli::noise_study::Args),
+    /// Write an HTML report with every figure of an identification.
+    Report(cli::report::Args),
 }
 
 fn main() -> miette::Result<()> {
@@ -37,5 +39,6 @@ fn main() -> miette::Result<()> {
         Command::Simulate(args) => cli::simulate::run(args),
         Command::Sweep(args) => cli::sweep::run(args),
         Command::NoiseStudy(args) => cli::noise_study::run(args),
+        Command::Report(args) => cli::report::run(args),
     }
 }

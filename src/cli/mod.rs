@@ -5,5 +5,6 @@ pub mod common;
 pub mod identify;
 pub mod mix;
 pub mod noise_study;
+pub mod report;
 pub mod simulate;
 pub mod sweep;

@@ -37,14 +37,60 @@ pub struct Args {
     #[arg(long, default_value_t = 3)]
     pub harmonics: usize,
     /// Two-tone mode: sweep the centre of a tone pair `c ± SPACING_HZ/2` from `--from` to `--to`
-    /// (each `--force` then applies to each tone), up and down, with continuation; CSV columns
-    /// `direction, centre_hz`, |X| and phase of each mode at `c − 3Δ/2, c − Δ/2, c + Δ/2,
-    /// c + 3Δ/2`, `stable`.
+    /// (each `--force` then applies to each tone `fa`, `fb`), up and down, with continuation; CSV
+    /// columns `direction, centre_hz`, |X| and phase of each mode at its own lines, `stable`: a
+    /// mode near the pair at `2fa-fb, fa, fb, 2fb-fa`, any other mode at the mixing products
+    /// that reach its resonance (e.g. `2fa`, `fa+fb`, `2fb`).
     #[arg(long = "two-tone", value_name = "SPACING_HZ")]
     pub two_tone: Option<f64>,
     /// Output CSV (stdout when absent).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Also draw the response curve of the most strongly driven mode (stable solid, unstable
+    /// dashed, jumps, backbone) to this file, `.svg` or `.png`.
+    #[arg(long, value_name = "FILE.svg|png")]
+    pub plot: Option<PathBuf>,
+}
+
+/// A spinner with the elapsed time on stderr while a long computation runs (hidden when stderr
+/// is not a terminal).
+pub(crate) fn spinner(what: &str) -> indicatif::ProgressBar {
+    let pb = indicatif::ProgressBar::new_spinner();
+    pb.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} {msg} {elapsed}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
+    );
+    pb.set_message(what.to_string());
+    pb.enable_steady_tick(std::time::Duration::from_millis(120));
+    pb
+}
+
+/// Draws `fig` to `path` (atomically: a temporary file renamed into place).
+fn plot(fig: &harmonid_plot::ResponseCurve, path: &std::path::Path) -> miette::Result<()> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default();
+    if ext != "svg" && ext != "png" {
+        return Err(miette!(
+            "--plot {}: use a .svg or .png file name",
+            path.display()
+        ));
+    }
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => std::path::Path::new("."),
+    };
+    let tmp = tempfile::Builder::new()
+        .suffix(&format!(".{ext}"))
+        .tempfile_in(dir)
+        .into_diagnostic()?;
+    harmonid_plot::save(fig, tmp.path()).map_err(|e| miette!("{e}"))?;
+    tmp.persist(path)
+        .map_err(|e| miette!("cannot write {}: {}", path.display(), e.error))?;
+    eprintln!("wrote {}", path.display());
+    Ok(())
 }
 
 /// Runs the subcommand.
@@ -86,7 +132,10 @@ pub fn run(args: Args) -> miette::Result<()> {
     // The curve is kept only once the highest harmonic kept is small: otherwise its amplitudes
     // and stability verdicts depend on the truncation. Raise the harmonics until it is.
     let r = loop {
-        let r = sim::sweep(&model, &force, &s).into_diagnostic()?;
+        let pb = spinner("sweeping");
+        let r = sim::sweep(&model, &force, &s);
+        pb.finish_and_clear();
+        let r = r.into_diagnostic()?;
         let (ratio, at_hz, h) = r.truncation();
         if ratio <= TRUNCATION_TOL {
             break r;
@@ -104,6 +153,10 @@ pub fn run(args: Args) -> miette::Result<()> {
         );
         s.harmonics = next;
     };
+    if let Some(path) = &args.plot {
+        let n = harmonid_report::curves::driven_mode(&force);
+        plot(&harmonid_report::curves::sweep_curve(&model, &r, n), path)?;
+    }
     let mut csv = String::from("f_hz,stable");
     for n in &model.mode_names {
         for &h in &r.harmonics {
@@ -161,16 +214,24 @@ fn two_tone(
         c_end_hz: args.to,
         spacing_hz: spacing,
         force_low: force.clone(),
-        force_high: force,
+        force_high: force.clone(),
         points: args.points,
         ..sim::TwoToneSettings::default()
     };
-    let r = sim::sweep_two_tone(model, &s).into_diagnostic()?;
-    let labels = ["lsb", "lo", "hi", "usb"];
+    let pb = spinner("two-tone sweep");
+    let r = sim::sweep_two_tone(model, &s);
+    pb.finish_and_clear();
+    let r = r.into_diagnostic()?;
+    if let Some(path) = &args.plot {
+        let n = harmonid_report::curves::driven_mode(&force);
+        plot(&harmonid_report::curves::two_tone_curve(model, &r, n), path)?;
+    }
+    // Each mode at its own lines: the pair's tones and sidebands for a mode near the pair, the
+    // mixing products that reach it for any other mode.
     let mut csv = String::from("direction,centre_hz");
-    for n in &model.mode_names {
-        for l in labels {
-            let _ = write!(csv, ",{n}_{l}_abs,{n}_{l}_phase_rad");
+    for (n, lines) in model.mode_names.iter().zip(&r.mode_lines) {
+        for l in lines {
+            let _ = write!(csv, ",{n}_{}_abs,{n}_{}_phase_rad", l.label, l.label);
         }
     }
     csv.push_str(",stable\n");

@@ -1,0 +1,255 @@
+//! The HTML page: one file, figures inline as SVG, a small style sheet, no script and no
+//! network.
+
+use crate::result::{EstimateView, FitView, ResultView};
+use crate::PageFigure;
+use harmonid_ident::{Dataset, Truth};
+use harmonid_model::Model;
+use harmonid_plot::style::num;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// What the page shows.
+pub struct PageInputs<'a> {
+    pub model_path: &'a Path,
+    pub model: &'a Model,
+    pub ds: &'a Dataset,
+    pub result: &'a ResultView,
+    pub result_from: Option<&'a Path>,
+    pub truth: Option<&'a Truth>,
+    pub figures: &'a [PageFigure],
+    pub warnings: &'a [String],
+}
+
+/// Escapes text for HTML.
+pub fn esc(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+const CSS: &str = "body{font-family:'DejaVu Sans',Helvetica,Arial,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#111;line-height:1.4}
+h1{font-size:1.6em}h2{border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:2em}
+table{border-collapse:collapse;font-size:.9em}td,th{border:1px solid #ccc;padding:.25em .6em;text-align:right}
+th{background:#f2f2f2}td.l,th.l{text-align:left}tr.bad td{background:#fde8df}
+figure{margin:1.5em 0}figure svg{max-width:100%;height:auto;border:1px solid #eee}
+figcaption{font-size:.9em;color:#333;max-width:60em}pre{background:#f7f7f7;padding:.8em;overflow-x:auto}
+.warn{background:#fff4d6;border-left:4px solid #e69f00;padding:.5em 1em}nav a{margin-right:1em}";
+
+/// The stage and condition number of the fit that identified `unknown` (its name as the fit
+/// lists it, e.g. `beta1` or `of q1` for a mode's linear parameters).
+fn fit_of<'a>(fits: &'a [FitView], unknown: &str) -> Option<&'a FitView> {
+    fits.iter().find(|f| {
+        f.unknowns
+            .iter()
+            .any(|u| u == unknown || (unknown.starts_with("of ") && u.ends_with(unknown)))
+    })
+}
+
+fn row(
+    out: &mut String,
+    name: &str,
+    unit: &str,
+    e: &EstimateView,
+    bound: &str,
+    fit: Option<&FitView>,
+    truth: Option<f64>,
+    extra_keys: &[String],
+) {
+    let cls = if e.identifiable { "" } else { " class=\"bad\"" };
+    let _ = write!(
+        out,
+        "<tr{cls}><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td class=\"l\">{}</td><td>{}</td><td class=\"l\">{}</td><td>{}</td><td>{}</td>",
+        esc(name),
+        num(e.value, 8),
+        num(e.stderr, 2),
+        num(e.std, 2),
+        esc(unit),
+        esc(bound),
+        if e.identifiable {
+            "yes".to_string()
+        } else {
+            format!("no: {}", esc(e.reason.as_deref().unwrap_or("")))
+        },
+        fit.map_or("–".into(), |f| format!("{} ({})", f.stage, esc(&f.measurements.join(", ")))),
+        fit.map_or("–".into(), |f| num(f.condition_number, 3)),
+        truth.map_or("–".into(), |t| num(t, 8)),
+    );
+    for k in extra_keys {
+        let v = e.extra.get(k).and_then(|v| v.as_f64());
+        let _ = write!(out, "<td>{}</td>", v.map_or("–".into(), |v| num(v, 3)));
+    }
+    out.push_str("</tr>\n");
+}
+
+/// The page.
+pub fn page(p: &PageInputs) -> String {
+    let r = p.result;
+    let mut s = String::with_capacity(1 << 20);
+    let title = format!("harmonid report: {}", p.model_path.display());
+    let _ = write!(
+        s,
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{}</title><style>{CSS}</style></head><body>\n<h1>{}</h1>\n",
+        esc(&title),
+        esc(&title)
+    );
+    let _ = write!(
+        s,
+        "<p>Dataset <code>{}</code> ({}), {} shot(s), {} measurement(s); force model: {}. {}</p>\n",
+        esc(&p.ds.dir.display().to_string()),
+        esc(&p.ds.manifest.description),
+        r.shots,
+        p.ds.measurements.len(),
+        esc(&r.force_model),
+        match p.result_from {
+            Some(f) => format!("Values from the result <code>{}</code>.", esc(&f.display().to_string())),
+            None => "Identified by this report with the default settings of <code>harmonid identify</code>.".into(),
+        }
+    );
+    s.push_str("<nav><a href=\"#parameters\">parameters</a><a href=\"#equations\">equations</a><a href=\"#spectra\">spectra</a><a href=\"#histograms\">histograms</a>");
+    if p.figures.iter().any(|f| f.stem == "potential") {
+        s.push_str("<a href=\"#potential\">potential</a>");
+    }
+    s.push_str("</nav>\n");
+    if !p.warnings.is_empty() {
+        s.push_str("<h2 id=\"warnings\">Warnings</h2>\n<div class=\"warn\"><ul>\n");
+        for w in p.warnings {
+            let _ = writeln!(s, "<li>{}</li>", esc(w));
+        }
+        s.push_str("</ul></div>\n");
+    }
+    // Parameter table.
+    let mut extra_keys: Vec<String> = r
+        .modes
+        .values()
+        .flat_map(|m| [&m.f_hz, &m.q])
+        .chain(r.parameters.values())
+        .flat_map(|e| {
+            e.extra
+                .iter()
+                .filter(|(_, v)| v.is_number())
+                .map(|(k, _)| k.clone())
+        })
+        .filter(|k| k != "single_shot_std")
+        .collect();
+    extra_keys.sort();
+    extra_keys.dedup();
+    s.push_str("<h2 id=\"parameters\">Parameters</h2>\n<table><tr><th class=\"l\">quantity</th><th>value</th><th>stderr</th><th>std (one shot)</th><th>unit</th><th class=\"l\">bound</th><th>identifiable</th><th class=\"l\">stage (measurements)</th><th>condition number</th><th>truth</th>");
+    for k in &extra_keys {
+        let _ = write!(s, "<th>{}</th>", esc(k));
+    }
+    s.push_str("</tr>\n");
+    for (n, m) in &r.modes {
+        let tm = p.truth.and_then(|t| t.modes.get(n));
+        let fit = fit_of(&r.fits, &format!("of {n}"));
+        row(
+            &mut s,
+            &format!("f_{n}"),
+            "Hz",
+            &m.f_hz,
+            "",
+            fit,
+            tm.map(|t| t.f_hz),
+            &extra_keys,
+        );
+        row(
+            &mut s,
+            &format!("Q_{n}"),
+            "",
+            &m.q,
+            "> 0",
+            fit,
+            tm.map(|t| t.q),
+            &extra_keys,
+        );
+    }
+    for (name, e) in &r.parameters {
+        let bound = p
+            .model
+            .params
+            .iter()
+            .find(|q| &q.name == name)
+            .map(|q| match (q.bounds.lower, q.bounds.upper) {
+                (Some(a), Some(b)) => format!("[{}, {}]", num(a, 3), num(b, 3)),
+                (Some(a), None) => format!("≥ {}", num(a, 3)),
+                (None, Some(b)) => format!("≤ {}", num(b, 3)),
+                (None, None) => String::new(),
+            })
+            .unwrap_or_default();
+        let truth = p.truth.and_then(|t| r.truth_of_param(name, t));
+        row(
+            &mut s,
+            name,
+            "",
+            e,
+            &bound,
+            fit_of(&r.fits, name),
+            truth,
+            &extra_keys,
+        );
+    }
+    s.push_str("</table>\n<p>value: median over shots; stderr: uncertainty of the value; std: spread of one shot after rejecting outliers by the interquartile rule; condition number of the column-equilibrated fit.</p>\n");
+    // Fits.
+    s.push_str("<h3>Fits</h3>\n<table><tr><th>stage</th><th class=\"l\">measurements</th><th>unknowns</th><th>condition number</th><th>relative residual</th></tr>\n");
+    for f in &r.fits {
+        let _ = writeln!(
+            s,
+            "<tr><td>{}</td><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            f.stage,
+            esc(&f.measurements.join(", ")),
+            f.unknowns.len(),
+            num(f.condition_number, 3),
+            num(f.relative_residual, 3)
+        );
+    }
+    s.push_str("</table>\n");
+    // Equations.
+    let _ = write!(
+        s,
+        "<h2 id=\"equations\">Equations of motion</h2>\n<pre>{}</pre>\n<h3>Identified coefficients</h3>\n<table><tr><th class=\"l\">equation</th><th class=\"l\">monomial</th><th>coefficient</th></tr>\n",
+        esc(&p.model.to_text())
+    );
+    for (mode, terms) in &r.eom {
+        for (mono, c) in terms {
+            let _ = writeln!(
+                s,
+                "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{}</td></tr>",
+                esc(mode),
+                esc(mono),
+                c.map_or("not identified".into(), |c| num(c, 6))
+            );
+        }
+    }
+    s.push_str("</table>\n");
+    let section = |s: &mut String, id: &str, title: &str, pick: &dyn Fn(&PageFigure) -> bool| {
+        let _ = writeln!(s, "<h2 id=\"{id}\">{title}</h2>");
+        for f in p.figures.iter().filter(|f| pick(f)) {
+            let _ = writeln!(
+                s,
+                "<figure id=\"fig-{}\">{}<figcaption>{} <a href=\"figures/{}.svg\">SVG</a> · <a href=\"figures/{}.png\">PNG</a></figcaption></figure>",
+                f.stem,
+                f.svg,
+                esc(&f.caption),
+                f.stem,
+                f.stem
+            );
+        }
+    };
+    section(
+        &mut s,
+        "spectra",
+        "Spectra and their reconstruction",
+        &|f| f.stem.starts_with("spectrum_"),
+    );
+    section(&mut s, "histograms", "Per-shot estimates", &|f| {
+        f.stem.starts_with("hist_")
+    });
+    if p.figures.iter().any(|f| f.stem == "potential") {
+        section(&mut s, "potential", "Potential matrix", &|f| {
+            f.stem == "potential"
+        });
+    }
+    s.push_str("<p><small>Written by harmonid report.</small></p>\n</body></html>\n");
+    s
+}

@@ -1,0 +1,356 @@
+//! `harmonid report`: one self-contained HTML page about an identification.
+//!
+//! [`build`] identifies the model from the dataset (or takes a result already written by
+//! `harmonid identify`), reconstructs every measured spectrum by harmonic balance from the
+//! identified model, and draws the figures of the method's paper with [`harmonid_plot`]:
+//! per measurement the measured spectrum with the reconstruction and the residuals; per
+//! identified quantity the histogram of per-shot estimates; the potential matrix when the
+//! model couples modes. [`Page::write`] writes `DIR/index.html` (figures inline as SVG, no
+//! network) and every figure as SVG and PNG in `DIR/figures/`, through a staging folder renamed
+//! into place, and never over a folder that is not a harmonid report.
+
+#![warn(missing_docs)]
+
+pub mod curves;
+mod html;
+mod output;
+pub mod potential;
+pub mod result;
+pub mod spectra;
+
+pub use output::MARKER;
+pub use result::ResultView;
+
+use harmonid_ident::{Dataset, Settings};
+use harmonid_model::Model;
+use harmonid_plot::{Figure, Histogram, PlotError, PotentialMatrix, Spectrum};
+use harmonid_sim::NumericModel;
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+
+/// Errors of building or writing a report.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ReportError {
+    /// The identification could not be set up.
+    #[error(transparent)]
+    Ident(#[from] harmonid_ident::IdentError),
+    /// The result file could not be read.
+    #[error("{}: not a harmonid result ({source}); write one with `harmonid identify MODEL DATASET --out r.json`", path.display())]
+    Result {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: serde_json::Error,
+    },
+    /// A figure could not be drawn.
+    #[error(transparent)]
+    Plot(#[from] PlotError),
+    /// The output folder exists and is not a harmonid report.
+    #[error("{} exists and is not a harmonid report (no {MARKER} in it); choose another --out or remove it yourself", path.display())]
+    Clobber {
+        /// The folder.
+        path: PathBuf,
+    },
+    /// Reading or writing a file failed.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file or folder.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+}
+
+/// Where the identified values come from.
+#[derive(Debug, Clone)]
+pub enum Source {
+    /// Identify now with these settings.
+    Identify(Settings),
+    /// A result JSON already written (its path, for the page).
+    Result(PathBuf, ResultView),
+}
+
+/// Any figure of the report.
+#[derive(Debug, Clone)]
+pub enum AnyFigure {
+    /// A spectrum.
+    Spectrum(Spectrum),
+    /// A histogram.
+    Histogram(Histogram),
+    /// The potential matrix.
+    Potential(PotentialMatrix),
+}
+
+impl Figure for AnyFigure {
+    fn size(&self) -> (u32, u32) {
+        match self {
+            AnyFigure::Spectrum(f) => f.size(),
+            AnyFigure::Histogram(f) => f.size(),
+            AnyFigure::Potential(f) => f.size(),
+        }
+    }
+
+    fn draw<DB: harmonid_plot::plotters::prelude::DrawingBackend>(
+        &self,
+        root: &harmonid_plot::plotters::prelude::DrawingArea<
+            DB,
+            harmonid_plot::plotters::coord::Shift,
+        >,
+    ) -> Result<(), PlotError> {
+        match self {
+            AnyFigure::Spectrum(f) => f.draw(root),
+            AnyFigure::Histogram(f) => f.draw(root),
+            AnyFigure::Potential(f) => f.draw(root),
+        }
+    }
+}
+
+/// One figure of the page: its file stem, caption, the figure and its SVG.
+#[derive(Debug, Clone)]
+pub struct PageFigure {
+    /// File stem in `figures/` (`spectrum_single_q1_p0`).
+    pub stem: String,
+    /// Caption.
+    pub caption: String,
+    /// The figure (for the PNG).
+    pub figure: AnyFigure,
+    /// The SVG, as inlined in the page.
+    pub svg: String,
+}
+
+/// A built report.
+#[derive(Debug, Clone)]
+pub struct Page {
+    /// The HTML page.
+    pub html: String,
+    /// Its figures.
+    pub figures: Vec<PageFigure>,
+    /// Warnings (also on the page).
+    pub warnings: Vec<String>,
+}
+
+/// A file-name-safe stem.
+fn stem(s: &str) -> String {
+    s.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+/// The largest measured modal amplitude of each mode (|median X| / shape near its resonance),
+/// the scale of the potential maps, m.
+fn amplitude_scale(ds: &Dataset, names: &[String], f_hz: &[f64]) -> Vec<f64> {
+    names
+        .iter()
+        .zip(f_hz)
+        .map(|(n, &fnn)| {
+            let mut a: f64 = 0.0;
+            for m in &ds.measurements {
+                for (fi, &f) in m.freqs_hz.iter().enumerate() {
+                    if (f - fnn).abs() > 0.01 * fnn {
+                        continue;
+                    }
+                    for (p, &pi) in m.points.iter().enumerate() {
+                        let shape = ds.manifest.points.get(pi).map_or(1.0, |pt| pt.shape_of(n));
+                        if shape.abs() > 1e-3 {
+                            a = a.max(m.amplitude(0, fi, p).norm() / shape.abs());
+                        }
+                    }
+                }
+            }
+            if a > 0.0 {
+                a
+            } else {
+                1e-9
+            }
+        })
+        .collect()
+}
+
+/// Builds the report of `model` (read from `model_path`) on `ds`.
+pub fn build(
+    model_path: &Path,
+    model: &Model,
+    ds: &Dataset,
+    source: Source,
+) -> Result<Page, ReportError> {
+    let (result, result_from) = match source {
+        Source::Identify(settings) => {
+            let prob = harmonid_ident::Problem::new(model, ds, &settings)?;
+            let fit = prob.fit(ds, &settings);
+            let rep =
+                harmonid_ident::Report::new(&model_path.display().to_string(), ds, &prob, &fit);
+            let view = ResultView::from_report(&rep).map_err(|source| ReportError::Result {
+                path: model_path.to_path_buf(),
+                source,
+            })?;
+            (view, None)
+        }
+        Source::Result(path, view) => (view, Some(path)),
+    };
+    let mut warnings = result.warnings.clone();
+    let names: Vec<String> = model.mode_names().iter().map(|s| s.to_string()).collect();
+    let identified = match NumericModel::from_values(&names, &result.model_values()) {
+        Ok(m) => Some(m),
+        Err(e) => {
+            warnings.push(format!(
+                "no reconstruction: the identified model is incomplete ({e})"
+            ));
+            None
+        }
+    };
+    let truth_model = ds.truth.as_ref().and_then(|t| {
+        let mut v = harmonid_sim::ModelValues::default();
+        for (n, m) in &t.modes {
+            v.modes.insert(
+                n.clone(),
+                harmonid_sim::ModeValues {
+                    f_hz: Some(m.f_hz),
+                    q: Some(m.q),
+                },
+            );
+        }
+        v.eom.clone_from(&t.eom);
+        NumericModel::from_values(&names, &v).ok()
+    });
+
+    // Spectra: one harmonic-balance solve per measurement, in parallel.
+    let per_meas: Vec<(Vec<Spectrum>, Option<String>)> = ds
+        .measurements
+        .par_iter()
+        .map(|m| spectra::spectra(identified.as_ref(), &result, ds, m))
+        .collect();
+    let mut figs: Vec<(String, String, AnyFigure)> = Vec::new();
+    for (m, (specs, warn)) in ds.measurements.iter().zip(per_meas) {
+        warnings.extend(warn);
+        for (k, s) in specs.into_iter().enumerate() {
+            let point = m
+                .points
+                .get(k)
+                .and_then(|&p| ds.manifest.points.get(p))
+                .map_or("modal".to_string(), |p| p.name.clone());
+            figs.push((
+                stem(&format!("spectrum_{}_{point}", m.spec.name)),
+                format!(
+                    "Measurement {}, {point}: |X| of every measured line (median over shots; filled dots), the spectrum the identified model gives by harmonic balance (open circles), and the complex residual |X − X_HB| below. Drives: {}.",
+                    m.spec.name,
+                    m.spec.drives_hz.iter().enumerate().map(|(d, f)| format!("f{} = {} Hz", d + 1, harmonid_plot::style::hz(*f))).collect::<Vec<_>>().join(", ")
+                ),
+                AnyFigure::Spectrum(s),
+            ));
+        }
+    }
+    // Histograms of every quantity with per-shot estimates.
+    let truth = ds.truth.as_ref();
+    let mut quantities: Vec<(String, String, &result::EstimateView, Option<f64>)> = Vec::new();
+    for (n, m) in &result.modes {
+        let tm = truth.and_then(|t| t.modes.get(n));
+        quantities.push((format!("f_{n}"), "Hz".into(), &m.f_hz, tm.map(|t| t.f_hz)));
+        quantities.push((format!("Q_{n}"), String::new(), &m.q, tm.map(|t| t.q)));
+    }
+    for (p, e) in &result.parameters {
+        quantities.push((
+            p.clone(),
+            String::new(),
+            e,
+            truth.and_then(|t| result.truth_of_param(p, t)),
+        ));
+    }
+    let mut no_shots = Vec::new();
+    for (name, unit, e, t) in &quantities {
+        if e.per_shot.len() < 2 {
+            no_shots.push(name.clone());
+            continue;
+        }
+        figs.push((
+            stem(&format!("hist_{name}")),
+            format!(
+                "{name}: estimates of the {} shots (bars), the normal distribution with the mean and std of the shots kept (curve), outliers by the interquartile rule (triangles), the reported value ± stderr (line and band){}.",
+                e.per_shot.len(),
+                if t.is_some() { " and the truth (dashed)" } else { "" }
+            ),
+            AnyFigure::Histogram(Histogram {
+                name: name.clone(),
+                unit: unit.clone(),
+                values: e.per_shot.clone(),
+                outliers: e.outlier_shots.clone(),
+                value: e.value,
+                stderr: e.stderr,
+                std: e.std,
+                truth: *t,
+            }),
+        ));
+    }
+    if !no_shots.is_empty() && result_from.is_some() {
+        warnings.push(format!(
+            "no histograms for {}: the result file holds no per-shot estimates (run the report without --result to identify and draw them)",
+            no_shots.join(", ")
+        ));
+    }
+    if let Some(idm) = identified.as_ref().filter(|m| potential::has_couplings(m)) {
+        let q_max = amplitude_scale(ds, &names, &idm.f_hz);
+        figs.push((
+            "potential".into(),
+            "The nonlinear potential U_nl over each pair of modal coordinates, the others at rest (the method's Fig. 5c): lower triangle identified, upper triangle the truth when truth.toml is present; the diagonal shows U_nl along one coordinate. Each coordinate spans ± its largest measured modal amplitude.".into(),
+            AnyFigure::Potential(potential::matrix(idm, truth_model.as_ref(), &q_max)),
+        ));
+    }
+    let figures: Vec<PageFigure> = figs
+        .into_par_iter()
+        .map(|(stem, caption, figure)| {
+            let svg = harmonid_plot::to_svg(&figure)?;
+            Ok(PageFigure {
+                stem,
+                caption,
+                figure,
+                svg,
+            })
+        })
+        .collect::<Result<_, PlotError>>()?;
+    let html = html::page(&html::PageInputs {
+        model_path,
+        model,
+        ds,
+        result: &result,
+        result_from: result_from.as_deref(),
+        truth: ds.truth.as_ref(),
+        figures: &figures,
+        warnings: &warnings,
+    });
+    Ok(Page {
+        html,
+        figures,
+        warnings,
+    })
+}
+
+impl Page {
+    /// Writes `out/index.html` and `out/figures/*.{svg,png}` (see the crate docs).
+    pub fn write(&self, out: &Path) -> Result<(), ReportError> {
+        output::write_folder(out, |dir| {
+            let figs = dir.join("figures");
+            std::fs::create_dir(&figs).map_err(|source| ReportError::Io {
+                path: figs.clone(),
+                source,
+            })?;
+            let io = |path: &Path| {
+                let path = path.to_path_buf();
+                move |source| ReportError::Io { path, source }
+            };
+            let index = dir.join("index.html");
+            std::fs::write(&index, &self.html).map_err(io(&index))?;
+            self.figures.par_iter().try_for_each(|f| {
+                let svg = figs.join(format!("{}.svg", f.stem));
+                std::fs::write(&svg, &f.svg).map_err(io(&svg))?;
+                harmonid_plot::to_png(&f.figure, &figs.join(format!("{}.png", f.stem)))?;
+                Ok(())
+            })
+        })
+    }
+}

@@ -1,0 +1,204 @@
+//! `harmonid report` end to end on the public two-mode dataset: the page and every figure are
+//! written, every figure is an SVG with axes, text and data, the structure of the SVGs is
+//! snapshotted (not pixels), a headless Chromium parses the page and finds every figure drawn,
+//! and a folder that is not a report is never overwritten.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The two-mode dataset: the in-repo copy of the public one when present, else the example's.
+fn dataset() -> PathBuf {
+    let shipped = root().join("tests/data/nanostring_2mode");
+    if shipped.join("dataset.toml").is_file() {
+        shipped
+    } else {
+        root().join("examples/nanostring_2mode/data")
+    }
+}
+
+fn report(args: &[&Path]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_harmonid"))
+        .arg("report")
+        .args(args)
+        .output()
+        .expect("run harmonid");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// Every `<svg>…</svg>` of an HTML text.
+fn svgs(html: &str) -> Vec<&str> {
+    html.split("<svg")
+        .skip(1)
+        .map(|s| s.split("</svg>").next().unwrap_or(""))
+        .collect()
+}
+
+/// An SVG is drawn when it has axes (lines or polylines), tick or label text, and data marks.
+fn assert_drawn(svg: &str, what: &str) {
+    let count = |tag: &str| svg.matches(tag).count();
+    assert!(count("<text") >= 4, "{what}: no axis text");
+    assert!(
+        count("<polyline") + count("<line") + count("<path") >= 2,
+        "{what}: no axes"
+    );
+    assert!(
+        count("<circle") + count("<rect") + count("<polygon") >= 3,
+        "{what}: no data"
+    );
+}
+
+/// Element counts and the texts of an SVG (a structure that changes only when the figure does).
+fn structure(svg: &str) -> String {
+    let mut out = String::new();
+    for tag in [
+        "<rect",
+        "<circle",
+        "<polyline",
+        "<polygon",
+        "<line",
+        "<path",
+        "<text",
+    ] {
+        out += &format!("{tag}: {}\n", svg.matches(tag).count());
+    }
+    out
+}
+
+#[test]
+fn two_mode_report_has_every_figure() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let out = tmp.path().join("report");
+    let (ok, stdout, stderr) = report(&[
+        &root().join("examples/nanostring_2mode/model.hb"),
+        &dataset(),
+        Path::new("--out"),
+        &out,
+    ]);
+    assert!(ok, "report failed: {stderr}");
+    assert!(stdout.contains("index.html"), "{stdout}");
+    let html = std::fs::read_to_string(out.join("index.html")).expect("index.html");
+    assert!(
+        !html.contains("http://")
+            || html.matches("http://").count() == html.matches("http://www.w3.org").count(),
+        "the page must not fetch anything"
+    );
+    assert!(!html.contains("<script"), "no scripts");
+    for id in [
+        "parameters",
+        "equations",
+        "spectra",
+        "histograms",
+        "potential",
+    ] {
+        assert!(
+            html.contains(&format!("id=\"{id}\"")),
+            "section {id} missing"
+        );
+    }
+    // 3 spectra (one per measurement), 4 mode quantities + 3 parameters, the potential matrix.
+    let figs = svgs(&html);
+    assert_eq!(figs.len(), 3 + 4 + 3 + 1, "figures on the page");
+    for (k, s) in figs.iter().enumerate() {
+        assert_drawn(s, &format!("figure {k}"));
+    }
+    let mut stems: Vec<String> = std::fs::read_dir(out.join("figures"))
+        .expect("figures/")
+        .filter_map(|e| e.ok().map(|e| e.file_name().to_string_lossy().into_owned()))
+        .collect();
+    stems.sort();
+    insta::assert_snapshot!("report_2mode_files", stems.join("\n"));
+    for name in &stems {
+        let bytes = std::fs::read(out.join("figures").join(name)).expect("figure");
+        if name.ends_with(".png") {
+            assert_eq!(&bytes[1..4], b"PNG", "{name}");
+            assert!(bytes.len() > 5000, "{name}: suspiciously small PNG");
+        }
+    }
+    // The spectra name their lines; the values table holds the parameters and their truth.
+    for label in ["f1", "2f1−f2", "drive tone", "sideband", "mixing product"] {
+        assert!(html.contains(label), "{label} missing");
+    }
+    for p in ["beta1", "beta2", "g12", "f_q1", "Q_q2"] {
+        assert!(
+            html.contains(&format!(">{p}<")),
+            "{p} missing from the table"
+        );
+    }
+    let spectrum = std::fs::read_to_string(out.join("figures/spectrum_couple_q1_q2_p0.svg"))
+        .expect("spectrum svg");
+    insta::assert_snapshot!("report_2mode_spectrum_structure", structure(&spectrum));
+
+    // A second run replaces the report; a folder that is not a report is refused untouched.
+    let (ok, _, stderr) = report(&[
+        &root().join("examples/nanostring_2mode/model.hb"),
+        &dataset(),
+        Path::new("--out"),
+        &out,
+    ]);
+    assert!(ok, "{stderr}");
+    let foreign = tmp.path().join("thesis");
+    std::fs::create_dir(&foreign).expect("dir");
+    std::fs::write(foreign.join("chapter1.tex"), "x").expect("file");
+    let (ok, _, stderr) = report(&[
+        &root().join("examples/nanostring_2mode/model.hb"),
+        &dataset(),
+        Path::new("--out"),
+        &foreign,
+    ]);
+    assert!(!ok && stderr.contains("not a harmonid report"), "{stderr}");
+    assert_eq!(std::fs::read_dir(&foreign).expect("ls").count(), 1);
+
+    chromium_draws_every_figure(&out.join("index.html"), figs.len());
+}
+
+/// Chromium (Debian's `chromium`, installed by .ci/run) parses the page; its DOM holds every
+/// figure as an SVG element with axes, text and data.
+fn chromium_draws_every_figure(index: &Path, n_figures: usize) {
+    let Some(bin) = ["chromium", "chromium-browser", "google-chrome"]
+        .into_iter()
+        .find(|b| {
+            Command::new(b)
+                .arg("--version")
+                .output()
+                .is_ok_and(|o| o.status.success())
+        })
+    else {
+        eprintln!(
+            "SKIPPED the browser check: no chromium on this machine (install it with `apt-get install -y chromium`; .ci/run does)"
+        );
+        return;
+    };
+    let profile = tempfile::tempdir().expect("profile dir");
+    let out = Command::new(bin)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-dev-shm-usage",
+            "--no-first-run",
+        ])
+        .arg(format!("--user-data-dir={}", profile.path().display()))
+        .arg("--dump-dom")
+        .arg(format!("file://{}", index.display()))
+        .output()
+        .expect("run chromium");
+    assert!(
+        out.status.success(),
+        "chromium failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let dom = String::from_utf8_lossy(&out.stdout);
+    let figs = svgs(&dom);
+    assert_eq!(figs.len(), n_figures, "figures in Chromium's DOM");
+    for (k, s) in figs.iter().enumerate() {
+        assert_drawn(s, &format!("figure {k} in Chromium's DOM"));
+    }
+}
