@@ -55,23 +55,6 @@ fn assert_drawn(svg: &str, what: &str) {
     );
 }
 
-/// Element counts and the texts of an SVG (a structure that changes only when the figure does).
-fn structure(svg: &str) -> String {
-    let mut out = String::new();
-    for tag in [
-        "<rect",
-        "<circle",
-        "<polyline",
-        "<polygon",
-        "<line",
-        "<path",
-        "<text",
-    ] {
-        out += &format!("{tag}: {}\n", svg.matches(tag).count());
-    }
-    out
-}
-
 #[test]
 fn two_mode_report_has_every_figure() {
     let tmp = tempfile::tempdir().expect("tmp");
@@ -134,7 +117,10 @@ fn two_mode_report_has_every_figure() {
     }
     let spectrum = std::fs::read_to_string(out.join("figures/spectrum_couple_q1_q2_p0.svg"))
         .expect("spectrum svg");
-    insta::assert_snapshot!("report_2mode_spectrum_structure", structure(&spectrum));
+    insta::assert_snapshot!(
+        "report_2mode_spectrum_structure",
+        harmonid_plot::svg_structure(&spectrum)
+    );
 
     // A second run replaces the report; a folder that is not a report is refused untouched.
     let (ok, _, stderr) = report(&[
@@ -201,4 +187,28 @@ fn chromium_draws_every_figure(index: &Path, n_figures: usize) {
     for (k, s) in figs.iter().enumerate() {
         assert_drawn(s, &format!("figure {k} in Chromium's DOM"));
     }
+}
+
+#[path = "roundtrip_support/gen.rs"]
+mod gen;
+
+/// Not a timed test: the time of the report of a five-mode dataset (15 measurements, 30 shots),
+/// printed for the docs. Run with `cargo test --release --test report_cli -- --ignored
+/// --nocapture`.
+#[test]
+#[ignore]
+fn five_mode_report_time() {
+    let model_path = root().join("examples/nanostring_5mode/model.hb");
+    let model = harmonid_model::load(&model_path).expect("model");
+    let (v, d) = gen::nanostring_5mode_plan();
+    let ds = gen::simulate(&model, &v, &d, &gen::NANOSTRING_SHAPE, 5e-12, 30, 5);
+    let tmp = tempfile::tempdir().expect("tmp");
+    let data = tmp.path().join("data");
+    ds.write(&data).expect("write dataset");
+    let out = tmp.path().join("report");
+    let t = std::time::Instant::now();
+    let (ok, stdout, stderr) = report(&[&model_path, &data, Path::new("--out"), &out]);
+    let secs = t.elapsed().as_secs_f64();
+    assert!(ok, "{stderr}");
+    println!("five-mode report, 15 measurements, 30 shots: {secs:.2} s wall ({stdout})");
 }

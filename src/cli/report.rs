@@ -37,7 +37,7 @@ pub fn run(args: Args) -> miette::Result<()> {
                     path.display()
                 )
             })?;
-            Source::Result(path.clone(), view)
+            Source::Result(path.clone(), Box::new(view))
         }
         None => Source::Identify(Settings::default()),
     };

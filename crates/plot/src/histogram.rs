@@ -220,13 +220,13 @@ impl Figure for Histogram {
         let w = hi - lo;
         for (count, x, txt) in [
             (left, lo + 0.02 * w, format!("← {left}")),
-            (right, hi - 0.07 * w, format!("{right} →")),
+            (right, hi - 0.3 * w, format!("{right} →")),
         ] {
             if count > 0 {
                 chart
                     .draw_series(std::iter::once(Text::new(
                         format!("{txt} outlier(s)"),
-                        (x, y_hi * 0.08),
+                        (x, y_hi * 0.93),
                         style::text_in(style::NOTE + 1.0, &style::BLACK),
                     )))
                     .drawn()?;

@@ -29,7 +29,7 @@
 //!     std: 0.07,
 //!     truth: Some(1.02),
 //! };
-//! let svg = to_svg(&h).unwrap();
+//! let svg = to_svg(&h).expect("renders");
 //! assert!(svg.starts_with("<svg") && svg.contains("beta1"));
 //! ```
 
@@ -114,6 +114,36 @@ pub fn to_svg(fig: &impl Figure) -> Result<String, PlotError> {
         root.present().drawn()?;
     }
     Ok(s)
+}
+
+/// The structure of an SVG: the count of each kind of element and every distinct text, one per
+/// line. Golden tests compare this (it changes when a figure's content does, not with
+/// anti-aliasing or float formatting).
+pub fn svg_structure(svg: &str) -> String {
+    let mut out = String::new();
+    for tag in [
+        "<rect",
+        "<circle",
+        "<polyline",
+        "<polygon",
+        "<line",
+        "<path",
+        "<text",
+    ] {
+        out += &format!("{tag}: {}\n", svg.matches(tag).count());
+    }
+    let mut texts: Vec<&str> = svg
+        .split("<text")
+        .skip(1)
+        .filter_map(|t| {
+            t.split_once('>')
+                .and_then(|(_, r)| r.split_once("</text>"))
+                .map(|(t, _)| t)
+        })
+        .collect();
+    texts.dedup();
+    out += &texts.join("\n");
+    out
 }
 
 /// Renders `fig` as a PNG file at `path`.

@@ -59,6 +59,41 @@ fn span(c: &PotentialCell) -> (f64, f64) {
     }
 }
 
+/// A cell's chart: a frame without ticks, the mode names on the outer edges (`frame`: bottom
+/// row, left column, x label, y label).
+fn cell_chart<'a, DB: DrawingBackend>(
+    area: &'a DrawingArea<DB, Shift>,
+    frame: (bool, bool, String, String),
+    x: (f64, f64),
+    y: (f64, f64),
+) -> Result<
+    ChartContext<
+        'a,
+        DB,
+        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+    >,
+    PlotError,
+> {
+    let (bottom, left, x_desc, y_desc) = frame;
+    let mut chart = ChartBuilder::on(area)
+        .margin(4)
+        .x_label_area_size(if bottom { 22 } else { 4 })
+        .y_label_area_size(if left { 22 } else { 4 })
+        .build_cartesian_2d(x.0..x.1, y.0..y.1)
+        .drawn()?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_labels(0)
+        .y_labels(0)
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .axis_desc_style(style::text(style::LABEL - 2.0))
+        .draw()
+        .drawn()?;
+    Ok(chart)
+}
+
 impl Figure for PotentialMatrix {
     fn size(&self) -> (u32, u32) {
         let n = self.modes.len().max(1) as u32;
@@ -114,22 +149,8 @@ impl Figure for PotentialMatrix {
                         if g < 2 || values.len() != g * g {
                             continue;
                         }
-                        let mut chart = ChartBuilder::on(area)
-                            .margin(4)
-                            .x_label_area_size(if i + 1 == n { 22 } else { 4 })
-                            .y_label_area_size(if j == 0 { 22 } else { 4 })
-                            .build_cartesian_2d(x.0..x.1, y.0..y.1)
-                            .drawn()?;
-                        chart
-                            .configure_mesh()
-                            .disable_mesh()
-                            .x_labels(0)
-                            .y_labels(0)
-                            .x_desc(x_desc)
-                            .y_desc(y_desc)
-                            .axis_desc_style(style::text(style::LABEL - 2.0))
-                            .draw()
-                            .drawn()?;
+                        let frame = (i + 1 == n, j == 0, x_desc, y_desc);
+                        let mut chart = cell_chart(area, frame, (x.0, x.1), (y.0, y.1))?;
                         let (dx, dy) = ((x.1 - x.0) / (g - 1) as f64, (y.1 - y.0) / (g - 1) as f64);
                         let w = if hi > lo { hi - lo } else { 1.0 };
                         chart
@@ -157,22 +178,8 @@ impl Figure for PotentialMatrix {
                         ) else {
                             continue;
                         };
-                        let mut chart = ChartBuilder::on(area)
-                            .margin(4)
-                            .x_label_area_size(if i + 1 == n { 22 } else { 4 })
-                            .y_label_area_size(if j == 0 { 22 } else { 4 })
-                            .build_cartesian_2d(q0..q1, u0..u1)
-                            .drawn()?;
-                        chart
-                            .configure_mesh()
-                            .disable_mesh()
-                            .x_labels(0)
-                            .y_labels(0)
-                            .x_desc(x_desc)
-                            .y_desc(y_desc)
-                            .axis_desc_style(style::text(style::LABEL - 2.0))
-                            .draw()
-                            .drawn()?;
+                        let frame = (i + 1 == n, j == 0, x_desc, y_desc);
+                        let mut chart = cell_chart(area, frame, (q0, q1), (u0, u1))?;
                         chart
                             .draw_series(LineSeries::new(
                                 q.iter().copied().zip(u.iter().copied()),

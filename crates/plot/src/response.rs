@@ -51,7 +51,7 @@ pub struct ResponseCurve {
 
 impl Figure for ResponseCurve {
     fn size(&self) -> (u32, u32) {
-        (820, 520)
+        (900, 540)
     }
 
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), PlotError> {
@@ -79,10 +79,26 @@ impl Figure for ResponseCurve {
             .titled(&self.title, style::text(style::TITLE))
             .drawn()?;
         let (legend_area, body) = root.split_vertically(26);
+        // One branch: its colour in the stable/unstable entries; several: black entries for the
+        // line styles and one entry per branch colour.
+        let ink = if self.branches.len() > 1 {
+            style::BLACK
+        } else {
+            style::BLUE
+        };
         let mut entries = vec![
-            (LegendMark::Line, style::BLUE, "stable".to_string()),
-            (LegendMark::Dashed, style::BLUE, "unstable".to_string()),
+            (LegendMark::Line, ink, "stable".to_string()),
+            (LegendMark::Dashed, ink, "unstable".to_string()),
         ];
+        if self.branches.len() > 1 {
+            for (k, b) in self.branches.iter().enumerate() {
+                entries.push((
+                    LegendMark::Line,
+                    style::PALETTE[k % style::PALETTE.len()],
+                    b.label.clone(),
+                ));
+            }
+        }
         if !self.jumps.is_empty() {
             entries.push((
                 LegendMark::Triangle,
@@ -160,17 +176,6 @@ impl Figure for ResponseCurve {
                         .drawn()?;
                 }
                 i = j;
-            }
-            if self.branches.len() > 1 {
-                if let (Some(&f), Some(&a)) = (b.f_hz.last(), b.amp.last()) {
-                    chart
-                        .draw_series(std::iter::once(Text::new(
-                            b.label.clone(),
-                            (f - off, a),
-                            style::text_in(style::NOTE, &color),
-                        )))
-                        .drawn()?;
-                }
             }
         }
         for j in &self.jumps {

@@ -78,7 +78,7 @@ pub fn num(v: f64, sig: usize) -> String {
     } else {
         let s = format!("{:.*e}", sig.saturating_sub(1), v);
         // 1.50e-9 keeps its digits; only the exponent's form is tidied.
-        s.replace("e-0", "e-").replace("e0", "e0")
+        s.replace("e-0", "e-")
     }
 }
 
@@ -114,8 +114,9 @@ pub fn pm(value: f64, err: f64) -> String {
     if !(err.is_finite() && err > 0.0 && value.is_finite()) {
         return num(value, 6);
     }
+    // Plain digits while they stay short (207581.98 ± 0.14), scientific otherwise.
     let a = value.abs().max(err);
-    if (1e-3..1e5).contains(&a) {
+    if (1e-3..1e7).contains(&a) && err >= 1e-4 {
         let dec = (1 - err.log10().floor() as i32).max(0) as usize;
         format!("{value:.dec$} ± {err:.dec$}")
     } else {
@@ -271,6 +272,7 @@ mod tests {
         assert_eq!(tick(250000.0), "2.5e5");
         assert_eq!(pm(1.2345, 0.012), "1.234 ± 0.012");
         assert_eq!(pm(3.1e10, 2.0e8), "(3.100 ± 0.020)e10");
+        assert_eq!(pm(207581.98, 0.14), "207581.98 ± 0.14");
     }
 
     #[test]
@@ -282,7 +284,7 @@ mod tests {
     #[test]
     fn ranges() {
         assert_eq!(log_range([2e-10, 3e-8]), Some((1e-10, 1e-7)));
-        let (lo, hi) = range([1.0, 2.0]).unwrap();
+        let (lo, hi) = range([1.0, 2.0]).expect("a range");
         assert!(lo < 1.0 && hi > 2.0);
         assert_eq!(range([f64::NAN]), None);
     }

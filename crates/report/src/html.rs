@@ -47,6 +47,7 @@ fn fit_of<'a>(fits: &'a [FitView], unknown: &str) -> Option<&'a FitView> {
     })
 }
 
+#[allow(clippy::too_many_arguments)] // one table row: each argument is one column
 fn row(
     out: &mut String,
     name: &str,
@@ -94,9 +95,9 @@ pub fn page(p: &PageInputs) -> String {
         esc(&title),
         esc(&title)
     );
-    let _ = write!(
+    let _ = writeln!(
         s,
-        "<p>Dataset <code>{}</code> ({}), {} shot(s), {} measurement(s); force model: {}. {}</p>\n",
+        "<p>Dataset <code>{}</code> ({}), {} shot(s), {} measurement(s); force model: {}. {}</p>",
         esc(&p.ds.dir.display().to_string()),
         esc(&p.ds.manifest.description),
         r.shots,

@@ -68,7 +68,7 @@ pub enum Source {
     /// Identify now with these settings.
     Identify(Settings),
     /// A result JSON already written (its path, for the page).
-    Result(PathBuf, ResultView),
+    Result(PathBuf, Box<ResultView>),
 }
 
 /// Any figure of the report.
@@ -183,7 +183,7 @@ pub fn build(
     let (result, result_from) = match source {
         Source::Identify(settings) => {
             let prob = harmonid_ident::Problem::new(model, ds, &settings)?;
-            let fit = prob.fit(ds, &settings);
+            let fit = prob.fit(ds)?;
             let rep =
                 harmonid_ident::Report::new(&model_path.display().to_string(), ds, &prob, &fit);
             let view = ResultView::from_report(&rep).map_err(|source| ReportError::Result {
@@ -192,7 +192,7 @@ pub fn build(
             })?;
             (view, None)
         }
-        Source::Result(path, view) => (view, Some(path)),
+        Source::Result(path, view) => (*view, Some(path)),
     };
     let mut warnings = result.warnings.clone();
     let names: Vec<String> = model.mode_names().iter().map(|s| s.to_string()).collect();
