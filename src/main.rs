@@ -24,6 +24,8 @@ enum Command {
     Simulate(cli::simulate::Args),
     /// Compute a frequency-response curve with continuation through folds.
     Sweep(cli::sweep::Args),
+    /// Design a drive-tone plan, or score one, by the Cramér–Rao bounds of the unknowns.
+    Plan(cli::plan::Args),
     /// Robustness of the identification to measurement noise (Supplementary Note V).
     NoiseStudy(cli::noise_study::Args),
     /// Write an HTML report with every figure of an identification.
@@ -40,5 +42,6 @@ fn main() -> miette::Result<()> {
         Command::Sweep(args) => cli::sweep::run(args),
         Command::NoiseStudy(args) => cli::noise_study::run(args),
         Command::Report(args) => cli::report::run(args),
+        Command::Plan(args) => cli::plan::run(args),
     }
 }

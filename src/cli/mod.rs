@@ -6,5 +6,6 @@ pub mod identify;
 pub mod mix;
 pub mod noise_study;
 pub mod report;
+pub mod plan;
 pub mod simulate;
 pub mod sweep;

@@ -295,9 +295,24 @@ pub fn crlb(
     let mut jac = vec![Complex64::new(0.0, 0.0); n_obs * nk];
     fwd.evaluate(theta, &mut x, Some(&mut jac))?;
     let free = fwd.free();
-    let labels: Vec<String> = free.iter().map(|&k| fwd.label(k)).collect();
     let info = information(&jac, nk, &free, noise, shots);
-    let (cov, condition, dropped) = invert(&info, &labels);
+    Ok(bounds_from_information(fwd, theta, &free, &info, shots))
+}
+
+/// Bounds from a Fisher information `info` of the unknowns `free` (indices into
+/// [`ForwardModel::unknowns`], row-major `free.len()` square) at `θ`: inverted as [`invert`]
+/// does, then in the reported parametrisation (`fwd` gives the labels and the `γ` of modes
+/// with fixed `Q`). Information added up over several forward models of the same model (a
+/// planner's measurements) works the same, as long as `free` indexes the shared unknowns.
+pub fn bounds_from_information(
+    fwd: &ForwardModel,
+    theta: &[f64],
+    free: &[usize],
+    info: &[f64],
+    shots: usize,
+) -> Bounds {
+    let labels: Vec<String> = free.iter().map(|&k| fwd.label(k)).collect();
+    let (cov, condition, dropped) = invert(info, &labels);
     let c = free.len();
     let local = |u: &Unknown| free.iter().position(|&k| fwd.unknowns()[k] == *u);
     let var = |i: Option<usize>, j: Option<usize>| match (i, j) {
@@ -305,14 +320,12 @@ pub fn crlb(
         _ => 0.0,
     };
     let mut quantities = Vec::new();
-    let names = fwd.mode_names().to_vec();
-    for (n, name) in names.iter().enumerate() {
+    for (n, name) in fwd.mode_names().iter().enumerate() {
         let (iw, ig) = (local(&Unknown::OmegaSq(n)), local(&Unknown::Gamma(n)));
         let w2 = theta[2 * n];
         let w = w2.sqrt();
         let g = fwd.gamma(theta, n);
-        let f = w / TAU;
-        let q = w / g;
+        let (f, q) = (w / TAU, w / g);
         if iw.is_some() {
             let sf = var(iw, iw).sqrt() * f / (2.0 * w2);
             quantities.push(bound(Quantity::Frequency(n), format!("f_hz:{name}"), f, sf));
@@ -347,14 +360,14 @@ pub fn crlb(
             reason,
         })
         .collect();
-    Ok(Bounds {
+    Bounds {
         quantities,
         unidentifiable,
         condition,
-        free,
+        free: free.to_vec(),
         covariance: cov,
         shots,
-    })
+    }
 }
 
 fn bound(quantity: Quantity, name: String, value: f64, std: f64) -> Bound {

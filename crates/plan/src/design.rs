@@ -1,0 +1,391 @@
+//! Designs a plan: per mode a tone pair near its resonance at the strongest drive that stays
+//! on the drive-up branch (no jump) and stable, with the spacing that minimises the bounds of
+//! that mode's unknowns; then, for each parameter coupling several modes, one measurement with
+//! tones near the modes of its terms (or near all but one whose frequency is a sum or
+//! difference of the others', whose line then appears through the coupling), the variant
+//! with the smaller bounds. Lines: the drive tones and the largest predicted lines near any
+//! resonance, at most `max_frequencies`; every tone on the instrument grid, so every line is.
+
+use crate::evaluate::{joint_bounds, param_modes, Evaluation};
+use crate::info::{is_infeasible, measurement_info, simulate, MeasInfo};
+use crate::PlanError;
+use harmonid_experiment::{Plan, PlanMeasurement, PlanNoise};
+use harmonid_ident::{Point, Unknown};
+use harmonid_model::{Linear, Model};
+use harmonid_sim::{ModelValues, NumericModel};
+use std::collections::{BTreeMap, BTreeSet};
+
+/// Limits and noise of a design.
+#[derive(Debug, Clone)]
+pub struct DesignSettings {
+    /// Per-quadrature noise of every amplitude, m.
+    pub sigma_m: f64,
+    /// Shots per measurement.
+    pub shots: usize,
+    /// Most measured lines per measurement (the lock-in's limit).
+    pub max_frequencies: usize,
+    /// Most measurements (`None`: as many as the unknowns need).
+    pub max_measurements: Option<usize>,
+    /// Instrument frequency grid, Hz: every tone (and so every line) is a multiple of it.
+    pub grid_hz: f64,
+    /// Largest force per tone, N/kg.
+    pub max_force: f64,
+    /// Measurement points (mode shapes); empty: modal amplitudes.
+    pub points: Vec<Point>,
+}
+
+impl Default for DesignSettings {
+    fn default() -> Self {
+        Self {
+            sigma_m: 5e-11,
+            shots: 20,
+            max_frequencies: 32,
+            max_measurements: None,
+            grid_hz: 0.5,
+            max_force: f64::INFINITY,
+            points: Vec::new(),
+        }
+    }
+}
+
+/// Rounds `x` to a multiple of `g`.
+fn on_grid(x: f64, g: f64) -> f64 {
+    (x / g).round() * g
+}
+
+/// Rounds a force to 3 significant digits.
+fn round3(x: f64) -> f64 {
+    let e = 10f64.powf(x.abs().log10().floor() - 2.0);
+    (x / e).round() * e
+}
+
+/// A measurement with `tones` (`(Hz, mode, force N/kg)`), drive levels = forces (gain 1 N/kg
+/// per level unit, phase 0).
+fn measurement(name: &str, tones: &[(f64, usize, f64)], names: &[String]) -> PlanMeasurement {
+    let mut force: BTreeMap<String, Vec<f64>> = BTreeMap::new();
+    for (d, &(_, n, f)) in tones.iter().enumerate() {
+        force
+            .entry(names[n].clone())
+            .or_insert_with(|| vec![0.0; tones.len()])[d] = f;
+    }
+    PlanMeasurement {
+        name: name.to_string(),
+        drives_hz: tones.iter().map(|t| t.0).collect(),
+        force,
+        phase_rad: BTreeMap::new(),
+        measure_hz: None,
+        drive_levels_v: Some(tones.iter().map(|t| t.2).collect()),
+        drive_phases_rad: Some(vec![0.0; tones.len()]),
+        bandwidth_hz: None,
+    }
+}
+
+/// Keeps the drive tones and the largest lines (over points) of `info`'s dataset, at most
+/// `max` in all, as the measurement's `measure_hz`.
+fn choose_lines(pm: &mut PlanMeasurement, info: &MeasInfo, max: usize) {
+    let m = &info.dataset.measurements[0];
+    let np = m.points.len();
+    let mut lines: Vec<(f64, f64)> = m
+        .freqs_hz
+        .iter()
+        .enumerate()
+        .map(|(r, &f)| {
+            let a = (0..np)
+                .map(|p| m.amplitude(0, r, p).norm())
+                .fold(0.0, f64::max);
+            let tone = pm.drives_hz.iter().any(|&d| (d - f).abs() < 1e-6);
+            (f, if tone { f64::INFINITY } else { a })
+        })
+        .collect();
+    lines.sort_by(|a, b| b.1.total_cmp(&a.1));
+    let mut keep: Vec<f64> = lines.iter().take(max).map(|l| l.0).collect();
+    keep.sort_by(f64::total_cmp);
+    pm.measure_hz = Some(keep);
+}
+
+/// Worst relative bound of `names` (quantity names) in `ev` (infinite when one is missing or
+/// not identifiable).
+fn worst_of(ev: &Evaluation, names: &[String]) -> f64 {
+    names
+        .iter()
+        .map(|n| ev.bounds.get(n).map_or(f64::INFINITY, |b| b.rel))
+        .fold(0.0, f64::max)
+}
+
+/// Quantity names of the free unknowns among `unknowns`.
+fn quantity_names(model: &Model, unknowns: &[Unknown]) -> Vec<String> {
+    unknowns
+        .iter()
+        .filter_map(|u| match *u {
+            Unknown::OmegaSq(n) if model.modes[n].f_hz == Linear::Unknown => {
+                Some(format!("f_hz:{}", model.modes[n].name))
+            }
+            Unknown::Gamma(n) if model.modes[n].q_factor == Linear::Unknown => {
+                Some(format!("Q:{}", model.modes[n].name))
+            }
+            Unknown::Param(p) if model.params[p].kind == harmonid_model::ParamKind::Unknown => {
+                Some(model.params[p].name.clone())
+            }
+            _ => None,
+        })
+        .collect()
+}
+
+/// Designs a plan for `model` at the guessed `values`; returns it with its evaluation.
+/// Errors: an unknown no drive within the limits reveals, a budget too small, values the
+/// simulation refuses. Nothing is returned unless every unknown is identifiable.
+pub fn design(
+    model: &Model,
+    values: &ModelValues,
+    settings: &DesignSettings,
+) -> Result<(Plan, Evaluation), PlanError> {
+    let s = settings;
+    if !(s.sigma_m.is_finite() && s.sigma_m > 0.0) || s.shots == 0 {
+        return Err(PlanError::Input(format!(
+            "the noise must be a positive σ (got {:e} m) and shots ≥ 1 (got {})",
+            s.sigma_m, s.shots
+        )));
+    }
+    if !(s.grid_hz.is_finite() && s.grid_hz > 0.0) || s.max_frequencies < 2 {
+        return Err(PlanError::Input(format!(
+            "the grid must be positive (got {} Hz) and at least 2 lines per measurement allowed (got {})",
+            s.grid_hz, s.max_frequencies
+        )));
+    }
+    let num = NumericModel::from_model(model, values)?;
+    let names = num.mode_names.clone();
+    let nm = names.len();
+    let limits = format!(
+        "forces ≤ {} N/kg per tone, {} lines per measurement, grid {} Hz, no jump while driving up, stable",
+        s.max_force, s.max_frequencies, s.grid_hz
+    );
+    let mut base = Plan {
+        description: format!("designed by harmonid plan for {}", model.source),
+        displacement_unit: "m".into(),
+        points: s.points.clone(),
+        nominal_hz: names
+            .iter()
+            .cloned()
+            .zip(num.f_hz.iter().copied())
+            .collect(),
+        noise: PlanNoise {
+            sigma_per_quadrature: s.sigma_m,
+            shots: s.shots,
+        },
+        measurements: Vec::new(),
+    };
+    // Unknowns per stage: a mode's own (f, Q, parameters of terms in it alone), then
+    // parameters by the set of modes they couple.
+    let mut own: Vec<Vec<Unknown>> = vec![Vec::new(); nm];
+    let mut groups: BTreeMap<Vec<usize>, Vec<Unknown>> = BTreeMap::new();
+    for n in 0..nm {
+        own[n].push(Unknown::OmegaSq(n));
+        own[n].push(Unknown::Gamma(n));
+    }
+    for p in 0..model.params.len() {
+        let modes: Vec<usize> = param_modes(model, p).into_iter().collect();
+        match modes.len() {
+            0 => {}
+            1 => own[modes[0]].push(Unknown::Param(p)),
+            _ => groups.entry(modes).or_default().push(Unknown::Param(p)),
+        }
+    }
+    let stage1: Vec<usize> = (0..nm)
+        .filter(|&n| {
+            !quantity_names(model, &own[n]).is_empty() || groups.keys().any(|k| k.contains(&n))
+        })
+        .collect();
+    let needed = stage1.len() + groups.len();
+    if let Some(limit) = s.max_measurements {
+        if needed > limit {
+            let list: Vec<String> = stage1
+                .iter()
+                .map(|&n| format!("single_{}", names[n]))
+                .chain(groups.keys().map(|k| {
+                    format!(
+                        "couple_{}",
+                        k.iter()
+                            .map(|&n| names[n].as_str())
+                            .collect::<Vec<_>>()
+                            .join("_")
+                    )
+                }))
+                .collect();
+            return Err(PlanError::Budget {
+                needed,
+                limit,
+                list: list.join(", "),
+            });
+        }
+    }
+    // Stage 1: a tone pair per mode.
+    let mut pairs: Vec<Option<(f64, f64, f64)>> = vec![None; nm]; // (centre, spacing, force)
+    let mut infos: Vec<MeasInfo> = Vec::new();
+    let mut plan_ms: Vec<PlanMeasurement> = Vec::new();
+    for &n in &stage1 {
+        let f = num.f_hz[n];
+        let kappa = f / num.q_factor[n];
+        let w2 = (std::f64::consts::TAU * f).powi(2);
+        let centre = on_grid(f, s.grid_hz);
+        let wanted = quantity_names(model, &own[n]);
+        let mut best: Option<(f64, PlanMeasurement, MeasInfo, (f64, f64, f64))> = None;
+        for mult in [3.0, 6.0, 12.0] {
+            let half = (on_grid(0.5 * mult * kappa, s.grid_hz)).max(s.grid_hz);
+            let tones = |force: f64| [(centre - half, n, force), (centre + half, n, force)];
+            let name = format!("single_{}", names[n]);
+            // Strongest drive without a jump or instability: double, then bisect.
+            let f_lin = 100.0 * s.sigma_m * w2 / num.q_factor[n];
+            let ok = |force: f64| -> Result<bool, PlanError> {
+                match simulate(&num, &base, &measurement(&name, &tones(force), &names)) {
+                    Ok(_) => Ok(true),
+                    Err(e) if is_infeasible(&e) => Ok(false),
+                    Err(e) => Err(e),
+                }
+            };
+            let mut good = f_lin.min(s.max_force);
+            if !ok(good)? {
+                continue;
+            }
+            let mut bad = f64::INFINITY;
+            for _ in 0..24 {
+                let next = (2.0 * good).min(s.max_force);
+                if next <= good {
+                    break;
+                }
+                if ok(next)? {
+                    good = next;
+                } else {
+                    bad = next;
+                    break;
+                }
+            }
+            if bad.is_finite() {
+                for _ in 0..3 {
+                    let mid = (good * bad).sqrt();
+                    if ok(mid)? {
+                        good = mid;
+                    } else {
+                        bad = mid;
+                    }
+                }
+            }
+            // A margin below the fold: the guess is a guess.
+            let force = round3(if bad.is_finite() { 0.8 * good } else { good });
+            let mut pm = measurement(&name, &tones(force), &names);
+            let info = match measurement_info(model, &num, values, &base, &pm, s.sigma_m, s.shots) {
+                Ok(i) => i,
+                Err(e) if is_infeasible(&e) => continue,
+                Err(e) => return Err(e),
+            };
+            choose_lines(&mut pm, &info, s.max_frequencies);
+            let info = measurement_info(model, &num, values, &base, &pm, s.sigma_m, s.shots)?;
+            let ev = joint_bounds(model, &[&info], s.shots)?;
+            let score = worst_of(&ev, &wanted);
+            if best.as_ref().is_none_or(|b| score < b.0) {
+                best = Some((score, pm, info, (centre, 2.0 * half, force)));
+            }
+        }
+        let Some((_, pm, info, pair)) = best else {
+            return Err(PlanError::Unidentifiable {
+                parameter: format!("the linear data of {}", names[n]),
+                reason: "no tone pair near its resonance has a stable steady state without a jump"
+                    .into(),
+                limits,
+            });
+        };
+        pairs[n] = Some(pair);
+        infos.push(info);
+        plan_ms.push(pm);
+    }
+    // Stage 2: couplings.
+    for (modes, unknowns) in &groups {
+        let wanted = quantity_names(model, unknowns);
+        let label = modes
+            .iter()
+            .map(|&n| names[n].as_str())
+            .collect::<Vec<_>>()
+            .join("_");
+        let name = format!("couple_{label}");
+        // Variants: every mode of the term driven; or all but one whose frequency is a sum or
+        // difference of the others' (within the lattice window).
+        let mut variants: Vec<BTreeSet<usize>> = vec![modes.iter().copied().collect()];
+        for &m in modes {
+            let others: Vec<f64> = modes
+                .iter()
+                .filter(|&&k| k != m)
+                .map(|&k| num.f_hz[k])
+                .collect();
+            let fm = num.f_hz[m];
+            let hit = (1..1u32 << (2 * others.len())).any(|mask| {
+                let mut sum = 0.0;
+                for (i, &fo) in others.iter().enumerate() {
+                    let c = (mask >> (2 * i)) & 3;
+                    sum += match c {
+                        1 => fo,
+                        2 => -fo,
+                        3 => 2.0 * fo,
+                        _ => 0.0,
+                    };
+                }
+                (sum.abs() - fm).abs() <= 0.005 * fm
+            });
+            if hit {
+                variants.push(modes.iter().copied().filter(|&k| k != m).collect());
+            }
+        }
+        let mut best: Option<(f64, PlanMeasurement, MeasInfo)> = None;
+        for driven in variants {
+            let mut scale = 1.0;
+            for _ in 0..8 {
+                let mut tones = Vec::new();
+                for &n in &driven {
+                    if let Some((c, d, f)) = pairs[n] {
+                        tones.push((c - 0.5 * d, n, round3(f * scale)));
+                        tones.push((c + 0.5 * d, n, round3(f * scale)));
+                    }
+                }
+                tones.sort_by(|a, b| a.0.total_cmp(&b.0));
+                let mut pm = measurement(&name, &tones, &names);
+                match measurement_info(model, &num, values, &base, &pm, s.sigma_m, s.shots) {
+                    Ok(info) => {
+                        choose_lines(&mut pm, &info, s.max_frequencies);
+                        let info =
+                            measurement_info(model, &num, values, &base, &pm, s.sigma_m, s.shots)?;
+                        let mut all: Vec<&MeasInfo> = infos.iter().collect();
+                        all.push(&info);
+                        let ev = joint_bounds(model, &all, s.shots)?;
+                        let score = worst_of(&ev, &wanted);
+                        if best.as_ref().is_none_or(|b| score < b.0) {
+                            best = Some((score, pm, info));
+                        }
+                        break;
+                    }
+                    Err(e) if is_infeasible(&e) => scale *= 0.7,
+                    Err(e) => return Err(e),
+                }
+            }
+        }
+        let Some((_, pm, info)) = best else {
+            return Err(PlanError::Unidentifiable {
+                parameter: wanted.join(", "),
+                reason: format!(
+                    "no drive of {label} together has a stable steady state without a jump"
+                ),
+                limits,
+            });
+        };
+        infos.push(info);
+        plan_ms.push(pm);
+    }
+    base.measurements = plan_ms;
+    let refs: Vec<&MeasInfo> = infos.iter().collect();
+    let ev = joint_bounds(model, &refs, s.shots)?;
+    if let Some(f) = ev.findings.first() {
+        return Err(PlanError::Unidentifiable {
+            parameter: f.unknown.clone(),
+            reason: f.reason.clone(),
+            limits,
+        });
+    }
+    Ok((base, ev))
+}

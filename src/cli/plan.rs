@@ -1,0 +1,168 @@
+//! `harmonid plan MODEL --values GUESS --noise SIGMA --shots N (--out plan.toml | --evaluate
+//! plan.toml)`: design a drive-tone plan, or score one, by the Cramér–Rao bounds of the
+//! model's unknowns (`harmonid_plan`).
+
+use crate::cli::common::write_atomic;
+use harmonid_experiment::{read_values, Plan};
+use harmonid_ident::Point;
+use harmonid_plan::{design, evaluate, DesignSettings};
+use miette::{miette, IntoDiagnostic, WrapErr};
+use std::path::PathBuf;
+
+/// Arguments of `harmonid plan`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The model file (`*.hb`).
+    pub model: PathBuf,
+    /// Guessed values (TOML `[modes.*]`/`[parameters]`, a truth.toml or a result JSON).
+    #[arg(long)]
+    pub values: PathBuf,
+    /// Per-quadrature noise σ of every lock-in amplitude: metres, or with a unit (`0.05nm`,
+    /// `50pm`, `1e-10m`).
+    #[arg(long)]
+    pub noise: String,
+    /// Shots per measurement.
+    #[arg(long, default_value_t = 1)]
+    pub shots: usize,
+    /// Write the designed plan here (TOML, what `simulate --plan` reads); written atomically,
+    /// only when every unknown is identifiable.
+    #[arg(
+        long,
+        conflicts_with = "evaluate",
+        required_unless_present = "evaluate"
+    )]
+    pub out: Option<PathBuf>,
+    /// Score this plan instead of designing one.
+    #[arg(long)]
+    pub evaluate: Option<PathBuf>,
+    /// Also write the relative bounds as JSON (`{"modes": {"q1": {"f_hz": .., "Q": ..}},
+    /// "parameters": {..}}`).
+    #[arg(long)]
+    pub bounds: Option<PathBuf>,
+    /// Most measured lines per measurement (the lock-in's limit).
+    #[arg(long, default_value_t = 32)]
+    pub max_frequencies: usize,
+    /// Most measurements in the designed plan.
+    #[arg(long)]
+    pub max_measurements: Option<usize>,
+    /// Instrument frequency grid, Hz: every tone and so every measured line is a multiple.
+    #[arg(long, default_value_t = 0.5)]
+    pub bandwidth: f64,
+    /// Largest drive force per tone, N/kg.
+    #[arg(long)]
+    pub max_force: Option<f64>,
+    /// A measurement point with the mode shapes there: `--point q1=0.309,q2=0.588`
+    /// (repeatable; default: modal amplitudes).
+    #[arg(long, value_name = "MODE=SHAPE,...")]
+    pub point: Vec<String>,
+}
+
+/// Parses `0.05nm`, `50pm`, `1e-10`, `1e-10m` into metres.
+fn parse_sigma(s: &str) -> miette::Result<f64> {
+    let t = s.trim();
+    let split = t
+        .find(|c: char| c.is_ascii_alphabetic() && c != 'e' && c != 'E')
+        .unwrap_or(t.len());
+    let (num, unit) = t.split_at(split);
+    let scale = match unit.trim() {
+        "" | "m" => 1.0,
+        "um" | "µm" => 1e-6,
+        "nm" => 1e-9,
+        "pm" => 1e-12,
+        u => {
+            return Err(miette!(
+                "--noise {s}: unknown unit `{u}` (use m, um, nm or pm)"
+            ))
+        }
+    };
+    let v: f64 = num
+        .trim()
+        .parse()
+        .ok()
+        .filter(|v: &f64| v.is_finite() && *v > 0.0)
+        .ok_or_else(|| miette!("--noise {s}: expected a positive σ, e.g. 0.05nm"))?;
+    Ok(v * scale)
+}
+
+fn parse_point(i: usize, s: &str) -> miette::Result<Point> {
+    let mut shape = std::collections::BTreeMap::new();
+    for part in s.split(',') {
+        let (m, v) = part.split_once('=').ok_or_else(|| {
+            miette!("--point {s}: expected MODE=SHAPE pairs, e.g. q1=0.309,q2=0.588")
+        })?;
+        let v: f64 = v
+            .trim()
+            .parse()
+            .ok()
+            .filter(|v: &f64| v.is_finite())
+            .ok_or_else(|| miette!("--point {s}: `{v}` is not a number"))?;
+        shape.insert(m.trim().to_string(), v);
+    }
+    Ok(Point {
+        name: format!("p{i}"),
+        shape,
+    })
+}
+
+/// Runs the subcommand.
+pub fn run(args: Args) -> miette::Result<()> {
+    let model = harmonid_model::load(&args.model).map_err(miette::Report::new)?;
+    let values = read_values(&args.values)?;
+    let sigma = parse_sigma(&args.noise)?;
+    if args.shots == 0 {
+        return Err(miette!("--shots must be at least 1"));
+    }
+    let ev = if let Some(path) = &args.evaluate {
+        let text = std::fs::read_to_string(path)
+            .into_diagnostic()
+            .wrap_err_with(|| format!("cannot read the plan {}", path.display()))?;
+        let plan = Plan::from_toml(&text, &path.display().to_string())?;
+        evaluate(&model, &values, &plan, sigma, args.shots).map_err(|e| miette!("{e}"))?
+    } else {
+        let points = args
+            .point
+            .iter()
+            .enumerate()
+            .map(|(i, s)| parse_point(i, s))
+            .collect::<miette::Result<Vec<_>>>()?;
+        let settings = DesignSettings {
+            sigma_m: sigma,
+            shots: args.shots,
+            max_frequencies: args.max_frequencies,
+            max_measurements: args.max_measurements,
+            grid_hz: args.bandwidth,
+            max_force: args.max_force.unwrap_or(f64::INFINITY),
+            points,
+        };
+        let (plan, ev) = design(&model, &values, &settings).map_err(|e| miette!("{e}"))?;
+        if let Some(out) = &args.out {
+            write_atomic(out, plan.to_toml().as_bytes())?;
+            eprintln!(
+                "wrote {} ({} measurements)",
+                out.display(),
+                plan.measurements.len()
+            );
+        }
+        ev
+    };
+    print!("{}", ev.table());
+    if let Some(b) = &args.bounds {
+        let text = serde_json::to_string_pretty(&ev.to_json()).into_diagnostic()?;
+        write_atomic(b, text.as_bytes())?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn noise_units() {
+        assert_eq!(parse_sigma("0.05nm").ok(), Some(0.05e-9));
+        assert_eq!(parse_sigma("1e-10").ok(), Some(1e-10));
+        assert_eq!(parse_sigma("50 pm").ok(), Some(50e-12));
+        assert!(parse_sigma("-1nm").is_err());
+        assert!(parse_sigma("1 furlong").is_err());
+    }
+}
