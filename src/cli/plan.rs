@@ -64,11 +64,12 @@ fn parse_sigma(s: &str) -> miette::Result<f64> {
         .find(|c: char| c.is_ascii_alphabetic() && c != 'e' && c != 'E')
         .unwrap_or(t.len());
     let (num, unit) = t.split_at(split);
-    let scale = match unit.trim() {
+    // Units per metre: dividing keeps `0.05nm` exactly 5e-11.
+    let per_m = match unit.trim() {
         "" | "m" => 1.0,
-        "um" | "µm" => 1e-6,
-        "nm" => 1e-9,
-        "pm" => 1e-12,
+        "um" | "µm" => 1e6,
+        "nm" => 1e9,
+        "pm" => 1e12,
         u => {
             return Err(miette!(
                 "--noise {s}: unknown unit `{u}` (use m, um, nm or pm)"
@@ -81,7 +82,7 @@ fn parse_sigma(s: &str) -> miette::Result<f64> {
         .ok()
         .filter(|v: &f64| v.is_finite() && *v > 0.0)
         .ok_or_else(|| miette!("--noise {s}: expected a positive σ, e.g. 0.05nm"))?;
-    Ok(v * scale)
+    Ok(v / per_m)
 }
 
 fn parse_point(i: usize, s: &str) -> miette::Result<Point> {
