@@ -5,7 +5,7 @@ pub mod common;
 pub mod identify;
 pub mod mix;
 pub mod noise_study;
-pub mod report;
 pub mod plan;
+pub mod report;
 pub mod simulate;
 pub mod sweep;

@@ -48,6 +48,10 @@ impl Default for DesignSettings {
     }
 }
 
+/// A scored candidate measurement: worst bound, the measurement, its information, and its tone
+/// spacing, level and centre.
+type Candidate = (f64, PlanMeasurement, MeasInfo, (f64, f64, f64));
+
 /// Rounds `x` to a multiple of `g`.
 fn on_grid(x: f64, g: f64) -> f64 {
     (x / g).round() * g
@@ -176,12 +180,10 @@ pub fn design(
     };
     // Unknowns per stage: a mode's own (f, Q, parameters of terms in it alone), then
     // parameters by the set of modes they couple.
-    let mut own: Vec<Vec<Unknown>> = vec![Vec::new(); nm];
+    let mut own: Vec<Vec<Unknown>> = (0..nm)
+        .map(|n| vec![Unknown::OmegaSq(n), Unknown::Gamma(n)])
+        .collect();
     let mut groups: BTreeMap<Vec<usize>, Vec<Unknown>> = BTreeMap::new();
-    for n in 0..nm {
-        own[n].push(Unknown::OmegaSq(n));
-        own[n].push(Unknown::Gamma(n));
-    }
     for p in 0..model.params.len() {
         let modes: Vec<usize> = param_modes(model, p).into_iter().collect();
         match modes.len() {
@@ -228,7 +230,7 @@ pub fn design(
         let w2 = (std::f64::consts::TAU * f).powi(2);
         let centre = on_grid(f, s.grid_hz);
         let wanted = quantity_names(model, &own[n]);
-        let mut best: Option<(f64, PlanMeasurement, MeasInfo, (f64, f64, f64))> = None;
+        let mut best: Option<Candidate> = None;
         for mult in [3.0, 6.0, 12.0] {
             let half = (on_grid(0.5 * mult * kappa, s.grid_hz)).max(s.grid_hz);
             let tones = |force: f64| [(centre - half, n, force), (centre + half, n, force)];

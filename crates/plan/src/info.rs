@@ -60,14 +60,16 @@ pub(crate) fn simulate(
 /// Whether an error means the drive configuration is not usable (fold, instability, no
 /// steady state), as opposed to bad input.
 pub(crate) fn is_infeasible(e: &PlanError) -> bool {
-    matches!(
-        e,
-        PlanError::Fold { .. }
-            | PlanError::Experiment(
-                ExperimentError::Unstable { .. } | ExperimentError::NotConverged { .. }
-            )
-            | PlanError::Forward(harmonid_ident::ForwardError::Hb { .. })
-    )
+    match e {
+        PlanError::Fold { .. } | PlanError::Forward(harmonid_ident::ForwardError::Hb { .. }) => {
+            true
+        }
+        PlanError::Experiment(x) => matches!(
+            **x,
+            ExperimentError::Unstable { .. } | ExperimentError::NotConverged { .. }
+        ),
+        _ => false,
+    }
 }
 
 /// The information of measurement `pm` (simulated at `values`) for `shots` shots of

@@ -26,9 +26,9 @@ use harmonid_ident::{FisherError, ForwardError};
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum PlanError {
-    /// The plan or the simulation of a measurement failed.
+    /// The plan or the simulation of a measurement failed (boxed: it is large and rare).
     #[error(transparent)]
-    Experiment(#[from] ExperimentError),
+    Experiment(Box<ExperimentError>),
     /// The forward model failed (names the measurement or the unknown).
     #[error(transparent)]
     Forward(#[from] ForwardError),
@@ -69,4 +69,10 @@ pub enum PlanError {
     /// Bad settings or values.
     #[error("{0}")]
     Input(String),
+}
+
+impl From<ExperimentError> for PlanError {
+    fn from(e: ExperimentError) -> Self {
+        PlanError::Experiment(Box::new(e))
+    }
 }
