@@ -120,8 +120,11 @@ fn put_curve<'py, 'a>(
 ///
 /// `two_tone_spacing_hz=Δ`: a pair of tones at `c ± Δ/2` (each with `force`) whose centre `c`
 /// is swept up and down; returns `up` and `down`, each with `centre_hz`, `stable`,
-/// `amplitudes` (N, modes, lines; complex, m, at the centre offsets `lines_offset_hz`:
-/// `−3Δ/2, −Δ/2, Δ/2, 3Δ/2`), `jumps_hz` and `stopped` (None, or where and why).
+/// `amplitudes` (a dict: mode → (N, that mode's lines); complex, m), `jumps_hz` and `stopped`
+/// (None, or where and why). Each mode is reported at its own lines, `mode_lines[mode]`:
+/// `(label, centre_factor, offset_hz)`, the line at `centre_factor · c + offset_hz` (a mode the
+/// pair sweeps past at the offsets `lines_offset_hz`, `−3Δ/2, −Δ/2, Δ/2, 3Δ/2`; another at the
+/// mixing products that reach its resonance).
 ///
 /// Runs without holding the GIL.
 #[pyfunction]
@@ -193,13 +196,34 @@ fn two_tone<'py>(
     let out = PyDict::new(py);
     out.set_item("lines_offset_hz", r.lines_offset_hz.clone())?;
     out.set_item("modes", nm.mode_names.clone())?;
+    // Each mode is reported at its own lines (`mode_lines`), so the amplitudes are one array
+    // per mode, (N, that mode's lines), with the lines' labels and centre factors/offsets.
+    let lines = PyDict::new(py);
+    for (name, ls) in nm.mode_names.iter().zip(&r.mode_lines) {
+        let rows: Vec<(String, f64, f64)> = ls
+            .iter()
+            .map(|l| (l.label.clone(), l.centre_factor, l.offset_hz))
+            .collect();
+        lines.set_item(name, rows)?;
+    }
+    out.set_item("mode_lines", lines)?;
     for c in [&r.up, &r.down] {
         let d = PyDict::new(py);
-        let pts = c
-            .points
-            .iter()
-            .map(|p| (p.centre_hz, p.stable, p.amplitudes.as_slice()));
-        put_curve(&d, "centre_hz", pts, nm.n_modes(), r.lines_offset_hz.len())?;
+        let n = c.points.len();
+        let centre: Vec<f64> = c.points.iter().map(|p| p.centre_hz).collect();
+        let stable: Vec<bool> = c.points.iter().map(|p| p.stable).collect();
+        d.set_item("centre_hz", centre.into_pyarray(py))?;
+        d.set_item("stable", stable.into_pyarray(py))?;
+        let amps = PyDict::new(py);
+        for (m, name) in nm.mode_names.iter().enumerate() {
+            let width = r.mode_lines[m].len();
+            let mut a: Vec<Complex64> = Vec::with_capacity(n * width);
+            for p in &c.points {
+                a.extend_from_slice(&p.amplitudes[m]);
+            }
+            amps.set_item(name, a.into_pyarray(py).reshape([n, width])?)?;
+        }
+        d.set_item("amplitudes", amps)?;
         d.set_item(
             "jumps_hz",
             c.jumps

@@ -51,18 +51,21 @@ def test_two_tone_equals_cli(cli, tmp_path):
     model = harmonid.Model.from_file(MODEL_2)
     r = harmonid.sweep(model, VALUES, 207560, 207620, {"q1": 3.5}, two_tone_spacing_hz=20,
                        points=60)
-    labels = ["lsb", "lo", "hi", "usb"]
     assert r["lines_offset_hz"] == [-30.0, -10.0, 10.0, 30.0]
+    # q1 is swept past: its four lines; q2 (cubic model, odd orders) has no line near 415 kHz.
+    assert [off for _, _, off in r["mode_lines"]["q1"]] == [-30.0, -10.0, 10.0, 30.0]
+    assert r["mode_lines"]["q2"] == []
     for direction in ("up", "down"):
         want = [x for x in rows if x["direction"] == direction]
         got = r[direction]
-        assert got["amplitudes"].shape == (len(want), 2, 4)
         np.testing.assert_allclose(got["centre_hz"], [float(x["centre_hz"]) for x in want],
                                    rtol=1e-12, atol=0)
         assert list(got["stable"]) == [x["stable"] == "1" for x in want]
-        for n, mode in enumerate(r["modes"]):
+        for mode in r["modes"]:
+            labels = [lab for lab, _, _ in r["mode_lines"][mode]]
+            assert got["amplitudes"][mode].shape == (len(want), len(labels))
             for i, lab in enumerate(labels):
-                z = got["amplitudes"][:, n, i]
+                z = got["amplitudes"][mode][:, i]
                 np.testing.assert_allclose(np.abs(z), [float(x[f"{mode}_{lab}_abs"]) for x in want],
                                            rtol=1e-12, atol=0)
                 # The CSV prints phases to 1e-9 rad.
