@@ -1,4 +1,4 @@
-//! `harmonid report` end to end on the public two-mode dataset: the page and every figure are
+//! `harmonid report` end to end on the shipped two-mode example dataset: the page and every figure are
 //! written, every figure is an SVG with axes, text and data, the structure of the SVGs is
 //! snapshotted (not pixels), a headless Chromium parses the page and finds every figure drawn,
 //! and a folder that is not a report is never overwritten.
@@ -10,14 +10,9 @@ fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// The two-mode dataset: the in-repo copy of the public one when present, else the example's.
+/// The two-mode example dataset (20 shots, 0.05 nm).
 fn dataset() -> PathBuf {
-    let shipped = root().join("tests/data/nanostring_2mode");
-    if shipped.join("dataset.toml").is_file() {
-        shipped
-    } else {
-        root().join("examples/nanostring_2mode/data")
-    }
+    root().join("examples/nanostring_2mode/data")
 }
 
 fn report(args: &[&Path]) -> (bool, String, String) {
