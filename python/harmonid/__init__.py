@@ -33,6 +33,7 @@ from ._harmonid import (
     ModelError,
     SimulationError,
     identify,
+    simulate,
     sweep,
 )
 
@@ -49,6 +50,7 @@ __all__ = [
     "SimulationError",
     "identify",
     "mix",
+    "simulate",
     "sweep",
 ]
 

@@ -11,6 +11,7 @@ from ._harmonid import (
     ModelError as ModelError,
     SimulationError as SimulationError,
     identify as identify,
+    simulate as simulate,
     sweep as sweep,
 )
 

@@ -99,7 +99,7 @@ def mix(
 ) -> list[dict[str, Any]]: ...
 def sweep(
     model: Model,
-    values: Union[Mapping[str, Any], _Path],
+    values: Union[Mapping[str, Any], IdentifyResult, _Path],
     f_from_hz: float,
     f_to_hz: float,
     force: Mapping[str, float],
@@ -108,3 +108,15 @@ def sweep(
     harmonics: int = 3,
     two_tone_spacing_hz: Optional[float] = None,
 ) -> dict[str, Any]: ...
+def simulate(
+    model: Model,
+    values: Union[Mapping[str, Any], IdentifyResult, _Path],
+    plan: Union[Mapping[str, Any], _Path],
+    *,
+    time_domain: bool = False,
+    seed: int = 0,
+    noise: bool = True,
+    check_stability: bool = True,
+    allow_unstable: bool = False,
+    order: Optional[int] = None,
+) -> Dataset: ...

@@ -64,3 +64,17 @@ pub fn ident_error(e: &harmonid_ident::IdentError) -> PyErr {
         other => IdentifyError::new_err(other.to_string()),
     }
 }
+
+/// A miette diagnostic (a plan's error with its span, a values file's error) as plain text:
+/// `file:line:column`, the line, a caret, the help.
+pub fn render(d: &dyn miette::Diagnostic) -> String {
+    let handler =
+        miette::GraphicalReportHandler::new_themed(miette::GraphicalTheme::unicode_nocolor())
+            .with_width(100)
+            .with_links(false);
+    let mut out = String::new();
+    if handler.render_report(&mut out, d).is_err() {
+        out = d.to_string();
+    }
+    out
+}

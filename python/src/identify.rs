@@ -117,7 +117,8 @@ pub fn identify(
 /// estimate as numpy arrays (the columns of `--per-shot`); `summary()` is the printed table.
 #[pyclass(module = "harmonid._harmonid", frozen)]
 pub struct IdentifyResult {
-    json: Value,
+    /// The result file's content (read back as a `Report` where values are taken from it).
+    pub(crate) json: Value,
     /// Every shot's estimates per column, until `per_shot` first moves them into numpy (so
     /// that an identification does not import numpy unless the estimates are asked for).
     columns: Mutex<Vec<(String, Vec<f64>)>>,

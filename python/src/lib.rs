@@ -17,7 +17,9 @@ mod errors;
 mod identify;
 mod mix;
 mod model;
+mod simulate;
 mod sweep;
+mod values;
 
 use pyo3::prelude::*;
 
@@ -32,5 +34,6 @@ fn _harmonid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(mix::mix, m)?)?;
     m.add_function(wrap_pyfunction!(identify::identify, m)?)?;
     m.add_function(wrap_pyfunction!(sweep::sweep, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;
     Ok(())
 }

@@ -3,7 +3,8 @@
 
 use crate::errors::SimulationError;
 use crate::model::Model;
-use harmonid_sim::{self as sim, ModelValues, NumericModel, SweepSettings, TwoToneSettings};
+use crate::values::model_values;
+use harmonid_sim::{self as sim, NumericModel, SweepSettings, TwoToneSettings};
 use num_complex::Complex64;
 use numpy::{IntoPyArray, PyArrayMethods};
 use pyo3::prelude::*;
@@ -14,36 +15,7 @@ fn sim_error(e: &sim::SimError) -> PyErr {
     SimulationError::new_err(e.to_string())
 }
 
-/// Reads `values`: a dict in the layout of a values file (`{"modes": {"q1": {"f_hz": ..,
-/// "Q": ..}}, "parameters": {"beta1": ..}, "eom": {..}}`) or the path of a values TOML file.
-pub fn model_values(py: Python<'_>, values: &Bound<'_, PyAny>) -> PyResult<ModelValues> {
-    let bad = |what: String, e: String| {
-        SimulationError::new_err(format!(
-            "{what}: {e}; expected the values file's layout: [modes.q1] f_hz = ..., Q = ...; [parameters] beta1 = ..."
-        ))
-    };
-    if values.is_instance_of::<PyDict>() {
-        let text: String = py
-            .import("json")?
-            .call_method1("dumps", (values,))?
-            .extract()?;
-        return serde_json::from_str(&text).map_err(|e| bad("values".into(), e.to_string()));
-    }
-    let path: std::path::PathBuf = values.extract().map_err(|_| {
-        pyo3::exceptions::PyTypeError::new_err(
-            "values: expected a dict or the path of a values TOML file",
-        )
-    })?;
-    let text = std::fs::read_to_string(&path).map_err(|e| {
-        SimulationError::new_err(format!(
-            "cannot read the values file {}: {e}",
-            path.display()
-        ))
-    })?;
-    toml::from_str(&text).map_err(|e| bad(path.display().to_string(), e.to_string()))
-}
-
-/// The model evaluated with `values` (see [`model_values`]).
+/// The model evaluated with `values` (see [`crate::values`]).
 pub fn numeric_model(model: &Model, values: &Bound<'_, PyAny>) -> PyResult<NumericModel> {
     let values = model_values(values.py(), values)?;
     NumericModel::from_model(&model.inner, &values).map_err(|e| {
@@ -110,8 +82,8 @@ fn put_curve<'py, 'a>(
 /// A frequency-response curve, followed through folds (`harmonid sweep`).
 ///
 /// `values` gives the model's numbers: a dict in the layout of a values file
-/// (`{"modes": {"q1": {"f_hz": ..., "Q": ...}}, "parameters": {"beta1": ...}}`) or the path of a
-/// values TOML file. `force` is `{mode: N/kg}` (peak, phase 0) of the tone on each mode.
+/// (`{"modes": {"q1": {"f_hz": ..., "Q": ...}}, "parameters": {"beta1": ...}}`), the path of a
+/// values TOML file or of a result JSON, or an `IdentifyResult`. `force` is `{mode: N/kg}` (peak, phase 0) of the tone on each mode.
 ///
 /// Single tone (default): the tone is swept from `f_from_hz` to `f_to_hz` by pseudo-arclength
 /// continuation; returns numpy arrays `f_hz` (N,), `stable` (N,) and `amplitudes` (N, modes,

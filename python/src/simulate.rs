@@ -1,0 +1,90 @@
+//! `harmonid.simulate`: the virtual experiment (`harmonid simulate`): a plan, a model and its
+//! values → the dataset a lab would record.
+
+use crate::dataset::Dataset;
+use crate::errors::{render, SimulationError};
+use crate::model::Model;
+use crate::values::model_values;
+use harmonid_experiment::{Engine, Plan, Settings, TimeDomain};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use std::path::PathBuf;
+
+/// The plan: the path of a plan TOML file, or a dict in its layout.
+fn plan_from(py: Python<'_>, plan: &Bound<'_, PyAny>) -> PyResult<Plan> {
+    if plan.is_instance_of::<PyDict>() {
+        let text: String = py
+            .import("json")?
+            .call_method1("dumps", (plan,))?
+            .extract()?;
+        let p: Plan = serde_json::from_str(&text).map_err(|e| {
+            SimulationError::new_err(format!(
+                "plan: {e}; expected the plan file's layout (docs/simulation.md)"
+            ))
+        })?;
+        p.check("plan")
+            .map_err(|e| SimulationError::new_err(render(&e)))?;
+        return Ok(p);
+    }
+    let path: PathBuf = plan.extract().map_err(|_| {
+        pyo3::exceptions::PyTypeError::new_err(
+            "plan: expected a dict or the path of a plan TOML file",
+        )
+    })?;
+    let origin = path.display().to_string();
+    let text = std::fs::read_to_string(&path)
+        .map_err(|e| SimulationError::new_err(format!("cannot read the plan {origin}: {e}")))?;
+    Plan::from_toml(&text, &origin).map_err(|e| SimulationError::new_err(render(&e)))
+}
+
+/// Simulates the measurements of `plan` on `model` with `values` and returns the `Dataset` a
+/// lab would record (amplitudes in metres, with the true values as `.truth`), as
+/// `harmonid simulate MODEL --values V --plan P` writes it.
+///
+/// `values`: a dict in the values file's layout (`{"modes": {"q1": {"f_hz": .., "Q": ..}},
+/// "parameters": {..}}`), the path of a values TOML file or of a result JSON, or an
+/// `IdentifyResult`. `plan`: the path of a plan TOML file or a dict in its layout
+/// (docs/simulation.md). `time_domain=True` integrates in time and demodulates as a lock-in
+/// instead of harmonic balance; `seed` seeds the noise; `noise=False` gives clean amplitudes;
+/// each steady state is checked for stability (Hill's method) and an unstable one refused
+/// unless `allow_unstable` (`check_stability=False` skips the check); `order` is the
+/// harmonic-balance lattice's intermodulation order. The defaults are the command line's. Runs without holding the GIL.
+#[pyfunction]
+#[pyo3(signature = (model, values, plan, *, time_domain = false, seed = 0, noise = true, check_stability = true, allow_unstable = false, order = None))]
+#[allow(clippy::too_many_arguments)] // the Python signature, keyword arguments included
+pub fn simulate(
+    py: Python<'_>,
+    model: &Model,
+    values: &Bound<'_, PyAny>,
+    plan: &Bound<'_, PyAny>,
+    time_domain: bool,
+    seed: u64,
+    noise: bool,
+    check_stability: bool,
+    allow_unstable: bool,
+    order: Option<usize>,
+) -> PyResult<Dataset> {
+    let values = model_values(py, values)?;
+    let plan = plan_from(py, plan)?;
+    let mut settings = Settings {
+        seed,
+        noise,
+        check_stability,
+        allow_unstable,
+        ..Settings::default()
+    };
+    if time_domain {
+        settings.engine = Engine::TimeDomain(TimeDomain::default());
+    }
+    if let Some(o) = order {
+        settings.order = o;
+    }
+    let m = std::sync::Arc::clone(&model.inner);
+    let sim = py
+        .detach(|| {
+            plan.simulate(&m, &values, &settings)
+                .map_err(|e| render(&e))
+        })
+        .map_err(SimulationError::new_err)?;
+    Ok(Dataset::wrap(sim.dataset))
+}
