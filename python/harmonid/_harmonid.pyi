@@ -118,5 +118,6 @@ def simulate(
     noise: bool = True,
     check_stability: bool = True,
     allow_unstable: bool = False,
+    allow_truncation: bool = False,
     order: Optional[int] = None,
 ) -> Dataset: ...

@@ -5,7 +5,7 @@ use crate::dataset::Dataset;
 use crate::errors::{render, SimulationError};
 use crate::model::Model;
 use crate::values::model_values;
-use harmonid_experiment::{Engine, Plan, Settings, TimeDomain};
+use harmonid_experiment::{Engine, Plan, Settings, TimeDomain, Truncation};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::path::PathBuf;
@@ -47,10 +47,12 @@ fn plan_from(py: Python<'_>, plan: &Bound<'_, PyAny>) -> PyResult<Plan> {
 /// (docs/simulation.md). `time_domain=True` integrates in time and demodulates as a lock-in
 /// instead of harmonic balance; `seed` seeds the noise; `noise=False` gives clean amplitudes;
 /// each steady state is checked for stability (Hill's method) and an unstable one refused
-/// unless `allow_unstable` (`check_stability=False` skips the check); `order` is the
-/// harmonic-balance lattice's intermodulation order. The defaults are the command line's. Runs without holding the GIL.
+/// unless `allow_unstable` (`check_stability=False` skips the check); a state whose spectrum
+/// is still truncated at order 17 is refused unless `allow_truncation`; `order` is the
+/// harmonic-balance lattice's intermodulation order to start from. The defaults are the
+/// command line's. Runs without holding the GIL.
 #[pyfunction]
-#[pyo3(signature = (model, values, plan, *, time_domain = false, seed = 0, noise = true, check_stability = true, allow_unstable = false, order = None))]
+#[pyo3(signature = (model, values, plan, *, time_domain = false, seed = 0, noise = true, check_stability = true, allow_unstable = false, allow_truncation = false, order = None))]
 #[allow(clippy::too_many_arguments)] // the Python signature, keyword arguments included
 pub fn simulate(
     py: Python<'_>,
@@ -62,6 +64,7 @@ pub fn simulate(
     noise: bool,
     check_stability: bool,
     allow_unstable: bool,
+    allow_truncation: bool,
     order: Option<usize>,
 ) -> PyResult<Dataset> {
     let values = model_values(py, values)?;
@@ -71,6 +74,10 @@ pub fn simulate(
         noise,
         check_stability,
         allow_unstable,
+        truncation: Truncation {
+            required: !allow_truncation,
+            ..Truncation::default()
+        },
         ..Settings::default()
     };
     if time_domain {
