@@ -1,7 +1,7 @@
 //! `harmonid identify MODEL DATASET --out result.json`: identify the model's unknowns from a
 //! measured dataset (sequential stages by default), print a summary table, write the result.
 
-use crate::cli::common::{check_outputs, write_output};
+use crate::cli::common::{check_outputs, print_out, write_output};
 use harmonid_ident::{identify, Dataset, Estimator, ForceModel, Settings};
 use miette::miette;
 use std::collections::BTreeMap;
@@ -123,14 +123,14 @@ pub fn run(args: Args) -> miette::Result<()> {
     };
     let mut report = identify(&model, &ds, &settings).map_err(|e| miette!("{e}"))?;
     report.model = args.model.display().to_string();
-    print!("{}", report.summary(ds.truth.as_ref()));
+    print_out(format_args!("{}", report.summary(ds.truth.as_ref())));
     if let Some(out) = &args.out {
         write_output(out, report.to_json().as_bytes(), &inputs)?;
-        println!("wrote {}", out.display());
+        print_out(format_args!("wrote {}\n", out.display()));
     }
     if let Some(path) = &args.per_shot {
         write_output(path, report.per_shot_csv().as_bytes(), &inputs)?;
-        println!("wrote {}", path.display());
+        print_out(format_args!("wrote {}\n", path.display()));
     }
     Ok(())
 }

@@ -443,8 +443,8 @@ pub fn run(args: Args) -> miette::Result<()> {
         })
         .collect();
     let md = markdown(&levels, &sigmas, &stats);
-    println!(
-        "noise study: {} levels × {} realisations, {} identifications in {:.2} s ({})",
+    crate::cli::common::print_out(format_args!(
+        "noise study: {} levels × {} realisations, {} identifications in {:.2} s ({})\n",
         levels.len(),
         args.realisations,
         tasks.len(),
@@ -457,14 +457,18 @@ pub fn run(args: Args) -> miette::Result<()> {
                 args.window_s
             )
         }
-    );
-    print!("{md}");
-    print!("{}", summary(&levels, &stats));
+    ));
+    crate::cli::common::print_out(format_args!("{md}"));
+    crate::cli::common::print_out(format_args!("{}", summary(&levels, &stats)));
     if let Some(out) = &args.out {
         write_atomic(out, csv(&levels, &sigmas, &stats).as_bytes())?;
         let md_path = out.with_extension("md");
         write_atomic(&md_path, md.as_bytes())?;
-        println!("wrote {} and {}", out.display(), md_path.display());
+        crate::cli::common::print_out(format_args!(
+            "wrote {} and {}\n",
+            out.display(),
+            md_path.display()
+        ));
     }
     Ok(())
 }

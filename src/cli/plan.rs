@@ -2,7 +2,7 @@
 //! plan.toml)`: design a drive-tone plan, or score one, by the Cramér–Rao bounds of the
 //! model's unknowns (`harmonid_plan`).
 
-use crate::cli::common::write_atomic;
+use crate::cli::common::{print_out, write_atomic};
 use harmonid_experiment::{read_values, Plan};
 use harmonid_ident::Point;
 use harmonid_plan::{design, evaluate, DesignSettings};
@@ -146,7 +146,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         }
         ev
     };
-    print!("{}", ev.table());
+    print_out(format_args!("{}", ev.table()));
     if let Some(b) = &args.bounds {
         let text = serde_json::to_string_pretty(&ev.to_json()).into_diagnostic()?;
         write_atomic(b, text.as_bytes())?;

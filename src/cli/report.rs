@@ -47,10 +47,10 @@ pub fn run(args: Args) -> miette::Result<()> {
     for w in &page.warnings {
         eprintln!("warning: {w}");
     }
-    println!(
-        "wrote {} ({} figures)",
+    crate::cli::common::print_out(format_args!(
+        "wrote {} ({} figures)\n",
         args.out.join("index.html").display(),
         page.figures.len()
-    );
+    ));
     Ok(())
 }
