@@ -9,8 +9,12 @@ from ._harmonid import (
     IdentifyResult as IdentifyResult,
     Model as Model,
     ModelError as ModelError,
+    PlanError as PlanError,
+    PlanResult as PlanResult,
     SimulationError as SimulationError,
+    evaluate_plan as evaluate_plan,
     identify as identify,
+    plan as plan,
     simulate as simulate,
     sweep as sweep,
 )

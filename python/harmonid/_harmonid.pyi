@@ -16,6 +16,7 @@ class ModelError(HarmonidError): ...
 class DatasetError(HarmonidError): ...
 class IdentifyError(HarmonidError): ...
 class SimulationError(HarmonidError): ...
+class PlanError(HarmonidError): ...
 
 class Model:
     @staticmethod
@@ -85,6 +86,8 @@ def identify(
     nominal_hz: Optional[Mapping[str, float]] = None,
     near_rel: Optional[float] = None,
     unweighted: bool = False,
+    estimator: Literal["ml", "linear"] = "ml",
+    crlb: bool = False,
     rank_tol: Optional[float] = None,
     gls: Optional[bool] = None,
     gls_iterations: Optional[int] = None,
@@ -111,7 +114,7 @@ def sweep(
 def simulate(
     model: Model,
     values: Union[Mapping[str, Any], IdentifyResult, _Path],
-    plan: Union[Mapping[str, Any], _Path],
+    plan: Union[Mapping[str, Any], PlanResult, _Path],
     *,
     time_domain: bool = False,
     seed: int = 0,
@@ -121,3 +124,40 @@ def simulate(
     allow_truncation: bool = False,
     order: Optional[int] = None,
 ) -> Dataset: ...
+
+class PlanResult:
+    @property
+    def toml(self) -> str: ...
+    @property
+    def plan(self) -> dict[str, Any]: ...
+    @property
+    def bounds(self) -> dict[str, dict[str, Any]]: ...
+    @property
+    def quantities(self) -> dict[str, dict[str, Optional[float]]]: ...
+    @property
+    def findings(self) -> list[dict[str, str]]: ...
+    @property
+    def condition(self) -> Optional[float]: ...
+    @property
+    def shots(self) -> int: ...
+    def table(self) -> str: ...
+
+def plan(
+    model: Model,
+    values: Union[Mapping[str, Any], IdentifyResult, _Path],
+    noise_m: float,
+    shots: int = 1,
+    *,
+    max_frequencies: int = 32,
+    max_measurements: Optional[int] = None,
+    bandwidth_hz: float = 0.5,
+    max_force: Optional[float] = None,
+    points: Optional[Sequence[Mapping[str, float]]] = None,
+) -> PlanResult: ...
+def evaluate_plan(
+    model: Model,
+    values: Union[Mapping[str, Any], IdentifyResult, _Path],
+    plan: Union[Mapping[str, Any], PlanResult, _Path],
+    noise_m: float,
+    shots: int = 1,
+) -> PlanResult: ...

@@ -35,6 +35,12 @@ create_exception!(
     HarmonidError,
     "Values, plans or settings a simulation or sweep cannot use."
 );
+create_exception!(
+    harmonid,
+    PlanError,
+    HarmonidError,
+    "A plan that cannot be designed or scored (an unknown no drive reveals, a budget too small, a drive past a fold), or a plan file that does not read."
+);
 
 /// Adds the exception classes to the module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -44,6 +50,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("DatasetError", py.get_type::<DatasetError>())?;
     m.add("IdentifyError", py.get_type::<IdentifyError>())?;
     m.add("SimulationError", py.get_type::<SimulationError>())?;
+    m.add("PlanError", py.get_type::<PlanError>())?;
     Ok(())
 }
 

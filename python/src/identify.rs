@@ -5,7 +5,7 @@ use crate::convert::json_to_py;
 use crate::dataset::Dataset;
 use crate::errors::{ident_error, HarmonidError};
 use crate::model::Model;
-use harmonid_ident::{ForceModel, Report, Settings};
+use harmonid_ident::{Estimator, ForceModel, Report, Settings};
 use numpy::IntoPyArray;
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
@@ -28,6 +28,18 @@ fn force_model(name: &str) -> PyResult<ForceModel> {
     })
 }
 
+fn estimator(name: &str) -> PyResult<Estimator> {
+    Ok(match name {
+        "ml" => Estimator::Ml,
+        "linear" => Estimator::Linear,
+        other => {
+            return Err(HarmonidError::new_err(format!(
+                "estimator={other:?}: expected \"ml\" (output-error maximum likelihood) or \"linear\" (equation-error fit)"
+            )))
+        }
+    })
+}
+
 /// Identifies `model`'s unknowns from `dataset` (sequential stages unless `joint`), exactly as
 /// `harmonid identify MODEL DATASET` does with the matching options:
 ///
@@ -37,12 +49,17 @@ fn force_model(name: &str) -> PyResult<ForceModel> {
 /// - `nominal_hz`: `{mode: Hz}` overriding the dataset's and the model's (`--nominal`);
 /// - `near_rel`: how close (relative) a drive tone must be to a resonance (`--near-rel`);
 /// - `unweighted`: no weights from the scatter across shots (`--unweighted`);
+/// - `estimator`: `"ml"` (default), output-error maximum likelihood by harmonic balance on the
+///   pooled shots (falls back to `"linear"` with a warning when the model cannot be
+///   simulated), or `"linear"`, the equation-error fit of the pooled shots (`--estimator`);
+/// - `crlb`: also compute the Cramér–Rao bound of every quantity at the estimate (`--crlb`;
+///   `result.crlb`);
 /// - `rank_tol`, `gls`, `gls_iterations`, `sample_covariance`: the library's settings
 ///   (`Settings` in `harmonid_ident`); None keeps the documented default.
 ///
 /// Runs without holding the GIL. Returns an `IdentifyResult`.
 #[pyfunction]
-#[pyo3(signature = (model, dataset, *, joint = false, force_model = "auto", nominal_hz = None, near_rel = None, unweighted = false, rank_tol = None, gls = None, gls_iterations = None, sample_covariance = None))]
+#[pyo3(signature = (model, dataset, *, joint = false, force_model = "auto", nominal_hz = None, near_rel = None, unweighted = false, estimator = "ml", crlb = false, rank_tol = None, gls = None, gls_iterations = None, sample_covariance = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn identify(
     py: Python<'_>,
@@ -53,6 +70,8 @@ pub fn identify(
     nominal_hz: Option<BTreeMap<String, f64>>,
     near_rel: Option<f64>,
     unweighted: bool,
+    estimator: &str,
+    crlb: bool,
     rank_tol: Option<f64>,
     gls: Option<bool>,
     gls_iterations: Option<usize>,
@@ -78,6 +97,8 @@ pub fn identify(
         force_model: self::force_model(force_model)?,
         joint,
         nominal_hz: nominal,
+        estimator: self::estimator(estimator)?,
+        crlb,
         ..Settings::default()
     };
     if let Some(x) = near_rel {

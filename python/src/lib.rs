@@ -3,7 +3,7 @@
 //!
 //! Conventions are the library's (`DATA_FORMAT.md`): SI units, a complex amplitude `X` at `f`
 //! means `Re[X e^{i2πft}]` (peak), frequencies in Hz. Long computations (identification,
-//! simulation, sweeps) run with the Python thread state detached, so other Python threads keep
+//! simulation, sweeps, planning) run with the Python thread state detached, so other Python threads keep
 //! running. Arrays handed to Python are moved into numpy without a copy where the library
 //! produces them as owned vectors.
 //!
@@ -17,6 +17,7 @@ mod errors;
 mod identify;
 mod mix;
 mod model;
+mod plan;
 mod simulate;
 mod sweep;
 mod values;
@@ -35,5 +36,8 @@ fn _harmonid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(identify::identify, m)?)?;
     m.add_function(wrap_pyfunction!(sweep::sweep, m)?)?;
     m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;
+    m.add_class::<plan::PlanResult>()?;
+    m.add_function(wrap_pyfunction!(plan::plan, m)?)?;
+    m.add_function(wrap_pyfunction!(plan::evaluate_plan, m)?)?;
     Ok(())
 }

@@ -4,38 +4,10 @@
 use crate::dataset::Dataset;
 use crate::errors::{render, SimulationError};
 use crate::model::Model;
+use crate::plan::plan_from;
 use crate::values::model_values;
-use harmonid_experiment::{Engine, Plan, Settings, TimeDomain, Truncation};
+use harmonid_experiment::{Engine, Settings, TimeDomain, Truncation};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
-use std::path::PathBuf;
-
-/// The plan: the path of a plan TOML file, or a dict in its layout.
-fn plan_from(py: Python<'_>, plan: &Bound<'_, PyAny>) -> PyResult<Plan> {
-    if plan.is_instance_of::<PyDict>() {
-        let text: String = py
-            .import("json")?
-            .call_method1("dumps", (plan,))?
-            .extract()?;
-        let p: Plan = serde_json::from_str(&text).map_err(|e| {
-            SimulationError::new_err(format!(
-                "plan: {e}; expected the plan file's layout (docs/simulation.md)"
-            ))
-        })?;
-        p.check("plan")
-            .map_err(|e| SimulationError::new_err(render(&e)))?;
-        return Ok(p);
-    }
-    let path: PathBuf = plan.extract().map_err(|_| {
-        pyo3::exceptions::PyTypeError::new_err(
-            "plan: expected a dict or the path of a plan TOML file",
-        )
-    })?;
-    let origin = path.display().to_string();
-    let text = std::fs::read_to_string(&path)
-        .map_err(|e| SimulationError::new_err(format!("cannot read the plan {origin}: {e}")))?;
-    Plan::from_toml(&text, &origin).map_err(|e| SimulationError::new_err(render(&e)))
-}
 
 /// Simulates the measurements of `plan` on `model` with `values` and returns the `Dataset` a
 /// lab would record (amplitudes in metres, with the true values as `.truth`), as
@@ -43,7 +15,7 @@ fn plan_from(py: Python<'_>, plan: &Bound<'_, PyAny>) -> PyResult<Plan> {
 ///
 /// `values`: a dict in the values file's layout (`{"modes": {"q1": {"f_hz": .., "Q": ..}},
 /// "parameters": {..}}`), the path of a values TOML file or of a result JSON, or an
-/// `IdentifyResult`. `plan`: the path of a plan TOML file or a dict in its layout
+/// `IdentifyResult`. `plan`: the path of a plan TOML file, a dict in its layout or a `PlanResult`
 /// (docs/simulation.md). `time_domain=True` integrates in time and demodulates as a lock-in
 /// instead of harmonic balance; `seed` seeds the noise; `noise=False` gives clean amplitudes;
 /// each steady state is checked for stability (Hill's method) and an unstable one refused
@@ -68,7 +40,7 @@ pub fn simulate(
     order: Option<usize>,
 ) -> PyResult<Dataset> {
     let values = model_values(py, values)?;
-    let plan = plan_from(py, plan)?;
+    let plan = plan_from(py, plan, SimulationError::new_err)?;
     let mut settings = Settings {
         seed,
         noise,

@@ -19,6 +19,9 @@ OPTIONS = [
     ({"force_model": "gain_per_mode"}, ["--gain-per-mode"]),
     ({"unweighted": True, "near_rel": 0.01}, ["--unweighted", "--near-rel", "0.01"]),
     ({"nominal_hz": {"q1": 207590.0}}, ["--nominal", "q1=207590"]),
+    ({"estimator": "linear"}, ["--estimator", "linear"]),
+    ({"crlb": True}, ["--crlb"]),
+    ({"estimator": "linear", "crlb": True}, ["--estimator", "linear", "--crlb"]),
 ]
 
 
@@ -65,6 +68,23 @@ def test_crlb_is_what_the_result_reports():
     assert r.crlb == (want or None)
 
 
+@pytest.mark.parametrize("estimator", ["ml", "linear"])
+def test_crlb_option_equals_cli(cli, tmp_path, estimator):
+    want, _, printed = cli_identify(
+        cli, tmp_path, MODEL_2, DATA_2, ["--estimator", estimator, "--crlb"]
+    )
+    r = harmonid.identify(
+        harmonid.Model.from_file(MODEL_2), harmonid.Dataset.from_folder(DATA_2),
+        estimator=estimator, crlb=True,
+    )
+    want_crlb = {p: e["crlb"] for p, e in want["parameters"].items()}
+    for n, m in want["modes"].items():
+        want_crlb.update({f"{k}:{n}": m[k]["crlb"] for k in ("f_hz", "Q")})
+    assert set(want_crlb) == {"f_hz:q1", "Q:q1", "f_hz:q2", "Q:q2", "beta1", "beta2", "g12"}
+    assert_close(r.crlb, want_crlb)
+    assert "crlb" in printed
+
+
 def test_arrays_and_a_written_folder_identify_as_the_folder(cli, tmp_path):
     built = rebuild(harmonid.Dataset.from_folder(DATA_2))
     model = harmonid.Model.from_file(MODEL_2)
@@ -104,6 +124,8 @@ def test_errors_are_located(tmp_path):
         harmonid.identify(model, ds, near_rel=1e-9)
     with pytest.raises(harmonid.HarmonidError, match="force_model"):
         harmonid.identify(model, ds, force_model="magic")
+    with pytest.raises(harmonid.HarmonidError, match=r"estimator=\"mle\": expected \"ml\""):
+        harmonid.identify(model, ds, estimator="mle")
     with pytest.raises(harmonid.HarmonidError, match="no mode \"q9\""):
         harmonid.identify(model, ds, nominal_hz={"q9": 1e5})
     with pytest.raises(TypeError):

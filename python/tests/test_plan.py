@@ -1,0 +1,91 @@
+"""plan and evaluate_plan: the plan file, the bounds and the table equal `harmonid plan`'s.
+
+Designing the two-mode nanostring takes minutes (docs/planning.md), so design is compared on a
+one-mode Duffing resonator (0.2 s) and the two-mode model is scored (`--evaluate`, 0.1 s)."""
+
+import pytest
+from conftest import MODEL_2, assert_close, load_json
+
+import harmonid
+
+VALUES_2 = "examples/nanostring_2mode/values.toml"
+PLAN_2 = "examples/nanostring_2mode/plan.toml"
+DUFFING = "mode q1 at 207.582 kHz\nparam beta1\npotential: beta1/4*q1^4\n"
+DUFFING_VALUES = {"modes": {"q1": {"f_hz": 207582.0, "Q": 116232.0}}, "parameters": {"beta1": 2.68e22}}
+DUFFING_VALUES_TOML = '[modes.q1]\nf_hz = 207582.0\nQ = 116232.0\n[parameters]\nbeta1 = 2.68e22\n'
+
+
+def test_evaluate_equals_cli(cli, tmp_path):
+    printed = cli("plan", MODEL_2, "--values", VALUES_2, "--noise", "0.05nm", "--shots", "20",
+                  "--evaluate", PLAN_2, "--bounds", tmp_path / "bounds.json")
+    want = load_json((tmp_path / "bounds.json").read_text())
+    model = harmonid.Model.from_file(MODEL_2)
+    r = harmonid.evaluate_plan(model, VALUES_2, PLAN_2, 0.05e-9, 20)
+    assert_close(r.bounds, want)
+    assert r.table() == printed
+    assert r.shots == 20 and r.findings == []
+    assert set(r.quantities) == {"f_hz:q1", "Q:q1", "f_hz:q2", "Q:q2", "beta1", "beta2", "g12"}
+    for name, q in r.quantities.items():
+        what, _, mode = name.partition(":")
+        rel = want["modes"][mode][what] if mode else want["parameters"][name]
+        assert_close(q["rel"], rel, path=name)
+        assert abs(q["std"] / abs(q["value"]) - rel) <= 1e-12 * rel
+    # The worked example of docs/planning.md: β2 is the worst bound, 0.224.
+    assert round(r.bounds["parameters"]["beta2"], 3) == 0.224
+    # The plan as a dict scores the same.
+    assert_close(harmonid.evaluate_plan(model, VALUES_2, r.plan, 0.05e-9, 20).bounds, want)
+
+
+@pytest.mark.parametrize("points, flags", [(None, []), ([{"q1": 0.309}], ["--point", "q1=0.309"])])
+def test_design_equals_cli(cli, tmp_path, points, flags):
+    (tmp_path / "duffing.hb").write_text(DUFFING)
+    (tmp_path / "values.toml").write_text(DUFFING_VALUES_TOML)
+    # The plan names the model file as given: the same path on both sides.
+    model_path = str(tmp_path / "duffing.hb")
+    printed = cli("plan", model_path, "--values", tmp_path / "values.toml", "--noise", "5e-11",
+                  "--shots", "20", "--out", tmp_path / "plan.toml",
+                  "--bounds", tmp_path / "bounds.json", *flags)
+    model = harmonid.Model.from_file(model_path)
+    r = harmonid.plan(model, DUFFING_VALUES, 5e-11, 20, points=points)
+    assert r.toml == (tmp_path / "plan.toml").read_text()
+    assert_close(r.bounds, load_json((tmp_path / "bounds.json").read_text()))
+    assert r.table() == printed
+    assert len(r.plan["measurement"]) == 1
+    assert "PlanResult(1 measurements" in repr(r)
+    # The designed plan scores as designed, and simulates (a PlanResult is a plan).
+    assert_close(harmonid.evaluate_plan(model, DUFFING_VALUES, r, 5e-11, 20).bounds, r.bounds)
+    data = harmonid.simulate(model, DUFFING_VALUES, r, noise=False)
+    assert data.measurements == ["single_q1"]
+
+
+def test_design_limits_equal_cli(cli, tmp_path):
+    """A force limit too low for the nonlinearity: the CLI and Python agree on the poor bounds."""
+    (tmp_path / "duffing.hb").write_text(DUFFING)
+    (tmp_path / "values.toml").write_text(DUFFING_VALUES_TOML)
+    model_path = str(tmp_path / "duffing.hb")
+    cli("plan", model_path, "--values", tmp_path / "values.toml", "--noise", "5e-11",
+        "--shots", "20", "--out", tmp_path / "plan.toml", "--bounds", tmp_path / "b.json",
+        "--max-force", "1e-3", "--bandwidth", "0.25", "--max-frequencies", "8")
+    r = harmonid.plan(harmonid.Model.from_file(model_path), tmp_path / "values.toml", 5e-11, 20,
+                      max_force=1e-3, bandwidth_hz=0.25, max_frequencies=8)
+    assert r.toml == (tmp_path / "plan.toml").read_text()
+    assert_close(r.bounds, load_json((tmp_path / "b.json").read_text()))
+    assert r.bounds["parameters"]["beta1"] > 1.0
+
+
+def test_errors_are_located(tmp_path):
+    model = harmonid.Model.from_file(MODEL_2)
+    with pytest.raises(harmonid.PlanError, match=r"3 measurements are needed .*max-measurements is 1"):
+        harmonid.plan(model, VALUES_2, 5e-11, 20, max_measurements=1)
+    with pytest.raises(harmonid.PlanError, match="positive per-quadrature"):
+        harmonid.evaluate_plan(model, VALUES_2, PLAN_2, -1.0)
+    with pytest.raises(harmonid.PlanError, match="shots must be at least 1"):
+        harmonid.plan(model, VALUES_2, 5e-11, 0)
+    bad = tmp_path / "plan.toml"
+    bad.write_text('[[measurement]]\nname = "x"\ndrives_hz = [1.0]\nforce = { q1 = [1.0] }\nforse = 1\n')
+    with pytest.raises(harmonid.PlanError, match=r"plan.toml:5"):
+        harmonid.evaluate_plan(model, VALUES_2, bad, 5e-11)
+    with pytest.raises(harmonid.SimulationError, match="nope.toml"):
+        harmonid.evaluate_plan(model, "nope.toml", PLAN_2, 5e-11)
+    with pytest.raises(TypeError):
+        harmonid.evaluate_plan(model, VALUES_2, 3.0, 5e-11)
