@@ -61,6 +61,15 @@ g_ship, g_again = (r.parameters["g12"]["value"] for r in (result, again_result))
 print(f"\nsimulated again from values.toml and plan.toml: g12 = {g_again:.6e}"
       f" (shipped data: {g_ship:.6e}, relative difference {abs(g_again / g_ship - 1):.1e})")
 
+# %% How good could the experiment be? The Cramér–Rao bounds of the shipped plan (docs/planning.md)
+score = harmonid.evaluate_plan(model, EXAMPLE / "values.toml", EXAMPLE / "plan.toml", 0.05e-9, 20)
+print("\nplan.toml at 0.05 nm per quadrature, 20 shots (harmonid plan --evaluate):")
+print(score.table(), end="")
+for name in ("beta1", "beta2", "g12"):
+    bound = score.quantities[name]
+    print(f"  {name}: relative bound {bound['rel']:.3f}; the identification's stderr"
+          f" {result.parameters[name]['stderr'] / abs(result.parameters[name]['value']):.3f}")
+
 # %% Per-shot estimates: the histograms of the method's paper
 try:
     import matplotlib
