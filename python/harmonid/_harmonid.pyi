@@ -116,7 +116,7 @@ def simulate(
     values: Union[Mapping[str, Any], IdentifyResult, _Path],
     plan: Union[Mapping[str, Any], PlanResult, _Path],
     *,
-    time_domain: bool = False,
+    time_domain: Union[bool, Mapping[str, Union[bool, int, float]], None] = None,
     seed: int = 0,
     noise: bool = True,
     check_stability: bool = True,

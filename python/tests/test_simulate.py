@@ -73,6 +73,33 @@ def test_plan_as_a_dict_and_clean_amplitudes():
     assert 1e-11 < spread < 2e-10
 
 
+def test_time_domain_equals_cli(cli, tmp_path):
+    """The time-domain engine with the command line's flags (a one-mode Duffing resonator, a
+    short lock-in window and per-sample noise, so that each shot is its own run: 0.1 s)."""
+    (tmp_path / "duffing.hb").write_text("mode q1 at 207.582 kHz\nparam beta1\npotential: beta1/4*q1^4\n")
+    (tmp_path / "values.toml").write_text(
+        "[modes.q1]\nf_hz = 207582.0\nQ = 116232.0\n[parameters]\nbeta1 = 2.68e22\n"
+    )
+    (tmp_path / "plan.toml").write_text(
+        "[noise]\nsigma_per_quadrature = 5e-11\nshots = 2\n\n[[measurement]]\nname = \"two\"\n"
+        "drives_hz = [207560.0, 207600.0]\nforce = { q1 = [1.0, 1.0] }\nbandwidth_hz = 40.0\n"
+    )
+    cli("simulate", tmp_path / "duffing.hb", "--values", tmp_path / "values.toml",
+        "--plan", tmp_path / "plan.toml", "--time-domain", "--steps-per-period", "8",
+        "--rtol", "1e-7", "--noise-rms-nm", "0.1", "--seed", "3", "--out", tmp_path / "cli")
+    want = harmonid.Dataset.from_folder(tmp_path / "cli")
+    model = harmonid.Model.from_file(tmp_path / "duffing.hb")
+    td = {"steps_per_period": 8, "rtol": 1e-7, "noise_rms_nm": 0.1}
+    got = harmonid.simulate(model, tmp_path / "values.toml", tmp_path / "plan.toml",
+                            time_domain=td, seed=3)
+    assert_same_dataset(got, want)
+    hb = harmonid.simulate(model, tmp_path / "values.toml", tmp_path / "plan.toml", seed=3)
+    assert not np.array_equal(hb.measurement("two")["amplitudes"], want.measurement("two")["amplitudes"])
+    with pytest.raises(harmonid.SimulationError, match="unknown setting \"steps\""):
+        harmonid.simulate(model, tmp_path / "values.toml", tmp_path / "plan.toml",
+                          time_domain={"steps": 8})
+
+
 def test_errors_are_located(tmp_path):
     model = harmonid.Model.from_file(MODEL_2)
     bad = tmp_path / "plan.toml"
