@@ -185,3 +185,48 @@ fn noise_study_refuses_unbounded_or_meaningless_work() {
         assert!(err.contains(says), "{args:?}: {err}");
     }
 }
+
+/// The SVG's structure without its tick labels (texts that are numbers), which move with the
+/// last digits of the estimates; what is drawn and every name and label stay.
+fn structure_without_ticks(svg: &str) -> String {
+    harmonid_plot::svg_structure(svg)
+        .lines()
+        .map(str::trim)
+        .filter(|l| {
+            !l.is_empty() && (l.contains(": ") || l.replace('−', "-").parse::<f64>().is_err())
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+#[test]
+fn noise_study_plot() {
+    // Two low noise levels, three realisations: every estimate lies inside its panel, so the
+    // count of dots is fixed (7 quantities × 2 levels × 3 realisations, and the legend's).
+    let dir = tempfile::tempdir().expect("tempdir");
+    let svg = dir.path().join("study.svg");
+    let png = dir.path().join("study.png");
+    for plot in [&svg, &png] {
+        let (ok, out, err) = noise_study(
+            &[
+                "--sigma",
+                "1e-15,1e-14",
+                "--realisations",
+                "3",
+                "--quiet",
+                "--plot",
+                plot.to_str().expect("utf8"),
+            ],
+            dir.path(),
+        );
+        assert!(ok, "{out}{err}");
+        assert!(out.contains("wrote"), "{out}");
+    }
+    let text = std::fs::read_to_string(&svg).expect("svg written");
+    assert_eq!(text.matches("<circle").count(), 7 * 2 * 3 + 1);
+    insta::assert_snapshot!("noise_study_plot_structure", structure_without_ticks(&text));
+    assert_eq!(&std::fs::read(&png).expect("png written")[1..4], b"PNG");
+    // A figure format is checked before the study runs.
+    let (ok, _, err) = noise_study(&["--quiet", "--plot", "study.pdf"], dir.path());
+    assert!(!ok && err.contains("unknown figure format"), "{err}");
+}

@@ -11,7 +11,7 @@
 //! is statistically the same as adding the noise to the time signal and demodulating;
 //! `--time-domain` does the latter literally.
 
-use crate::cli::common::write_atomic;
+use crate::cli::common::{check_outputs, write_output};
 use crate::cli::simulate::read_plan;
 use harmonid_experiment::{
     add_noise, values_from_toml, Engine, NoiseLevel, Plan, Settings, TimeDomain,
@@ -132,6 +132,10 @@ pub struct Args {
     /// same name with `.md`).
     #[arg(long, value_name = "FILE.csv")]
     pub out: Option<PathBuf>,
+    /// Also draw the study (every quantity's estimates with their mean ± 3σ against the noise
+    /// level, the truth dashed; the paper's Fig. S3) to this file, `.svg` or `.png`.
+    #[arg(long, value_name = "FILE.svg|png")]
+    pub plot: Option<PathBuf>,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -301,9 +305,58 @@ fn inputs(args: &Args) -> miette::Result<Inputs> {
     })
 }
 
+/// The study as a figure: one panel per quantity, every realisation's estimate at its level.
+/// `per[level][quantity]` holds the estimates; `quants` names the quantities with their truth.
+fn figure(
+    levels: &[NoiseLevel],
+    quants: &[(String, f64)],
+    per: &[Vec<Vec<f64>>],
+) -> harmonid_plot::NoiseStudy {
+    let level_label = levels.first().map_or("noise level", |l| match l {
+        NoiseLevel::SigmaPerQuadrature(_) => "noise σ per quadrature (m)",
+        NoiseLevel::Asd(_) => "noise ASD (m/√Hz)",
+        NoiseLevel::TimeRms(_) => "noise RMS of the time signal (m)",
+    });
+    let panels = quants
+        .iter()
+        .enumerate()
+        .map(|(q, (name, truth))| harmonid_plot::NoisePanel {
+            name: name.clone(),
+            unit: if name.starts_with("f_hz(") {
+                "Hz".into()
+            } else {
+                String::new()
+            },
+            truth: truth.is_finite().then_some(*truth),
+            levels: levels.iter().map(NoiseLevel::value).collect(),
+            estimates: per.iter().map(|lv| lv[q].clone()).collect(),
+        })
+        .collect();
+    harmonid_plot::NoiseStudy {
+        title: "identified values against the measurement noise (mean ± 3σ over the realisations)"
+            .into(),
+        level_label: level_label.into(),
+        panels,
+    }
+}
+
 /// Runs the subcommand.
 pub fn run(args: Args) -> miette::Result<()> {
     let levels = levels(&args)?;
+    // Refuse unwritable outputs before the study, not after it.
+    let mut outputs: Vec<&std::path::Path> = args.out.iter().map(|p| p.as_path()).collect();
+    let md_path = args.out.as_ref().map(|p| p.with_extension("md"));
+    outputs.extend(md_path.as_deref());
+    outputs.extend(args.plot.as_deref());
+    let input_files: Vec<&std::path::Path> = [&args.model, &args.values, &args.plan]
+        .into_iter()
+        .flatten()
+        .map(|p| p.as_path())
+        .collect();
+    check_outputs(&outputs, &input_files)?;
+    if let Some(p) = &args.plot {
+        super::figure::check(p, &input_files)?;
+    }
     if !(2..=MAX_REALISATIONS).contains(&args.realisations) {
         return Err(miette!(
             "--realisations {}: at least 2 are needed for a spread, at most {MAX_REALISATIONS}",
@@ -460,15 +513,18 @@ pub fn run(args: Args) -> miette::Result<()> {
     ));
     crate::cli::common::print_out(format_args!("{md}"));
     crate::cli::common::print_out(format_args!("{}", summary(&levels, &stats)));
-    if let Some(out) = &args.out {
-        write_atomic(out, csv(&levels, &sigmas, &stats).as_bytes())?;
-        let md_path = out.with_extension("md");
-        write_atomic(&md_path, md.as_bytes())?;
+    if let (Some(out), Some(md_path)) = (&args.out, &md_path) {
+        write_output(out, csv(&levels, &sigmas, &stats).as_bytes(), &input_files)?;
+        write_output(md_path, md.as_bytes(), &input_files)?;
         crate::cli::common::print_out(format_args!(
             "wrote {} and {}\n",
             out.display(),
             md_path.display()
         ));
+    }
+    if let Some(path) = &args.plot {
+        super::figure::save(&figure(&levels, &quants, &per), path, &input_files)?;
+        crate::cli::common::print_out(format_args!("wrote {}\n", path.display()));
     }
     Ok(())
 }

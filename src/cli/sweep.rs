@@ -65,36 +65,12 @@ pub(crate) fn spinner(what: &str) -> indicatif::ProgressBar {
     pb
 }
 
-/// Draws `fig` to `path` (atomically: a temporary file renamed into place).
-fn plot(fig: &harmonid_plot::ResponseCurve, path: &std::path::Path) -> miette::Result<()> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase)
-        .unwrap_or_default();
-    if ext != "svg" && ext != "png" {
-        return Err(miette!(
-            "--plot {}: use a .svg or .png file name",
-            path.display()
-        ));
-    }
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => std::path::Path::new("."),
-    };
-    let tmp = tempfile::Builder::new()
-        .suffix(&format!(".{ext}"))
-        .tempfile_in(dir)
-        .into_diagnostic()?;
-    harmonid_plot::save(fig, tmp.path()).map_err(|e| miette!("{e}"))?;
-    tmp.persist(path)
-        .map_err(|e| miette!("cannot write {}: {}", path.display(), e.error))?;
-    eprintln!("wrote {}", path.display());
-    Ok(())
-}
-
 /// Runs the subcommand.
 pub fn run(args: Args) -> miette::Result<()> {
+    let inputs = [args.model.as_path(), args.values.as_path()];
+    if let Some(p) = &args.plot {
+        super::figure::check(p, &inputs)?;
+    }
     let model = numeric_model(&args.model, &args.values)?;
     let mut force = vec![Complex64::new(0.0, 0.0); model.n_modes()];
     for f in &args.force {
@@ -120,7 +96,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         force[n] = Complex64::new(a, 0.0);
     }
     if let Some(spacing) = args.two_tone {
-        return two_tone(&args, &model, force, spacing);
+        return two_tone(&args, &model, force, spacing, &inputs);
     }
     let mut s = SweepSettings {
         f_start_hz: args.from,
@@ -155,7 +131,12 @@ pub fn run(args: Args) -> miette::Result<()> {
     };
     if let Some(path) = &args.plot {
         let n = harmonid_report::curves::driven_mode(&force);
-        plot(&harmonid_report::curves::sweep_curve(&model, &r, n), path)?;
+        super::figure::save(
+            &harmonid_report::curves::sweep_curve(&model, &r, n),
+            path,
+            &inputs,
+        )?;
+        eprintln!("wrote {}", path.display());
     }
     let mut csv = String::from("f_hz,stable");
     for n in &model.mode_names {
@@ -208,6 +189,7 @@ fn two_tone(
     model: &sim::NumericModel,
     force: Vec<Complex64>,
     spacing: f64,
+    inputs: &[&std::path::Path],
 ) -> miette::Result<()> {
     let s = sim::TwoToneSettings {
         c_start_hz: args.from,
@@ -224,7 +206,12 @@ fn two_tone(
     let r = r.into_diagnostic()?;
     if let Some(path) = &args.plot {
         let n = harmonid_report::curves::driven_mode(&force);
-        plot(&harmonid_report::curves::two_tone_curve(model, &r, n), path)?;
+        super::figure::save(
+            &harmonid_report::curves::two_tone_curve(model, &r, n),
+            path,
+            inputs,
+        )?;
+        eprintln!("wrote {}", path.display());
     }
     // Each mode at its own lines: the pair's tones and sidebands for a mode near the pair, the
     // mixing products that reach it for any other mode.

@@ -74,14 +74,9 @@ pub enum PlotError {
         /// Which figure.
         what: String,
     },
-    /// Writing the file failed.
-    #[error("cannot write {}: {source}", path.display())]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// The cause.
-        source: std::io::Error,
-    },
+    /// Writing the file failed (or it may not be written there).
+    #[error(transparent)]
+    File(#[from] harmonid_files::FileError),
 }
 
 /// Turns a plotters error into a [`PlotError`].
@@ -146,36 +141,65 @@ pub fn svg_structure(svg: &str) -> String {
     out
 }
 
-/// Renders `fig` as a PNG file at `path`.
-pub fn to_png(fig: &impl Figure, path: &Path) -> Result<(), PlotError> {
-    style::init();
-    let root = BitMapBackend::new(path, fig.size()).into_drawing_area();
-    root.fill(&WHITE).drawn()?;
-    fig.draw(&root)?;
-    root.present().map_err(|e| PlotError::Io {
-        path: path.to_path_buf(),
-        source: std::io::Error::other(e.to_string()),
-    })
+/// A figure file's format.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// Scalable vector graphics (text drawn by the viewer).
+    Svg,
+    /// A bitmap (text drawn with the embedded DejaVu Sans).
+    Png,
 }
 
-/// Writes `fig` to `path` as SVG or PNG, by the extension (`.svg`, `.png`).
-pub fn save(fig: &impl Figure, path: &Path) -> Result<(), PlotError> {
-    match path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase)
-        .as_deref()
-    {
-        Some("svg") => {
-            let s = to_svg(fig)?;
-            std::fs::write(path, s).map_err(|source| PlotError::Io {
+impl Format {
+    /// The format named by `path`'s extension (`.svg`, `.png`, any case).
+    pub fn of_path(path: &Path) -> Result<Format, PlotError> {
+        match path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .as_deref()
+        {
+            Some("svg") => Ok(Format::Svg),
+            Some("png") => Ok(Format::Png),
+            _ => Err(PlotError::Format {
                 path: path.to_path_buf(),
-                source,
-            })
+            }),
         }
-        Some("png") => to_png(fig, path),
-        _ => Err(PlotError::Format {
-            path: path.to_path_buf(),
-        }),
     }
+}
+
+/// Renders `fig` as a PNG image (the encoded file's bytes).
+pub fn to_png(fig: &impl Figure) -> Result<Vec<u8>, PlotError> {
+    use image::ImageEncoder;
+    style::init();
+    let (w, h) = fig.size();
+    let mut rgb = vec![0u8; 3 * w as usize * h as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
+        root.fill(&WHITE).drawn()?;
+        fig.draw(&root)?;
+        root.present().drawn()?;
+    }
+    let mut png = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut png)
+        .write_image(&rgb, w, h, image::ColorType::Rgb8)
+        .drawn()?;
+    Ok(png)
+}
+
+/// Renders `fig` in `format` (the file's bytes).
+pub fn render(fig: &impl Figure, format: Format) -> Result<Vec<u8>, PlotError> {
+    match format {
+        Format::Svg => to_svg(fig).map(String::into_bytes),
+        Format::Png => to_png(fig),
+    }
+}
+
+/// Writes `fig` to `path` as SVG or PNG, by the extension (`.svg`, `.png`), through
+/// [`harmonid_files::write_file`]: atomically, only over a regular file, never over one of
+/// `inputs`. The format is checked before anything is drawn.
+pub fn save(fig: &impl Figure, path: &Path, inputs: &[&Path]) -> Result<(), PlotError> {
+    let bytes = render(fig, Format::of_path(path)?)?;
+    harmonid_files::write_file(path, &bytes, inputs)?;
+    Ok(())
 }

@@ -83,8 +83,18 @@ impl Figure for NoiseStudy {
         let areas = body.split_evenly((rows, cols));
         for (p, area) in self.panels.iter().zip(areas.iter()) {
             let stats: Vec<Option<(f64, f64)>> = p.estimates.iter().map(|e| mean_std(e)).collect();
+            // Half a decade beyond the outer levels, so that their points sit inside the frame.
             let Some((x_lo, x_hi)) = style::log_range(p.levels.iter().copied()) else {
                 continue;
+            };
+            let (x_lo, x_hi) = {
+                let pos = || p.levels.iter().copied().filter(|l| *l > 0.0);
+                let lo = pos().fold(f64::INFINITY, f64::min);
+                let hi = pos().fold(0.0, f64::max);
+                (
+                    (lo / 10f64.sqrt()).max(x_lo / 10.0),
+                    (hi * 10f64.sqrt()).min(x_hi * 10.0),
+                )
             };
             // The y axis holds the truth and the mean ± 3σ of every level, but no more than
             // ±20 × the spread at the lowest noise around the truth: at high noise the estimates
@@ -108,12 +118,24 @@ impl Figure for NoiseStudy {
                 format!(" ({})", p.unit)
             };
             let y_label = if off != 0.0 {
-                format!("{} − {}{unit}", p.name, style::hz(off))
+                format!(
+                    "{} − {}{unit}",
+                    p.name,
+                    if off.abs() < 1e7 {
+                        style::hz(off)
+                    } else {
+                        style::tick(off)
+                    }
+                )
             } else {
                 format!("{}{unit}", p.name)
             };
+            // A tick within rounding of zero reads 0 (not 3.4e7 on an axis spanning ±2e23).
+            let y_span = (y_hi - y_lo).abs();
+            let y_tick = move |v: &f64| style::tick(if v.abs() < 1e-9 * y_span { 0.0 } else { *v });
             let mut chart = ChartBuilder::on(area)
                 .margin(10)
+                .margin_right(24)
                 .x_label_area_size(44)
                 .y_label_area_size(72)
                 .build_cartesian_2d((x_lo..x_hi).log_scale(), (y_lo - off)..(y_hi - off))
@@ -127,7 +149,7 @@ impl Figure for NoiseStudy {
                 .light_line_style(WHITE)
                 .bold_line_style(style::GREY.mix(0.25))
                 .x_label_formatter(&|v| style::tick(*v))
-                .y_label_formatter(&|v| style::tick(*v))
+                .y_label_formatter(&y_tick)
                 .y_labels(6)
                 .draw()
                 .drawn()?;

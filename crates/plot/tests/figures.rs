@@ -224,7 +224,7 @@ fn check(name: &str, fig: &impl Figure) {
     assert!(svg.starts_with("<svg"), "{name}: not an SVG");
     insta::assert_snapshot!(name, svg_structure(&svg));
     std::fs::create_dir_all(out_dir()).expect("temp dir");
-    save(fig, &out_dir().join(format!("{name}.png"))).expect("png");
+    save(fig, &out_dir().join(format!("{name}.png")), &[]).expect("png");
     let png = std::fs::read(out_dir().join(format!("{name}.png"))).expect("png written");
     assert_eq!(&png[1..4], b"PNG");
 }
@@ -264,7 +264,7 @@ fn empty_figures_are_errors() {
     };
     assert!(matches!(to_svg(&s), Err(PlotError::Empty { .. })));
     assert!(matches!(
-        save(&histogram(), std::path::Path::new("a.pdf")),
+        save(&histogram(), std::path::Path::new("a.pdf"), &[]),
         Err(PlotError::Format { .. })
     ));
 }

@@ -348,7 +348,8 @@ impl Page {
             self.figures.par_iter().try_for_each(|f| {
                 let svg = figs.join(format!("{}.svg", f.stem));
                 std::fs::write(&svg, &f.svg).map_err(io(&svg))?;
-                harmonid_plot::to_png(&f.figure, &figs.join(format!("{}.png", f.stem)))?;
+                let png = figs.join(format!("{}.png", f.stem));
+                std::fs::write(&png, harmonid_plot::to_png(&f.figure)?).map_err(io(&png))?;
                 Ok(())
             })
         })
