@@ -26,7 +26,9 @@ fn spectrum() -> Spectrum {
         let label = match k {
             -1 => "fa".into(),
             1 => "fb".into(),
-            _ => format!("{}fa{:+}fb", (1 - k) / 2, (k + 1) / 2),
+            // As harmonid_spectral's formatter writes them: positive term first.
+            _ if k < 0 => format!("{}fa−{}fb", (1 - k) / 2, -(k + 1) / 2).replace("−1fb", "−fb"),
+            _ => format!("{}fb−{}fa", (k + 1) / 2, (k - 1) / 2).replace("−1fa", "−fa"),
         };
         lines.push(SpectrumLine {
             f_hz: f,

@@ -190,31 +190,20 @@ impl Line {
         if self.k.is_empty() {
             return format!("c{:+}Hz", self.off);
         }
-        let mut out = String::new();
-        for (i, &k) in self.k.iter().enumerate() {
-            if k == 0 {
-                continue;
-            }
-            let name = match i {
+        // The one formatter of combinations (harmonid_spectral): positive terms first.
+        let labels: Vec<String> = (0..self.k.len())
+            .map(|i| match i {
                 0 => "fa".to_string(),
                 1 => "fb".to_string(),
                 j => format!("g{}", j - 1),
-            };
-            let sign = if k < 0 {
-                "-"
-            } else if out.is_empty() {
-                ""
-            } else {
-                "+"
-            };
-            let mag = if k.abs() == 1 {
-                String::new()
-            } else {
-                k.abs().to_string()
-            };
-            out += &format!("{sign}{mag}{name}");
-        }
-        out
+            })
+            .collect();
+        let k: Vec<i32> = self
+            .k
+            .iter()
+            .map(|&x| i32::try_from(x).unwrap_or(i32::MAX))
+            .collect();
+        harmonid_spectral::Combination::from_coeffs(&k).compact_with(&labels)
     }
 }
 
@@ -847,6 +836,12 @@ mod tests {
             off: 5.0,
             k: vec![1, -1, 1],
         };
-        assert_eq!(l.label(), "fa-fb+g1");
+        assert_eq!(l.label(), "fa+g1-fb");
+        let l = Line {
+            s: 1.0,
+            off: 25.0,
+            k: vec![-1, 2, 0],
+        };
+        assert_eq!(l.label(), "2fb-fa");
     }
 }

@@ -267,9 +267,22 @@ impl Combination {
         Self(self.0.iter().map(|&k| k.saturating_neg()).collect())
     }
 
+    /// The combination with coefficients `k` (a vector over the tones, in tone order). Prefer
+    /// [`ToneSet::combination`], which checks the length against the tones.
+    pub fn from_coeffs(k: &[i32]) -> Self {
+        Self(k.iter().copied().collect())
+    }
+
     /// `f1 + 2·f3 − f2`: positive terms first, then negative ones, in tone order; `0` for DC.
+    /// This is the one formatter of combinations: every label of a line is made here.
     pub fn display_with(&self, labels: &[impl AsRef<str>]) -> String {
         self.format(labels, "·", " + ", " − ", "−")
+    }
+
+    /// Compact ASCII form for file headers and tables, e.g. `2fb-fa`, `fa+fb` (positive terms
+    /// first, as a physicist writes it).
+    pub fn compact_with(&self, labels: &[impl AsRef<str>]) -> String {
+        self.format(labels, "", "+", "-", "-")
     }
 
     /// LaTeX form, e.g. `2\omega_1 - \omega_2` with `labels = ["\omega_1", "\omega_2"]`.
@@ -334,6 +347,21 @@ pub fn nearest_mode(hz: f64, nominal_hz: &[Option<f64>]) -> Option<(usize, f64)>
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn positive_terms_first() {
+        let k = Combination::from_coeffs(&[-1, 2]);
+        assert_eq!(k.compact_with(&["fa", "fb"]), "2fb-fa");
+        assert_eq!(k.display_with(&["fa", "fb"]), "2·fb − fa");
+        assert_eq!(
+            Combination::from_coeffs(&[-1, -1]).compact_with(&["fa", "fb"]),
+            "-fa-fb"
+        );
+        assert_eq!(
+            Combination::from_coeffs(&[0, 0]).compact_with(&["fa", "fb"]),
+            "0"
+        );
+    }
 
     #[test]
     fn printing_and_frequency() {
