@@ -186,19 +186,6 @@ fn noise_study_refuses_unbounded_or_meaningless_work() {
     }
 }
 
-/// The SVG's structure without its tick labels (texts that are numbers), which move with the
-/// last digits of the estimates; what is drawn and every name and label stay.
-fn structure_without_ticks(svg: &str) -> String {
-    harmonid_plot::svg_structure(svg)
-        .lines()
-        .map(str::trim)
-        .filter(|l| {
-            !l.is_empty() && (l.contains(": ") || l.replace('−', "-").parse::<f64>().is_err())
-        })
-        .collect::<Vec<_>>()
-        .join("\n")
-}
-
 #[test]
 fn noise_study_plot() {
     // Two low noise levels, three realisations: every estimate lies inside its panel, so the
@@ -224,7 +211,10 @@ fn noise_study_plot() {
     }
     let text = std::fs::read_to_string(&svg).expect("svg written");
     assert_eq!(text.matches("<circle").count(), 7 * 2 * 3 + 1);
-    insta::assert_snapshot!("noise_study_plot_structure", structure_without_ticks(&text));
+    insta::assert_snapshot!(
+        "noise_study_plot_structure",
+        harmonid_plot::svg_structure_without_ticks(&text)
+    );
     assert_eq!(&std::fs::read(&png).expect("png written")[1..4], b"PNG");
     // A figure format is checked before the study runs.
     let (ok, _, err) = noise_study(&["--quiet", "--plot", "study.pdf"], dir.path());

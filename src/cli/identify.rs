@@ -121,7 +121,14 @@ pub fn run(args: Args) -> miette::Result<()> {
         crlb: args.crlb,
         ..Settings::default()
     };
-    let mut report = identify(&model, &ds, &settings).map_err(|e| miette!("{e}"))?;
+    let pb = super::progress::spinner(&format!(
+        "identifying ({} measurement(s), {} shot(s))",
+        ds.measurements.len(),
+        ds.measurements.first().map_or(0, |m| m.n_shots)
+    ));
+    let report = identify(&model, &ds, &settings);
+    pb.finish_and_clear();
+    let mut report = report.map_err(|e| miette!("{e}"))?;
     report.model = args.model.display().to_string();
     print_out(format_args!("{}", report.summary(ds.truth.as_ref())));
     if let Some(out) = &args.out {

@@ -7,6 +7,7 @@ pub mod identify;
 pub mod mix;
 pub mod noise_study;
 pub mod plan;
+pub mod progress;
 pub mod report;
 pub mod simulate;
 pub mod sweep;

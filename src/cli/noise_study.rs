@@ -455,17 +455,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     let tasks: Vec<(usize, usize)> = (0..levels.len())
         .flat_map(|l| (0..args.realisations).map(move |r| (l, r)))
         .collect();
-    let bar = if args.quiet {
-        indicatif::ProgressBar::hidden()
-    } else {
-        indicatif::ProgressBar::new(tasks.len() as u64)
-    };
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{spinner} identifications {pos}/{len} {wide_bar} {elapsed} (eta {eta})",
-        )
-        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-    );
+    let bar = super::progress::bar(tasks.len() as u64, "identifications", args.quiet);
     let t0 = std::time::Instant::now();
     let results: Vec<miette::Result<Vec<f64>>> = tasks
         .par_iter()

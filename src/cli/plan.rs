@@ -5,7 +5,7 @@
 use crate::cli::common::{print_out, write_atomic};
 use harmonid_experiment::{read_values, Plan};
 use harmonid_ident::Point;
-use harmonid_plan::{design, evaluate, DesignSettings};
+use harmonid_plan::{design_with_progress, evaluate, DesignSettings};
 use miette::{miette, IntoDiagnostic, WrapErr};
 use std::path::PathBuf;
 
@@ -55,6 +55,11 @@ pub struct Args {
     /// (repeatable; default: modal amplitudes).
     #[arg(long, value_name = "MODE=SHAPE,...")]
     pub point: Vec<String>,
+    /// Also draw the plan to this file, `.svg` or `.png`: per measurement, each mode's linear
+    /// response, the tones and the lines the plan predicts (with their combinations) against
+    /// the noise.
+    #[arg(long, value_name = "FILE.svg|png")]
+    pub plot: Option<PathBuf>,
 }
 
 /// Parses `0.05nm`, `50pm`, `1e-10`, `1e-10m` into metres.
@@ -113,12 +118,28 @@ pub fn run(args: Args) -> miette::Result<()> {
     if args.shots == 0 {
         return Err(miette!("--shots must be at least 1"));
     }
-    let ev = if let Some(path) = &args.evaluate {
+    let inputs: Vec<&std::path::Path> = [
+        Some(&args.model),
+        Some(&args.values),
+        args.evaluate.as_ref(),
+    ]
+    .into_iter()
+    .flatten()
+    .map(|p| p.as_path())
+    .collect();
+    if let Some(p) = &args.plot {
+        super::figure::check(p, &inputs)?;
+    }
+    let (plan, ev) = if let Some(path) = &args.evaluate {
         let text = std::fs::read_to_string(path)
             .into_diagnostic()
             .wrap_err_with(|| format!("cannot read the plan {}", path.display()))?;
         let plan = Plan::from_toml(&text, &path.display().to_string())?;
-        evaluate(&model, &values, &plan, sigma, args.shots).map_err(|e| miette!("{e}"))?
+        let pb = super::progress::spinner("scoring the plan");
+        let ev = evaluate(&model, &values, &plan, sigma, args.shots);
+        pb.finish_and_clear();
+        let ev = ev.map_err(|e| miette!("{e}"))?;
+        (plan, ev)
     } else {
         let points = args
             .point
@@ -135,7 +156,14 @@ pub fn run(args: Args) -> miette::Result<()> {
             max_force: args.max_force.unwrap_or(f64::INFINITY),
             points,
         };
-        let (plan, ev) = design(&model, &values, &settings).map_err(|e| miette!("{e}"))?;
+        let pb = super::progress::bar(0, "designing measurement", false);
+        let designed = design_with_progress(&model, &values, &settings, &mut |step| {
+            pb.set_length(step.total as u64);
+            pb.set_position(step.done as u64);
+            pb.set_message(step.name.to_string());
+        });
+        pb.finish_and_clear();
+        let (plan, ev) = designed.map_err(|e| miette!("{e}"))?;
         if let Some(out) = &args.out {
             write_atomic(out, plan.to_toml().as_bytes())?;
             eprintln!(
@@ -144,14 +172,51 @@ pub fn run(args: Args) -> miette::Result<()> {
                 plan.measurements.len()
             );
         }
-        ev
+        (plan, ev)
     };
     print_out(format_args!("{}", ev.table()));
     if let Some(b) = &args.bounds {
         let text = serde_json::to_string_pretty(&ev.to_json()).into_diagnostic()?;
         write_atomic(b, text.as_bytes())?;
     }
+    if let Some(path) = &args.plot {
+        let fig = figure(&model, &values, &plan, sigma, args.shots)?;
+        super::figure::save(&fig, path, &inputs)?;
+        eprintln!("wrote {}", path.display());
+    }
     Ok(())
+}
+
+/// The plan's figure: its measurements simulated without noise, the noise σ of one shot.
+fn figure(
+    model: &harmonid_model::Model,
+    values: &harmonid_sim::ModelValues,
+    plan: &Plan,
+    sigma: f64,
+    shots: usize,
+) -> miette::Result<harmonid_plot::PlanFigure> {
+    let numeric = harmonid_sim::NumericModel::from_model(model, values).into_diagnostic()?;
+    let sim = plan.simulate_numeric(
+        &numeric,
+        &harmonid_experiment::Settings {
+            noise: false,
+            ..Default::default()
+        },
+    )?;
+    let mut excitations = Vec::with_capacity(plan.measurements.len());
+    for m in &plan.measurements {
+        excitations.push(m.excitation(&numeric)?);
+    }
+    Ok(harmonid_report::plan::plan_figure(
+        &numeric,
+        &excitations,
+        &sim.dataset,
+        Some(sigma),
+        &format!(
+            "plan: {} measurement(s), {shots} shot(s) each; predicted lines (noise-free) over the linear responses",
+            plan.measurements.len()
+        ),
+    ))
 }
 
 #[cfg(test)]

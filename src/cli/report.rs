@@ -41,8 +41,10 @@ pub fn run(args: Args) -> miette::Result<()> {
         }
         None => Source::Identify(Settings::default()),
     };
-    let page =
-        harmonid_report::build(&args.model, &model, &ds, source).map_err(|e| miette!("{e}"))?;
+    let pb = super::progress::spinner("identifying, reconstructing and drawing");
+    let page = harmonid_report::build(&args.model, &model, &ds, source);
+    pb.finish_and_clear();
+    let page = page.map_err(|e| miette!("{e}"))?;
     page.write(&args.out).map_err(|e| miette!("{e}"))?;
     for w in &page.warnings {
         eprintln!("warning: {w}");

@@ -117,7 +117,18 @@ pub fn run(args: Args) -> miette::Result<()> {
         seed: args.seed,
         min_line_rel: 0.0,
     };
-    let sim = plan.simulate_numeric(&model, &settings)?;
+    let pb = super::progress::spinner(&format!(
+        "simulating {} measurement(s){}",
+        plan.measurements.len(),
+        if args.time_domain {
+            " in the time domain"
+        } else {
+            ""
+        }
+    ));
+    let sim = plan.simulate_numeric(&model, &settings);
+    pb.finish_and_clear();
+    let sim = sim?;
     for r in &sim.reports {
         for s in &r.drive_jumps {
             eprintln!(

@@ -52,19 +52,6 @@ pub struct Args {
     pub plot: Option<PathBuf>,
 }
 
-/// A spinner with the elapsed time on stderr while a long computation runs (hidden when stderr
-/// is not a terminal).
-pub(crate) fn spinner(what: &str) -> indicatif::ProgressBar {
-    let pb = indicatif::ProgressBar::new_spinner();
-    pb.set_style(
-        indicatif::ProgressStyle::with_template("{spinner} {msg} {elapsed}")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
-    );
-    pb.set_message(what.to_string());
-    pb.enable_steady_tick(std::time::Duration::from_millis(120));
-    pb
-}
-
 /// Runs the subcommand.
 pub fn run(args: Args) -> miette::Result<()> {
     let inputs = [args.model.as_path(), args.values.as_path()];
@@ -108,7 +95,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     // The curve is kept only once the highest harmonic kept is small: otherwise its amplitudes
     // and stability verdicts depend on the truncation. Raise the harmonics until it is.
     let r = loop {
-        let pb = spinner("sweeping");
+        let pb = super::progress::spinner("sweeping");
         let r = sim::sweep(&model, &force, &s);
         pb.finish_and_clear();
         let r = r.into_diagnostic()?;
@@ -200,7 +187,7 @@ fn two_tone(
         points: args.points,
         ..sim::TwoToneSettings::default()
     };
-    let pb = spinner("two-tone sweep");
+    let pb = super::progress::spinner("two-tone sweep");
     let r = sim::sweep_two_tone(model, &s);
     pb.finish_and_clear();
     let r = r.into_diagnostic()?;

@@ -143,6 +143,28 @@ pub fn design(
     values: &ModelValues,
     settings: &DesignSettings,
 ) -> Result<(Plan, Evaluation), PlanError> {
+    design_with_progress(model, values, settings, &mut |_| {})
+}
+
+/// Where a design is: measurement `done` of `total` is being designed, named `name`.
+#[derive(Debug, Clone, Copy)]
+pub struct DesignStep<'a> {
+    /// Measurements designed so far.
+    pub done: usize,
+    /// Measurements the design needs.
+    pub total: usize,
+    /// The measurement being designed (`single_q1`, `couple_q1_q2`).
+    pub name: &'a str,
+}
+
+/// [`design`], calling `progress` as each measurement's design starts (a design can take
+/// minutes; the command line shows a progress bar).
+pub fn design_with_progress(
+    model: &Model,
+    values: &ModelValues,
+    settings: &DesignSettings,
+    progress: &mut dyn FnMut(DesignStep<'_>),
+) -> Result<(Plan, Evaluation), PlanError> {
     let s = settings;
     if !(s.sigma_m.is_finite() && s.sigma_m > 0.0) || s.shots == 0 {
         return Err(PlanError::Input(format!(
@@ -224,7 +246,12 @@ pub fn design(
     let mut pairs: Vec<Option<(f64, f64, f64)>> = vec![None; nm]; // (centre, spacing, force)
     let mut infos: Vec<MeasInfo> = Vec::new();
     let mut plan_ms: Vec<PlanMeasurement> = Vec::new();
-    for &n in &stage1 {
+    for (k, &n) in stage1.iter().enumerate() {
+        progress(DesignStep {
+            done: k,
+            total: needed,
+            name: &format!("single_{}", names[n]),
+        });
         let f = num.f_hz[n];
         let kappa = f / num.q_factor[n];
         let w2 = (std::f64::consts::TAU * f).powi(2);
@@ -308,6 +335,11 @@ pub fn design(
             .collect::<Vec<_>>()
             .join("_");
         let name = format!("couple_{label}");
+        progress(DesignStep {
+            done: plan_ms.len(),
+            total: needed,
+            name: &name,
+        });
         // Variants: every mode of the term driven; or all but one whose frequency is a sum or
         // difference of the others' (within the lattice window).
         let mut variants: Vec<BTreeSet<usize>> = vec![modes.iter().copied().collect()];
@@ -379,6 +411,11 @@ pub fn design(
         infos.push(info);
         plan_ms.push(pm);
     }
+    progress(DesignStep {
+        done: needed,
+        total: needed,
+        name: "",
+    });
     base.measurements = plan_ms;
     let refs: Vec<&MeasInfo> = infos.iter().collect();
     let ev = joint_bounds(model, &refs, s.shots)?;

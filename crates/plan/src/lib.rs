@@ -16,7 +16,7 @@ mod design;
 mod evaluate;
 mod info;
 
-pub use design::{design, DesignSettings};
+pub use design::{design, design_with_progress, DesignSettings, DesignStep};
 pub use evaluate::{evaluate, Evaluation, Finding};
 
 use harmonid_experiment::ExperimentError;

@@ -17,7 +17,7 @@ pub enum LineKind {
 }
 
 impl LineKind {
-    fn color(self) -> RGBColor {
+    pub(crate) fn color(self) -> RGBColor {
         match self {
             LineKind::Drive => style::BLUE,
             LineKind::Sideband => style::ORANGE,
@@ -68,7 +68,7 @@ pub struct Spectrum {
 }
 
 /// Groups sorted frequencies into clusters separated by more than 1 % of the frequency.
-fn clusters(lines: &[&SpectrumLine]) -> Vec<(usize, usize)> {
+pub(crate) fn clusters(lines: &[&SpectrumLine]) -> Vec<(usize, usize)> {
     let mut out = Vec::new();
     let mut start = 0;
     for i in 1..=lines.len() {

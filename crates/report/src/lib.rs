@@ -14,6 +14,7 @@
 pub mod curves;
 mod html;
 mod output;
+pub mod plan;
 pub mod potential;
 pub mod result;
 pub mod spectra;
