@@ -46,7 +46,14 @@ fn evaluated_plan_is_drawn() {
     // tones f1, f2 (and f3) as markers; every mode's response curve in the panels near it.
     assert_eq!(text.matches("<circle").count(), 39 + 3, "dots (and legend)");
     let structure = harmonid_plot::svg_structure_without_ticks(&text);
-    for label in ["single_q1", "couple_q1_q2", "2f1−f2", "f1+f3−f2", "q1", "q2"] {
+    for label in [
+        "single_q1",
+        "couple_q1_q2",
+        "2f1−f2",
+        "f1+f3−f2",
+        "q1",
+        "q2",
+    ] {
         assert!(
             structure.lines().any(|l| l == label),
             "{label} missing:\n{structure}"
