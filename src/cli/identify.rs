@@ -128,7 +128,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     ));
     let report = identify(&model, &ds, &settings);
     pb.finish_and_clear();
-    let mut report = report.map_err(|e| miette!("{e}"))?;
+    let mut report = report.map_err(miette::Report::new)?;
     report.model = args.model.display().to_string();
     print_out(format_args!("{}", report.summary(ds.truth.as_ref())));
     if let Some(out) = &args.out {

@@ -423,7 +423,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         min_shots_for_weights: 0,
         ..IdentSettings::default()
     };
-    let prob = Problem::new(&ast, &clean, &settings).map_err(|e| miette!("{e}"))?;
+    let prob = Problem::new(&ast, &clean, &settings).map_err(miette::Report::new)?;
     let quants = quantities(&model, &prob, &values);
     let stream = |level: usize, r: usize| {
         args.seed
@@ -461,7 +461,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         .par_iter()
         .map(|&(l, r)| {
             let ds = make(l, r)?;
-            let fit = prob.fit(&ds).map_err(|e| miette::miette!("{e}"))?;
+            let fit = prob.fit(&ds).map_err(miette::Report::new)?;
             let rep = Report::new(&model_origin, &ds, &prob, &fit);
             bar.inc(1);
             Ok(estimates(&model, &prob, &rep))

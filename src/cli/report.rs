@@ -25,7 +25,7 @@ pub struct Args {
 /// Runs the subcommand.
 pub fn run(args: Args) -> miette::Result<()> {
     let model = harmonid_model::load(&args.model).map_err(miette::Report::new)?;
-    let ds = Dataset::load(&args.dataset).map_err(|e| miette!("{e}"))?;
+    let ds = Dataset::load(&args.dataset).map_err(miette::Report::new)?;
     let source = match &args.result {
         Some(path) => {
             let text = std::fs::read_to_string(path)

@@ -48,8 +48,10 @@ pub fn identify(model: &Model, ds: &Dataset, settings: &Settings) -> Result<Repo
                 .rejected_shots
                 .insert(ds.measurements[mi].spec.name.clone(), bad.clone());
             report.warnings.push(format!(
-                "measurement \"{}\": shot(s) {bad:?} rejected as disturbed (far from the median spectrum); the estimate uses the other {}",
-                ds.measurements[mi].spec.name, pooled.used[mi]
+                "measurement \"{}\": shot(s) {} rejected as disturbed (far from the median spectrum); the estimate uses the other {}",
+                ds.measurements[mi].spec.name,
+                crate::report::index_list(bad),
+                pooled.used[mi]
             ));
         }
     }

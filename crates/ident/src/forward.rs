@@ -52,7 +52,7 @@ pub enum ForwardError {
         mode: String,
     },
     /// The drive-level force model without levels and phases in a measurement.
-    #[error("measurement \"{measurement}\" has no drive_levels_v and drive_phases_rad, which the force model {force_model:?} needs (use the free-force model)")]
+    #[error("measurement \"{measurement}\" has no drive_levels_v and drive_phases_rad, which the force model {force_model} needs (use the free-force model)")]
     NoDriveLevels {
         /// Measurement name.
         measurement: String,
@@ -767,7 +767,7 @@ impl ForwardModel {
             }
             if !state.converged() {
                 return Err(hb_err(format!(
-                    "no steady state (status {:?}, relative residual {:.2e})",
+                    "no steady state (status: {}, relative residual {:.2e})",
                     state.status, state.residual
                 )));
             }

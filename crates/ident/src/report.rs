@@ -117,6 +117,14 @@ pub struct Estimate {
     pub per_shot: Vec<f64>,
 }
 
+/// Shot indices for a message: `3, 7, 12`.
+pub(crate) fn index_list(xs: &[usize]) -> String {
+    xs.iter()
+        .map(usize::to_string)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 fn is_true(b: &bool) -> bool {
     *b
 }
@@ -709,7 +717,11 @@ impl Report {
             }
         }
         for (m, shots) in &self.rejected_shots {
-            let _ = writeln!(s, "\nrejected from the pooled mean of {m}: shots {shots:?}");
+            let _ = writeln!(
+                s,
+                "\nrejected from the pooled mean of {m}: shots {}",
+                index_list(shots)
+            );
         }
         for n in &self.notes {
             let _ = writeln!(s, "note: {n}");
@@ -717,8 +729,8 @@ impl Report {
         if !self.outlier_shots.is_empty() {
             let _ = writeln!(
                 s,
-                "\noutlier shots of the per-shot fits (outside the IQR fences for some quantity): {:?}",
-                self.outlier_shots
+                "\noutlier shots of the per-shot fits (outside the IQR fences for some quantity): {}",
+                index_list(&self.outlier_shots)
             );
         }
         for w in &self.warnings {

@@ -3,23 +3,36 @@
 use crate::dataset::DatasetError;
 
 /// Errors of the identification (bad model/dataset combinations, detected before fitting).
-#[derive(Debug, thiserror::Error)]
+#[derive(Debug, thiserror::Error, miette::Diagnostic)]
 #[non_exhaustive]
 pub enum IdentError {
     /// The dataset itself is malformed.
     #[error(transparent)]
+    #[diagnostic(transparent)]
     Dataset(#[from] DatasetError),
     /// The model has a coefficient that is not affine in the parameters.
     #[error("{0}")]
+    #[diagnostic(
+        code(harmonid::ident::non_affine),
+        help("identification needs every coefficient linear in the parameters (e.g. `g12`, `3/4*beta1 + g12`); fix the product of parameters in the model")
+    )]
     NonAffine(#[from] harmonid_model::NonAffineTerm),
     /// No nominal frequency for a mode.
     #[error("mode {mode} has no nominal resonance frequency: give it in the model (`mode {mode} at ... kHz`), in the dataset's [nominal_hz], or on the command line")]
+    #[diagnostic(
+        code(harmonid::ident::no_nominal),
+        help("e.g. `--nominal q1=207.58e3`")
+    )]
     NoNominal {
         /// Mode name.
         mode: String,
     },
     /// A drive tone sits near no resonance.
     #[error("{file}: measurement \"{measurement}\": drive tone {drive_hz} Hz is near no resonance (nearest: {mode} at {nominal_hz} Hz, {rel:.3} relative away; limit {limit}); check drives_hz and the nominal frequencies")]
+    #[diagnostic(
+        code(harmonid::ident::tone_near_no_resonance),
+        help("a wider --near-rel accepts tones further from a resonance")
+    )]
     ToneNearNoResonance {
         /// Manifest path.
         file: String,
@@ -38,6 +51,10 @@ pub enum IdentError {
     },
     /// A measured mode has zero shape at every measured point.
     #[error("{file}: measurement \"{measurement}\": mode {mode} has zero shape at every measured point, so its amplitude cannot be measured; give a point where it moves")]
+    #[diagnostic(
+        code(harmonid::ident::zero_shape),
+        help("check the [[point]] shapes in dataset.toml")
+    )]
     ZeroShape {
         /// Manifest path.
         file: String,
@@ -48,6 +65,7 @@ pub enum IdentError {
     },
     /// Fewer real equations than unknowns in a fit.
     #[error("{file}: {what} has {rows} real equations (2 per measured frequency) for {unknowns} unknowns ({names}); measure more frequencies (sidebands) or fix some parameters")]
+    #[diagnostic(code(harmonid::ident::too_few_frequencies))]
     TooFewFrequencies {
         /// Manifest path.
         file: String,
@@ -62,9 +80,11 @@ pub enum IdentError {
     },
     /// Unsupported model feature.
     #[error("{0}")]
+    #[diagnostic(code(harmonid::ident::unsupported))]
     Unsupported(String),
     /// Planning products failed.
     #[error("measurement \"{measurement}\": {source}")]
+    #[diagnostic(code(harmonid::ident::spectral))]
     Spectral {
         /// Measurement name.
         measurement: String,
@@ -73,6 +93,7 @@ pub enum IdentError {
     },
     /// A dataset given to a fit does not have the shape of the one the problem was set up for.
     #[error("{file}: the dataset's measurements, frequencies or points differ from those the identification was set up for; set it up again for this dataset")]
+    #[diagnostic(code(harmonid::ident::shape_mismatch))]
     ShapeMismatch {
         /// Manifest path.
         file: String,

@@ -19,6 +19,18 @@ pub enum ForceModel {
     GainPerMode,
 }
 
+/// For messages: the command-line name of the force model.
+impl std::fmt::Display for ForceModel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            ForceModel::Auto => "auto",
+            ForceModel::Free => "free forces",
+            ForceModel::GainPerMeasurement => "gain per measurement",
+            ForceModel::GainPerMode => "gain per mode",
+        })
+    }
+}
+
 /// Settings of an identification. `Default` gives the documented defaults.
 #[derive(Debug, Clone)]
 pub struct Settings {
@@ -100,7 +112,7 @@ pub(super) fn resolve_force_model(
                 .map(|m| m.spec.name.clone())
                 .unwrap_or_default();
             return Err(IdentError::Unsupported(format!(
-                "{manifest_path}: the force model {f:?} needs drive_levels_v and drive_phases_rad in every measurement; \"{missing}\" has none (use the free-force model)"
+                "{manifest_path}: the force model \"{f}\" needs drive_levels_v and drive_phases_rad in every measurement; \"{missing}\" has none (use the free-force model)"
             )));
         }
         f => f,
