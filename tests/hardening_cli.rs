@@ -110,24 +110,49 @@ fn outputs_write_only_regular_files() {
 #[test]
 fn outputs_follow_the_umask() {
     use std::os::unix::fs::PermissionsExt;
+    let mode = |p: &Path| std::fs::metadata(p).expect("meta").permissions().mode() & 0o777;
     let tmp = tempfile::tempdir().expect("tempdir");
-    let m = copied_model(tmp.path());
-    let out = tmp.path().join("result.json");
-    let (ok, text) = run(&["identify", s(&m), s(&example("data")), "--out", s(&out)]);
-    assert!(ok, "{text}");
-    let mode = std::fs::metadata(&out).expect("meta").permissions().mode() & 0o777;
-    // The test harness's umask applies to both: the output matches a plain new file.
+    // The test harness's umask applies to all: each output matches a plain new file.
     let probe = tmp.path().join("probe");
     std::fs::write(&probe, "x").expect("write");
-    let plain = std::fs::metadata(&probe)
-        .expect("meta")
-        .permissions()
-        .mode()
-        & 0o777;
-    assert_eq!(
-        mode, plain,
-        "output mode {mode:o}, a new file gets {plain:o}"
-    );
+    let plain = mode(&probe);
+    let m = copied_model(tmp.path());
+    let result = tmp.path().join("result.json");
+    let (ok, text) = run(&["identify", s(&m), s(&example("data")), "--out", s(&result)]);
+    assert!(ok, "{text}");
+    let curve = tmp.path().join("curve.csv");
+    let (ok, text) = sweep(&[
+        "--from",
+        "207400",
+        "--to",
+        "207800",
+        "--force",
+        "q1=1",
+        "--points",
+        "20",
+        "--out",
+        s(&curve),
+    ]);
+    assert!(ok, "{text}");
+    let table = tmp.path().join("table.txt");
+    let (ok, text) = run(&[
+        "mix",
+        s(&m),
+        "--drives",
+        "q1:207572.5,207592.5",
+        "--output",
+        s(&table),
+    ]);
+    assert!(ok, "{text}");
+    for p in [&result, &curve, &table] {
+        let got = mode(p);
+        assert_eq!(
+            got,
+            plain,
+            "{}: mode {got:o}, a new file {plain:o}",
+            p.display()
+        );
+    }
 }
 
 #[test]
@@ -185,4 +210,118 @@ fn sweep_far_beyond_the_weakly_nonlinear_regime_is_not_marked_converged() {
             "{text}"
         );
     }
+}
+
+/// A plan of one quick two-tone measurement on mode 1 of the shipped model.
+const ONE_MEASUREMENT: &str = r#"
+[[measurement]]
+name = "single_q1"
+drives_hz = [207572.5, 207592.5]
+force = { q1 = [3.5, 3.5] }
+measure_hz = [207552.5, 207572.5, 207592.5, 207612.5]
+"#;
+
+/// `harmonid simulate` of [`ONE_MEASUREMENT`] with the shipped model and values, `--out out`.
+fn simulate(dir: &Path, out: &Path, extra: &[&str]) -> (bool, String) {
+    let plan = dir.join("plan.toml");
+    if !plan.exists() {
+        std::fs::write(&plan, ONE_MEASUREMENT).expect("write plan");
+    }
+    let model = example("model.hb");
+    let values = example("values.toml");
+    let mut args = vec![
+        "simulate",
+        s(&model),
+        "--values",
+        s(&values),
+        "--plan",
+        s(&plan),
+        "--out",
+        s(out),
+    ];
+    args.extend_from_slice(extra);
+    run(&args)
+}
+
+#[test]
+fn simulate_never_empties_a_foreign_folder_without_force() {
+    // `simulate --out DIR` emptied any DIR (a thesis) and exited 0.
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let thesis = tmp.path().join("thesis");
+    std::fs::create_dir(&thesis).expect("mkdir");
+    std::fs::write(thesis.join("thesis.tex"), "chapter 1").expect("write");
+    let (ok, text) = simulate(tmp.path(), &thesis, &[]);
+    assert!(!ok, "{text}");
+    assert!(
+        text.contains("not empty and not a harmonid dataset")
+            && text.contains("thesis.tex")
+            && text.contains("--force"),
+        "{text}"
+    );
+    assert_eq!(
+        std::fs::read(thesis.join("thesis.tex")).expect("kept"),
+        b"chapter 1"
+    );
+    // Asked explicitly, the folder is replaced by the dataset.
+    let (ok, text) = simulate(tmp.path(), &thesis, &["--force"]);
+    assert!(ok, "{text}");
+    assert!(thesis.join("dataset.toml").exists() && !thesis.join("thesis.tex").exists());
+    // A dataset folder is replaced without --force (a second run of the same command).
+    let (ok, text) = simulate(tmp.path(), &thesis, &[]);
+    assert!(ok, "{text}");
+    // No staging folder of harmonid's naming is left beside it.
+    let left: Vec<_> = std::fs::read_dir(tmp.path())
+        .expect("list")
+        .filter_map(Result::ok)
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with(harmonid_files::STAGING_PREFIX))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+}
+
+#[test]
+fn simulate_never_replaces_the_folder_of_its_inputs() {
+    // The folder holding the plan itself, even with --force.
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let (ok, text) = simulate(tmp.path(), tmp.path(), &["--force"]);
+    assert!(!ok, "{text}");
+    assert!(
+        text.contains("is an input of this run") && text.contains("plan.toml"),
+        "{text}"
+    );
+    assert!(tmp.path().join("plan.toml").exists());
+    // A dataset folder holding the values file (a truth.toml given as --values).
+    let ds = tmp.path().join("ds");
+    let (ok, text) = simulate(tmp.path(), &ds, &[]);
+    assert!(ok, "{text}");
+    let model = example("model.hb");
+    let truth = ds.join("truth.toml");
+    let plan = tmp.path().join("plan.toml");
+    let (ok, text) = run(&[
+        "simulate",
+        s(&model),
+        "--values",
+        s(&truth),
+        "--plan",
+        s(&plan),
+        "--out",
+        s(&ds),
+    ]);
+    assert!(!ok && text.contains("is an input of this run"), "{text}");
+    assert!(truth.exists());
+}
+
+#[test]
+fn simulate_refuses_zero_steps_per_period_at_once() {
+    // `--steps-per-period 0` never ended.
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("ds");
+    let (ok, text) = simulate(
+        tmp.path(),
+        &out,
+        &["--time-domain", "--steps-per-period", "0"],
+    );
+    assert!(!ok, "{text}");
+    assert!(text.contains("steps") && text.contains('0'), "{text}");
+    assert!(!out.exists());
 }

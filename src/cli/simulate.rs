@@ -19,9 +19,13 @@ pub struct Args {
     /// The measurement plan (TOML; see docs/simulation.md).
     #[arg(long)]
     pub plan: PathBuf,
-    /// Output dataset folder.
+    /// Output dataset folder: created, or replaced when it is empty or a harmonid dataset.
     #[arg(long)]
     pub out: PathBuf,
+    /// Replace `--out` even when it is a non-empty folder that is not a harmonid dataset (never
+    /// a folder holding the model, values or plan).
+    #[arg(long)]
+    pub force: bool,
     /// Simulate in the time domain with lock-in demodulation instead of harmonic balance.
     #[arg(long)]
     pub time_domain: bool,
@@ -93,6 +97,13 @@ pub fn read_plan(path: &Path) -> miette::Result<Plan> {
 
 /// Runs the subcommand.
 pub fn run(args: Args) -> miette::Result<()> {
+    let inputs = [args.model.as_path(), &args.values, &args.plan];
+    let opts = harmonid_files::DirWrite {
+        force: args.force,
+        inputs: &inputs,
+    };
+    // Before any work: a run that cannot write its output fails at once.
+    harmonid_files::check_output_dir(&args.out, opts).map_err(miette::Report::new)?;
     let model = numeric_model(&args.model, &args.values)?;
     let plan = read_plan(&args.plan)?;
     let settings = Settings {
@@ -169,8 +180,8 @@ pub fn run(args: Args) -> miette::Result<()> {
     }
     let mut ds = sim.dataset;
     ds.dir = args.out.clone();
-    ds.write(&args.out)
-        .into_diagnostic()
+    ds.write_with(&args.out, opts)
+        .map_err(miette::Report::new)
         .wrap_err_with(|| format!("cannot write the dataset {}", args.out.display()))?;
     eprintln!("wrote {}", args.out.display());
     Ok(())
