@@ -116,11 +116,15 @@ pub fn solve_ls(
     }
     let mut status = FitStatus::Solved;
     let mut x: Vec<f64> = (0..k).map(|j| y[j] * scale[j]).collect();
-    let violated = (0..k).any(|j| {
+    let violated = |j: usize| {
         lower.get(j).copied().flatten().is_some_and(|l| x[j] < l)
             || upper.get(j).copied().flatten().is_some_and(|u| x[j] > u)
-    });
-    if violated {
+    };
+    if zero_columns.iter().any(|&j| violated(j)) {
+        // A zero column's unknown is 0 whatever the data; a bound excluding 0 cannot be met
+        // (and a problem with no free column is no QP).
+        status = FitStatus::BoundsFailed;
+    } else if cols.iter().any(|&j| violated(j)) {
         let sub = |v: &[Option<f64>]| -> Vec<Option<f64>> {
             cols.iter().map(|&j| v.get(j).copied().flatten()).collect()
         };
@@ -314,5 +318,22 @@ mod tests {
         assert!(s.cond > 1e12, "cond {}", s.cond);
         let w = &s.weakest_direction;
         assert!(w[0].abs() > 0.5 && w[2].abs() > 0.5, "{w:?}");
+    }
+
+    #[test]
+    fn a_bound_on_a_zero_column_fails_without_a_panic() {
+        // Found by tests/finite_inputs.rs: an all-zero matrix with a bound excluding 0 sent an
+        // empty problem to clarabel, which panicked.
+        let a = DMatrix::from_row_slice(1, 1, &[0.0]);
+        let b = DVector::from_row_slice(&[0.0]);
+        let s = solve_ls(&a, &b, &[Some(1.0)], &[None]);
+        assert_eq!(s.status, FitStatus::BoundsFailed);
+        assert_eq!(s.zero_columns, vec![0]);
+        // A bound on another, nonzero column still goes through the QP.
+        let a = DMatrix::from_row_slice(2, 2, &[0.0, 1.0, 0.0, 1.0]);
+        let b = DVector::from_row_slice(&[2.0, 2.0]);
+        let s = solve_ls(&a, &b, &[None, None], &[None, Some(1.0)]);
+        assert_eq!(s.status, FitStatus::SolvedWithBounds);
+        assert!((s.x[1] - 1.0).abs() < 1e-6, "{:?}", s.x);
     }
 }
