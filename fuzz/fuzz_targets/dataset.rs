@@ -16,9 +16,8 @@ fuzz_target!(|data: &[u8]| {
     let Ok(manifest) = std::str::from_utf8(manifest) else {
         return;
     };
-    let result = harmonid_ident::Dataset::from_readers(Path::new("fuzz"), manifest, None, |_| {
-        Ok(csv)
-    });
+    let result =
+        harmonid_ident::Dataset::from_readers(Path::new("fuzz"), manifest, None, |_| Ok(csv));
     match result {
         Ok(ds) => {
             let _ = ds.check_modes(&["q1", "q2"]);
