@@ -211,6 +211,8 @@ pub struct HbSolver {
     jim: Vec<Complex64>,
     jac: Vec<f64>,
     lu: DenseLu,
+    /// `[e·N + v]`: the Jacobian's block of equation `e`, mode `v` is not zero (assembly).
+    coupled: Vec<bool>,
     step: Vec<f64>,
     x_try: Vec<Complex64>,
     /// `lu` holds a factorised Jacobian (of some earlier state).
@@ -220,6 +222,63 @@ pub struct HbSolver {
     /// The same problem on the lines of intermodulation order ≤ [`RAMP_ORDER`], where the drive
     /// ramp runs, and the index of each of its lines in `lattice`.
     coarse: Option<(Box<HbSolver>, Vec<usize>)>,
+}
+
+/// What the values of a problem (coefficients, `f`, `Q`, forces) set on a planned lattice.
+struct Operators {
+    system: SystemPlan,
+    lin: Vec<Complex64>,
+    force: Vec<Complex64>,
+    force_max: f64,
+}
+
+impl Operators {
+    fn new(
+        model: &NumericModel,
+        drive: &Excitation,
+        lattice: &[f64],
+        plan: ProductPlan,
+    ) -> Result<Self, SimError> {
+        let nm = model.n_modes();
+        let nr = lattice.len();
+        let terms: Vec<_> = model
+            .terms()
+            .iter()
+            .map(|t| {
+                let mut e = vec![0u32; nm];
+                for &(m, k) in &t.factors {
+                    e[m] += k;
+                }
+                (t.eq, PowerProduct::from_exponents(&e), t.coef)
+            })
+            .collect();
+        let system = SystemPlan::new(plan, nm, nm, &terms)?;
+        let mut lin = vec![Z; nm * nr];
+        for n in 0..nm {
+            let (w, g) = (model.omega(n), model.gamma(n));
+            for (r, &f) in lattice.iter().enumerate() {
+                let o = TAU * f;
+                lin[n * nr + r] = Complex64::new(w * w - o * o, o * g);
+            }
+        }
+        let mut force = vec![Z; nm * nr];
+        for (d, &f) in drive.tones_hz.iter().enumerate() {
+            let i = lattice.partition_point(|&x| x < f - LINE_TOL_HZ);
+            if lattice.get(i).is_none_or(|&x| (x - f).abs() > LINE_TOL_HZ) {
+                return Err(SimError::NotOnLattice { hz: f });
+            }
+            for n in 0..nm {
+                force[n * nr + i] += drive.force[n][d];
+            }
+        }
+        let force_max = force.iter().map(|z| z.norm()).fold(0.0, f64::max);
+        Ok(Self {
+            system,
+            lin,
+            force,
+            force_max,
+        })
+    }
 }
 
 impl HbSolver {
@@ -254,6 +313,43 @@ impl HbSolver {
         Ok(solver)
     }
 
+    /// Sets new values of the same problem: `model` with the terms (equations and factors) of
+    /// the set-up's, other coefficients, `f` and `Q`, and `drive` with the same tones and other
+    /// forces. Keeps the lattice, its product plan and every buffer, so that a caller that
+    /// re-solves one experiment at many parameter values (a fit, a planner) does not plan the
+    /// lattice again. The next solve starts from the state given to it; a factorised Jacobian
+    /// is kept only for [`HbSolver::solve_continued`]. Errors: another number of modes, other terms, other tones.
+    pub fn set_values(&mut self, model: &NumericModel, drive: &Excitation) -> Result<(), SimError> {
+        let nm = model.n_modes();
+        let same_terms = nm == self.model.n_modes()
+            && model.terms().len() == self.model.terms().len()
+            && model
+                .terms()
+                .iter()
+                .zip(self.model.terms())
+                .all(|(a, b)| a.eq == b.eq && a.factors == b.factors);
+        if !same_terms {
+            return Err(SimError::Shape(
+                "set_values: the model's modes or terms differ from the solver's".into(),
+            ));
+        }
+        drive.check(nm)?;
+        let ops = Operators::new(model, drive, &self.lattice, self.system.plan().clone())?;
+        self.model = model.clone();
+        self.scratch = ops.system.scratch();
+        self.system = ops.system;
+        self.lin = ops.lin;
+        self.force = ops.force;
+        self.force_max = ops.force_max;
+        // A factorised Jacobian stays for [`HbSolver::solve_continued`] (chord steps check
+        // that it still contracts); it is no longer that of the current state.
+        self.fresh = false;
+        if let Some((coarse, _)) = self.coarse.as_mut() {
+            coarse.set_values(model, drive)?;
+        }
+        Ok(())
+    }
+
     /// The solver on exactly `lattice`, without a coarse ramp lattice.
     fn single(
         model: &NumericModel,
@@ -270,58 +366,29 @@ impl HbSolver {
                 help: "split the model or keep the modes the measurement sees",
             });
         }
-        let nr = lattice.len();
         let mut degrees: Vec<usize> = model.terms().iter().map(|t| t.degree() as usize).collect();
         degrees.sort_unstable();
         degrees.dedup();
         let plan = ProductPlan::for_degrees(&lattice, &lattice, &degrees)?;
-        let terms: Vec<_> = model
-            .terms()
-            .iter()
-            .map(|t| {
-                let mut e = vec![0u32; nm];
-                for &(m, k) in &t.factors {
-                    e[m] += k;
-                }
-                (t.eq, PowerProduct::from_exponents(&e), t.coef)
-            })
-            .collect();
-        let system = SystemPlan::new(plan, nm, nm, &terms)?;
-        let scratch = system.scratch();
-        let mut lin = vec![Z; nm * nr];
-        for n in 0..nm {
-            let (w, g) = (model.omega(n), model.gamma(n));
-            for (r, &f) in lattice.iter().enumerate() {
-                let o = TAU * f;
-                lin[n * nr + r] = Complex64::new(w * w - o * o, o * g);
-            }
-        }
-        let mut force = vec![Z; nm * nr];
-        for (d, &f) in drive.tones_hz.iter().enumerate() {
-            let i = lattice.partition_point(|&x| x < f - LINE_TOL_HZ);
-            if lattice.get(i).is_none_or(|&x| (x - f).abs() > LINE_TOL_HZ) {
-                return Err(SimError::NotOnLattice { hz: f });
-            }
-            for n in 0..nm {
-                force[n * nr + i] += drive.force[n][d];
-            }
-        }
-        let force_max = force.iter().map(|z| z.norm()).fold(0.0, f64::max);
+        let nr = lattice.len();
+        let ops = Operators::new(model, drive, &lattice, plan)?;
         let nu = 2 * nm * nr;
         Ok(Self {
             model: model.clone(),
-            system,
-            scratch,
-            lin,
-            force,
-            force_max,
+            scratch: ops.system.scratch(),
+            system: ops.system,
+            lin: ops.lin,
+            force: ops.force,
+            force_max: ops.force_max,
             x: vec![Z; nm * nr],
             res: vec![Z; nm * nr],
             out: vec![Z; nm * nr],
             jre: vec![Z; nr * nr],
             jim: vec![Z; nr * nr],
             jac: vec![0.0; nu * nu],
-            lu: DenseLu::new(nu),
+            // A mode's lines are one group: modes the state does not couple factorise apart.
+            lu: DenseLu::with_blocks(nu, 2 * nr),
+            coupled: vec![true; nm * nm],
             step: vec![0.0; nu],
             x_try: vec![Z; nm * nr],
             have_lu: false,
@@ -370,7 +437,7 @@ impl HbSolver {
     /// Assembles the real Jacobian at `self.x` and factorises it. `false` when singular.
     fn jacobian(&mut self) -> bool {
         self.assemble_jacobian();
-        self.lu.factor(&self.jac)
+        self.lu.factor_coupled(&self.jac, &self.coupled)
     }
 
     /// Assembles the real Jacobian `∂(Re R, Im R)/∂(Re X, Im X)` at `self.x` into `self.jac`
@@ -392,12 +459,22 @@ impl HbSolver {
             refs[n] = &self.x[n * nr..(n + 1) * nr];
         }
         let jac = &mut self.jac;
+        let coupled = &mut self.coupled;
+        for (i, c) in coupled.iter_mut().enumerate() {
+            *c = i / nm == i % nm;
+        }
         self.system.jacobian(
             &refs[..nm],
             &mut self.jre,
             &mut self.jim,
             &mut self.scratch,
             |eq, j, jre, jim| {
+                // A zero block (a factor of the derivative vanishes in this state: an undriven
+                // mode) is skipped and leaves the modes uncoupled for the factorisation.
+                if jre.iter().chain(jim).all(|z| *z == Z) {
+                    return;
+                }
+                coupled[eq * nm + j] = true;
                 for o in 0..nr {
                     let row0 = 2 * (eq * nr + o);
                     let (top, bottom) = jac[row0 * nu..(row0 + 2) * nu].split_at_mut(nu);
@@ -492,8 +569,19 @@ impl HbSolver {
     }
 
     /// Solves `J y = b` in place with the Jacobian factorised by [`HbSolver::factor_at`].
-    pub(crate) fn solve_factored(&mut self, b: &mut [f64]) {
-        self.lu.solve(b);
+    /// Scratch for [`HbSolver::solve_factored_columns`] with `k` right-hand sides.
+    pub(crate) fn columns_scratch(&self, k: usize) -> crate::linalg::ColumnScratch {
+        self.lu.columns_scratch(k)
+    }
+
+    /// Solves `J Y = B` in place for every column of `b` with the Jacobian factorised by
+    /// [`HbSolver::factor_at`] (one blocked solve).
+    pub(crate) fn solve_factored_columns(
+        &self,
+        b: faer::MatMut<'_, f64>,
+        buf: &mut crate::linalg::ColumnScratch,
+    ) {
+        self.lu.solve_columns(b, buf);
     }
 
     /// The numeric model being solved.
@@ -743,11 +831,26 @@ impl HbSolver {
     /// Newton at full drive from a given state (`amplitudes[n][r]` on this lattice), e.g. the
     /// previous point of a sweep or a noise study.
     pub fn solve_from(&mut self, start: &[Vec<Complex64>], settings: &HbSettings) -> SteadyState {
+        self.have_lu = false;
+        self.solve_continued(start, settings)
+    }
+
+    /// As [`HbSolver::solve_from`], but the first steps reuse the Jacobian factorised at the
+    /// previous solve (or [`HbSolver::factor_at`]) as chord steps while they contract the
+    /// residual by at least a factor 4 each; a fresh factorisation follows only when they do
+    /// not. For a problem whose values moved a little since ([`HbSolver::set_values`]: the next
+    /// step of a fit) from that solve's state, this saves the factorisation, the dominant cost.
+    /// The converged state is the same as `solve_from`'s to the tolerance.
+    pub fn solve_continued(
+        &mut self,
+        start: &[Vec<Complex64>],
+        settings: &HbSettings,
+    ) -> SteadyState {
         let nr = self.lattice.len();
         for (n, row) in start.iter().enumerate().take(self.model.n_modes()) {
             self.x[n * nr..(n + 1) * nr].copy_from_slice(&row[..nr]);
         }
-        self.have_lu = false;
+        self.fresh = false;
         let (ok, it, r) = self.newton(1.0, settings.tol, settings.max_iter * 2);
         let status = if ok {
             HbStatus::Converged { iterations: it }

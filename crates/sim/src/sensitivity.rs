@@ -25,6 +25,7 @@
 
 use crate::hb::{HbSolver, SteadyState};
 use crate::lattice::LINE_TOL_HZ;
+use crate::linalg::ColumnScratch;
 use crate::SimError;
 use harmonid_poly::PowerProduct;
 use harmonid_spectral::{SystemPlan, SystemScratch};
@@ -84,8 +85,9 @@ pub struct Sensitivity {
     mono_amp: Vec<Complex64>,
     /// `∂R/∂θ`, complex, `[n·R + r]`.
     dres: Vec<Complex64>,
-    /// Real right-hand side / solution.
-    rhs: Vec<f64>,
+    /// Real right-hand sides / solutions, one column per parameter (`2·N·R` rows).
+    rhs: faer::Mat<f64>,
+    solve_scratch: ColumnScratch,
     /// `Ω_r = 2π f_r` of every lattice line, rad/s.
     omega: Vec<f64>,
     n_modes: usize,
@@ -192,7 +194,8 @@ impl Sensitivity {
             monomials,
             mono_of_term,
             dres: vec![Z; nm * nr],
-            rhs: vec![0.0; 2 * nm * nr],
+            rhs: faer::Mat::zeros(2 * nm * nr, params.len()),
+            solve_scratch: solver.columns_scratch(params.len()),
             omega: lattice.iter().map(|&f| TAU * f).collect(),
             n_modes: nm,
             n_lines: nr,
@@ -292,17 +295,23 @@ impl Sensitivity {
                     };
                 }
             }
+            let col = self.rhs.col_mut(k).try_as_col_major_mut().expect("contiguous column");
+            let col = col.as_slice_mut();
             for (i, z) in self.dres.iter().enumerate() {
-                self.rhs[2 * i] = -z.re;
-                self.rhs[2 * i + 1] = -z.im;
+                col[2 * i] = -z.re;
+                col[2 * i + 1] = -z.im;
             }
-            solver.solve_factored(&mut self.rhs);
+        }
+        // Every parameter's `dz/dθ_k = −J⁻¹ ∂R/∂θ_k` in one blocked solve.
+        solver.solve_factored_columns(self.rhs.as_mut(), &mut self.solve_scratch);
+        for k in 0..self.params.len() {
+            let col = self.rhs.col(k).try_as_col_major().expect("contiguous column");
+            let col = col.as_slice();
             for (o, &r) in self.obs_line.iter().enumerate() {
                 let mut s = Z;
                 for n in 0..nm {
                     let i = n * nr + r;
-                    s += Complex64::new(self.rhs[2 * i], self.rhs[2 * i + 1])
-                        * self.obs_shape[o * nm + n];
+                    s += Complex64::new(col[2 * i], col[2 * i + 1]) * self.obs_shape[o * nm + n];
                 }
                 out[k * n_obs + o] = s;
             }
