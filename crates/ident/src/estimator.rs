@@ -251,7 +251,7 @@ fn run_ml(
             1.0,
         )
     };
-    let bounds_f = fisher::crlb(fwd, &fit.theta, &noise, 1)
+    let bounds_f = fisher::crlb_from_jacobian(fwd, &fit.theta, &fit.jac, &noise, 1)
         .map_err(|e| format!("Fisher information at the estimate: {e}"))?;
     let jackknife = if settings.jackknife && from_shots {
         jackknife(fwd, prob, &fit, &sigma, ds_shots, pooled, &cols)

@@ -291,11 +291,27 @@ pub fn crlb(
     let n_obs = fwd.n_observations();
     noise.check(n_obs)?;
     let nk = fwd.unknowns().len();
-    let mut x = vec![Complex64::new(0.0, 0.0); n_obs];
     let mut jac = vec![Complex64::new(0.0, 0.0); n_obs * nk];
-    fwd.evaluate(theta, &mut x, Some(&mut jac))?;
+    fwd.jacobian(theta, &mut jac)?;
+    crlb_from_jacobian(fwd, theta, &jac, noise, shots)
+}
+
+/// As [`crlb`] with the Jacobian at `θ` already computed (`jac`, layout of
+/// [`ForwardModel::evaluate`]; e.g. the one a fit ended with).
+pub fn crlb_from_jacobian(
+    fwd: &ForwardModel,
+    theta: &[f64],
+    jac: &[Complex64],
+    noise: &Noise,
+    shots: usize,
+) -> Result<Bounds, FisherError> {
+    if shots == 0 {
+        return Err(FisherError::NoShots);
+    }
+    noise.check(fwd.n_observations())?;
+    let nk = fwd.unknowns().len();
     let free = fwd.free();
-    let info = information(&jac, nk, &free, noise, shots);
+    let info = information(jac, nk, &free, noise, shots);
     Ok(bounds_from_information(fwd, theta, &free, &info, shots))
 }
 

@@ -129,6 +129,9 @@ struct MeasFwd {
     /// Start amplitudes per mode at measured frequencies (from data).
     start: Option<Vec<(f64, Vec<Complex64>)>>,
     buf: Vec<Complex64>,
+    /// The solver of this measurement's lattice, kept across evaluations (values reset by
+    /// [`HbSolver::set_values`]) with its sensitivity set-up.
+    solver: Option<(HbSolver, Option<Sensitivity>)>,
 }
 
 /// The forward model of a dataset; see the module documentation.
@@ -146,6 +149,8 @@ pub struct ForwardModel {
     n_obs: usize,
     force_model: ForceModel,
     settings: ForwardSettings,
+    /// `θ` of the last successful evaluation (the steady states kept are at it).
+    at: Option<Vec<f64>>,
 }
 
 impl ForwardModel {
@@ -285,6 +290,7 @@ impl ForwardModel {
                 state: None,
                 start: None,
                 buf: Vec::new(),
+                solver: None,
                 obs,
             });
             n_obs += meas[mi].obs.len();
@@ -300,6 +306,7 @@ impl ForwardModel {
             n_obs,
             force_model,
             settings: settings.clone(),
+            at: None,
         };
         fwd.plan_chains();
         Ok(fwd)
@@ -596,6 +603,7 @@ impl ForwardModel {
             m.start = Some(start);
             m.state = None;
         }
+        self.at = None;
     }
 
     /// The numeric model at `θ`.
@@ -700,7 +708,7 @@ impl ForwardModel {
         &mut self,
         theta: &[f64],
         out_x: &mut [Complex64],
-        mut out_jac: Option<&mut [Complex64]>,
+        out_jac: Option<&mut [Complex64]>,
     ) -> Result<(), ForwardError> {
         let nk = self.unknowns.len();
         if theta.len() != nk || out_x.len() != self.n_obs {
@@ -711,99 +719,159 @@ impl ForwardModel {
                 self.n_obs
             )));
         }
-        if let Some(j) = out_jac.as_deref() {
-            if j.len() != self.n_obs * nk {
-                return Err(ForwardError::Shape(format!(
-                    "evaluate: the Jacobian holds {} entries, {} × {nk} expected",
-                    j.len(),
-                    self.n_obs
-                )));
-            }
-        }
+        self.check_jacobian_len(out_jac.as_deref())?;
+        self.at = None;
         let numeric = self.numeric(theta)?;
         for mi in 0..self.meas.len() {
             let drive = self.excitation(mi, theta);
-            let hb = self.settings.hb.clone();
-            let m = &mut self.meas[mi];
+            self.solve_measurement(mi, &numeric, &drive, out_x)?;
+        }
+        self.at = Some(theta.to_vec());
+        match out_jac {
+            Some(jac) => self.jacobian(theta, jac),
+            None => Ok(()),
+        }
+    }
+
+    /// The Jacobian `out_jac[o·K + k] = ∂X_o/∂θ_k` at `θ` (layout of
+    /// [`ForwardModel::evaluate`]), from the steady states of the last evaluation when it was
+    /// at this `θ` (a fit evaluates its trial points without the Jacobian and asks for it only
+    /// at the points it accepts); otherwise it evaluates first.
+    pub fn jacobian(&mut self, theta: &[f64], out_jac: &mut [Complex64]) -> Result<(), ForwardError> {
+        self.check_jacobian_len(Some(out_jac))?;
+        if self.at.as_deref() != Some(theta) {
+            let mut x = vec![Z; self.n_obs];
+            return self.evaluate(theta, &mut x, Some(out_jac));
+        }
+        let nk = self.unknowns.len();
+        for m in &mut self.meas {
             let hb_err = |why: String| ForwardError::Hb {
                 measurement: m.name.clone(),
                 why,
             };
-            let lattice = match &m.lattice {
-                Some(l) => l.clone(),
-                None => {
-                    let mut ls = hb.lattice.clone();
-                    ls.extra_hz.extend(m.obs.iter().map(|o| o.f_hz));
-                    let l =
-                        choose_lattice(&numeric, &drive, &ls).map_err(|e| hb_err(e.to_string()))?;
-                    m.lattice = Some(l.clone());
-                    l
-                }
+            let (Some((solver, sens)), Some(state)) = (m.solver.as_mut(), m.state.as_ref()) else {
+                return Err(hb_err("no steady state to differentiate".into()));
             };
-            let mut solver = HbSolver::with_lattice(&numeric, &drive, lattice.clone())
+            let sens = match sens {
+                Some(s) => s,
+                None => sens.insert(
+                    Sensitivity::new(solver, &m.tones_hz, &m.sens_params, &m.obs)
+                        .map_err(|e| hb_err(e.to_string()))?,
+                ),
+            };
+            sens.compute(solver, state, &mut m.buf)
                 .map_err(|e| hb_err(e.to_string()))?;
-            let warm: Option<Vec<Vec<Complex64>>> = match (&m.state, &m.start) {
-                (Some(st), _) => Some(st.amplitudes.clone()),
-                (None, Some(start)) => {
-                    let nm = numeric.n_modes();
-                    let mut a = vec![vec![Z; lattice.len()]; nm];
-                    for (f, amps) in start {
-                        if let Some(r) = lattice.iter().position(|&x| (x - f).abs() <= 1e-6) {
-                            for n in 0..nm {
-                                a[n][r] = amps[n];
-                            }
-                        }
-                    }
-                    Some(a)
-                }
-                (None, None) => None,
-            };
-            let mut state = match warm {
-                Some(a) => solver.solve_from(&a, &hb),
-                None => solver.solve(&hb),
-            };
-            if !state.converged() {
-                state = solver.solve(&hb);
+            let no = m.obs.len();
+            for o in 0..no {
+                out_jac[(m.offset + o) * nk..(m.offset + o + 1) * nk].fill(Z);
             }
-            if !state.converged() {
-                return Err(hb_err(format!(
-                    "no steady state (status: {}, relative residual {:.2e})",
-                    state.status, state.residual
-                )));
-            }
-            for (o, ob) in m.obs.iter().enumerate() {
-                out_x[m.offset + o] = state.at_point(&ob.shape, ob.f_hz);
-            }
-            if let Some(jac) = out_jac.as_deref_mut() {
-                let mut sens = Sensitivity::new(&solver, &m.tones_hz, &m.sens_params, &m.obs)
-                    .map_err(|e| hb_err(e.to_string()))?;
-                sens.compute(&mut solver, &state, &mut m.buf)
-                    .map_err(|e| hb_err(e.to_string()))?;
-                let no = m.obs.len();
-                for o in 0..no {
-                    jac[(m.offset + o) * nk..(m.offset + o + 1) * nk].fill(Z);
-                }
-                for (k, chain) in m.chains.iter().enumerate() {
-                    let d = &m.buf[k * no..(k + 1) * no];
-                    match chain {
-                        Chain::Linear(cols) => {
-                            for &(c, w) in cols {
-                                for o in 0..no {
-                                    jac[(m.offset + o) * nk + c] += d[o] * w;
-                                }
-                            }
-                        }
-                        Chain::FixedQ { col, q, mode } => {
-                            let w = 1.0 / (2.0 * q * theta[2 * mode].sqrt());
+            for (k, chain) in m.chains.iter().enumerate() {
+                let d = &m.buf[k * no..(k + 1) * no];
+                match chain {
+                    Chain::Linear(cols) => {
+                        for &(c, w) in cols {
                             for o in 0..no {
-                                jac[(m.offset + o) * nk + col] += d[o] * w;
+                                out_jac[(m.offset + o) * nk + c] += d[o] * w;
                             }
+                        }
+                    }
+                    Chain::FixedQ { col, q, mode } => {
+                        let w = 1.0 / (2.0 * q * theta[2 * mode].sqrt());
+                        for o in 0..no {
+                            out_jac[(m.offset + o) * nk + col] += d[o] * w;
                         }
                     }
                 }
             }
-            m.state = Some(state);
         }
         Ok(())
     }
+
+    fn check_jacobian_len(&self, jac: Option<&[Complex64]>) -> Result<(), ForwardError> {
+        let nk = self.unknowns.len();
+        match jac {
+            Some(j) if j.len() != self.n_obs * nk => Err(ForwardError::Shape(format!(
+                "evaluate: the Jacobian holds {} entries, {} × {nk} expected",
+                j.len(),
+                self.n_obs
+            ))),
+            _ => Ok(()),
+        }
+    }
+
+    /// Solves measurement `mi`'s steady state under `numeric` and `drive` (warm-started from
+    /// its last state, or the data; the ramp from rest as the fall-back), writes its
+    /// predictions into `out_x` and keeps the state.
+    fn solve_measurement(
+        &mut self,
+        mi: usize,
+        numeric: &NumericModel,
+        drive: &Excitation,
+        out_x: &mut [Complex64],
+    ) -> Result<(), ForwardError> {
+        let hb = &self.settings.hb;
+        let m = &mut self.meas[mi];
+        let hb_err = |why: String| ForwardError::Hb {
+            measurement: m.name.clone(),
+            why,
+        };
+        let lattice = match &m.lattice {
+            Some(l) => l.clone(),
+            None => {
+                let mut ls = hb.lattice.clone();
+                ls.extra_hz.extend(m.obs.iter().map(|o| o.f_hz));
+                let l = choose_lattice(numeric, drive, &ls).map_err(|e| hb_err(e.to_string()))?;
+                m.lattice = Some(l.clone());
+                l
+            }
+        };
+        let solver = match m.solver.as_mut() {
+            Some((solver, _)) => {
+                solver
+                    .set_values(numeric, drive)
+                    .map_err(|e| hb_err(e.to_string()))?;
+                solver
+            }
+            None => {
+                let solver = HbSolver::with_lattice(numeric, drive, lattice.clone())
+                    .map_err(|e| hb_err(e.to_string()))?;
+                &mut m.solver.insert((solver, None)).0
+            }
+        };
+        let warm: Option<Vec<Vec<Complex64>>> = match (&m.state, &m.start) {
+            (Some(st), _) => Some(st.amplitudes.clone()),
+            (None, Some(start)) => {
+                let nm = numeric.n_modes();
+                let mut a = vec![vec![Z; lattice.len()]; nm];
+                for (f, amps) in start {
+                    if let Some(r) = lattice.iter().position(|&x| (x - f).abs() <= 1e-6) {
+                        for n in 0..nm {
+                            a[n][r] = amps[n];
+                        }
+                    }
+                }
+                Some(a)
+            }
+            (None, None) => None,
+        };
+        let mut state = match warm {
+            Some(a) => solver.solve_continued(&a, hb),
+            None => solver.solve(hb),
+        };
+        if !state.converged() {
+            state = solver.solve(hb);
+        }
+        if !state.converged() {
+            return Err(hb_err(format!(
+                "no steady state (status: {}, relative residual {:.2e})",
+                state.status, state.residual
+            )));
+        }
+        for (o, ob) in m.obs.iter().enumerate() {
+            out_x[m.offset + o] = state.at_point(&ob.shape, ob.f_hz);
+        }
+        m.state = Some(state);
+        Ok(())
+    }
 }
+

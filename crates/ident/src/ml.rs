@@ -215,10 +215,13 @@ pub fn refine(
             converged = true;
             break;
         }
-        match fwd.evaluate(&trial, &mut x_try, Some(&mut jac_try)) {
+        // The trial's prediction only; its Jacobian (a factorisation per measurement) once it
+        // is accepted.
+        match fwd.evaluate(&trial, &mut x_try, None) {
             Ok(()) => {
                 let c = chi2(meas, &x_try, sigma);
-                if c <= cost {
+                // A trial whose Jacobian fails (singular at a fold) counts as rejected.
+                if c <= cost && fwd.jacobian(&trial, &mut jac_try).is_ok() {
                     let rel = (cost - c) / cost.max(f64::MIN_POSITIVE);
                     theta = trial;
                     std::mem::swap(&mut x, &mut x_try);
@@ -244,7 +247,7 @@ pub fn refine(
         }
     }
     // Leave the forward model's state at the estimate (a rejected trial moved it).
-    fwd.evaluate(&theta, &mut x, Some(&mut jac))?;
+    fwd.evaluate(&theta, &mut x, None)?;
     let at_bound: Vec<usize> = held
         .into_iter()
         .filter(|&k| {
