@@ -78,7 +78,14 @@ pub fn identify(model: &Model, ds: &Dataset, settings: &Settings) -> Result<Repo
         ) {
             Ok(mut fwd) => {
                 fwd.start_from_data(&pooled.mean);
-                match run_ml(&prob, ds, &mut fwd, &pooled, &theta_lin, settings) {
+                match run_ml(
+                    &prob,
+                    ds,
+                    &mut fwd,
+                    &pooled,
+                    (&theta_lin, &start.cov_diag[0]),
+                    settings,
+                ) {
                     Ok(out) => {
                         if settings.estimator == Estimator::Ml {
                             final_theta = to_problem(&prob, &fwd, &out.fit.theta, &theta_lin);
@@ -189,7 +196,7 @@ fn run_ml(
     ds_shots: &Dataset,
     fwd: &mut ForwardModel,
     pooled: &Pooled,
-    theta_lin: &[f64],
+    (theta_lin, start_cov): (&[f64], &[f64]),
     settings: &Settings,
 ) -> Result<FisherOut, String> {
     let ds = &pooled.mean;
@@ -229,17 +236,69 @@ fn run_ml(
         .iter()
         .map(|u| prob.index_of(u).map_or((None, None), |i| prob.bounds[i]))
         .collect();
-    let fit = ml::refine(
-        fwd,
-        &meas,
-        &sigma,
-        &theta0,
-        &cols,
-        &bounds,
-        &MlSettings::default(),
-    )
-    .map_err(|e| format!("output-error fit: {e}"))?;
     let mut notes = Vec::new();
+    // Starts, in order: the pooled linear estimate; the same with the model parameters it
+    // does not determine (relative standard error above 1) at zero (or their bound); every
+    // model parameter at zero. A linear estimate far off in a poorly determined coupling can
+    // put the harmonic balance past a fold; a weaker nonlinearity always has a steady state
+    // near the data, and the fit moves the parameters from there.
+    let mut starts = vec![(theta0.clone(), None)];
+    let zero_params = |only_loose: bool| -> Vec<f64> {
+        let mut t = theta0.clone();
+        for (k, u) in fwd.unknowns().iter().enumerate() {
+            let Unknown::Param(_) = u else { continue };
+            if fwd.fixed()[k].is_some() {
+                continue;
+            }
+            let loose = prob.index_of(u).is_none_or(|i| {
+                let se = start_cov.get(i).copied().unwrap_or(f64::NAN).sqrt();
+                !(se <= theta_lin[i].abs())
+            });
+            if only_loose && !loose {
+                continue;
+            }
+            let (lo, hi) = bounds[k];
+            t[k] = 0.0_f64.max(lo.unwrap_or(f64::NEG_INFINITY)).min(hi.unwrap_or(f64::INFINITY));
+        }
+        t
+    };
+    starts.push((
+        zero_params(true),
+        Some("the model parameters the pooled linear fit does not determine at zero"),
+    ));
+    starts.push((zero_params(false), Some("every model parameter at zero")));
+    let mut first_err = None;
+    let mut fit = None;
+    starts.dedup_by(|b, a| a.0 == b.0);
+    let n_starts = starts.len();
+    for (i, (theta_s, what)) in starts.iter().enumerate() {
+        if fit.is_some() {
+            break;
+        }
+        // Newton from the data at each start; the drive ramp from rest only at the last.
+        let ml_settings = MlSettings {
+            ramp_at_start: i + 1 == n_starts,
+            ..MlSettings::default()
+        };
+        match ml::refine(fwd, &meas, &sigma, theta_s, &cols, &bounds, &ml_settings) {
+            Ok(f) => {
+                if let (Some(what), Some(e)) = (what, &first_err) {
+                    notes.push(format!(
+                        "the output-error fit started from {what}: at the pooled linear estimate {e}"
+                    ));
+                }
+                fit = Some(f);
+            }
+            Err(e) => {
+                first_err.get_or_insert(e);
+            }
+        }
+    }
+    let fit = match (fit, first_err) {
+        (Some(f), _) => f,
+        (None, Some(e)) => return Err(format!("output-error fit: {e}")),
+        (None, None) => return Err("output-error fit: no start".into()),
+    };
     let dof = fit.dof.max(1) as f64;
     let (noise, inflation) = if from_shots {
         let red = fit.chi2 / dof;

@@ -720,17 +720,49 @@ impl ForwardModel {
             )));
         }
         self.check_jacobian_len(out_jac.as_deref())?;
-        self.at = None;
-        let numeric = self.numeric(theta)?;
-        for mi in 0..self.meas.len() {
-            let drive = self.excitation(mi, theta);
-            self.solve_measurement(mi, &numeric, &drive, out_x)?;
-        }
-        self.at = Some(theta.to_vec());
+        self.solve_all(theta, out_x, true)?;
         match out_jac {
             Some(jac) => self.jacobian(theta, jac),
             None => Ok(()),
         }
+    }
+
+    /// As [`ForwardModel::evaluate`] without the Jacobian, for a fit's trial point near the
+    /// last evaluation: every steady state by Newton from the last one (or from the data)
+    /// only, a failure being an error at once (the trial step was too long, or the start too
+    /// far) instead of the drive ramp from rest, which costs far more and may land on another
+    /// branch than the one being followed.
+    pub fn evaluate_trial(
+        &mut self,
+        theta: &[f64],
+        out_x: &mut [Complex64],
+    ) -> Result<(), ForwardError> {
+        let nk = self.unknowns.len();
+        if theta.len() != nk || out_x.len() != self.n_obs {
+            return Err(ForwardError::Shape(format!(
+                "evaluate_trial: θ has {} entries ({nk} unknowns), out_x {} ({} observations)",
+                theta.len(),
+                out_x.len(),
+                self.n_obs
+            )));
+        }
+        self.solve_all(theta, out_x, false)
+    }
+
+    fn solve_all(
+        &mut self,
+        theta: &[f64],
+        out_x: &mut [Complex64],
+        ramp: bool,
+    ) -> Result<(), ForwardError> {
+        self.at = None;
+        let numeric = self.numeric(theta)?;
+        for mi in 0..self.meas.len() {
+            let drive = self.excitation(mi, theta);
+            self.solve_measurement(mi, &numeric, &drive, out_x, ramp)?;
+        }
+        self.at = Some(theta.to_vec());
+        Ok(())
     }
 
     /// The Jacobian `out_jac[o·K + k] = ∂X_o/∂θ_k` at `θ` (layout of
@@ -800,14 +832,15 @@ impl ForwardModel {
     }
 
     /// Solves measurement `mi`'s steady state under `numeric` and `drive` (warm-started from
-    /// its last state, or the data; the ramp from rest as the fall-back), writes its
-    /// predictions into `out_x` and keeps the state.
+    /// its last state, or the data; the ramp from rest as the fall-back when `ramp`), writes
+    /// its predictions into `out_x` and keeps the state.
     fn solve_measurement(
         &mut self,
         mi: usize,
         numeric: &NumericModel,
         drive: &Excitation,
         out_x: &mut [Complex64],
+        ramp: bool,
     ) -> Result<(), ForwardError> {
         let hb = &self.settings.hb;
         let m = &mut self.meas[mi];
@@ -858,7 +891,7 @@ impl ForwardModel {
             Some(a) => solver.solve_continued(&a, hb),
             None => solver.solve(hb),
         };
-        if !state.converged() {
+        if !state.converged() && ramp {
             state = solver.solve(hb);
         }
         if !state.converged() {

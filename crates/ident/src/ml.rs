@@ -26,6 +26,10 @@ pub struct MlSettings {
     pub max_steps: usize,
     /// Stop when an accepted step lowers `χ²` by less than this fraction (default 1e-10).
     pub rel_tol: f64,
+    /// Whether a steady state that Newton does not reach from its warm start at `θ0` is
+    /// sought by the drive ramp from rest (default `true`; a caller with other starts to try
+    /// first says `false`: the ramp is the costly last resort).
+    pub ramp_at_start: bool,
 }
 
 impl Default for MlSettings {
@@ -33,6 +37,7 @@ impl Default for MlSettings {
         MlSettings {
             max_steps: 60,
             rel_tol: 1e-10,
+            ramp_at_start: true,
         }
     }
 }
@@ -194,7 +199,12 @@ pub fn refine(
     }
     let mut x = vec![Complex64::new(0.0, 0.0); n_obs];
     let mut jac = vec![Complex64::new(0.0, 0.0); n_obs * nk];
-    fwd.evaluate(&theta, &mut x, Some(&mut jac))?;
+    if settings.ramp_at_start {
+        fwd.evaluate(&theta, &mut x, Some(&mut jac))?;
+    } else {
+        fwd.evaluate_trial(&theta, &mut x)?;
+        fwd.jacobian(&theta, &mut jac)?;
+    }
     let chi2_start = chi2(meas, &x, sigma);
     let mut cost = chi2_start;
     let mut lambda = 1e-3;
@@ -217,7 +227,7 @@ pub fn refine(
         }
         // The trial's prediction only; its Jacobian (a factorisation per measurement) once it
         // is accepted.
-        match fwd.evaluate(&trial, &mut x_try, None) {
+        match fwd.evaluate_trial(&trial, &mut x_try) {
             Ok(()) => {
                 let c = chi2(meas, &x_try, sigma);
                 // A trial whose Jacobian fails (singular at a fold) counts as rejected.
