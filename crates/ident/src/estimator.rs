@@ -258,7 +258,9 @@ fn run_ml(
                 continue;
             }
             let (lo, hi) = bounds[k];
-            t[k] = 0.0_f64.max(lo.unwrap_or(f64::NEG_INFINITY)).min(hi.unwrap_or(f64::INFINITY));
+            t[k] = 0.0_f64
+                .max(lo.unwrap_or(f64::NEG_INFINITY))
+                .min(hi.unwrap_or(f64::INFINITY));
         }
         t
     };

@@ -769,7 +769,11 @@ impl ForwardModel {
     /// [`ForwardModel::evaluate`]), from the steady states of the last evaluation when it was
     /// at this `θ` (a fit evaluates its trial points without the Jacobian and asks for it only
     /// at the points it accepts); otherwise it evaluates first.
-    pub fn jacobian(&mut self, theta: &[f64], out_jac: &mut [Complex64]) -> Result<(), ForwardError> {
+    pub fn jacobian(
+        &mut self,
+        theta: &[f64],
+        out_jac: &mut [Complex64],
+    ) -> Result<(), ForwardError> {
         self.check_jacobian_len(Some(out_jac))?;
         if self.at.as_deref() != Some(theta) {
             let mut x = vec![Z; self.n_obs];
@@ -907,4 +911,3 @@ impl ForwardModel {
         Ok(())
     }
 }
-

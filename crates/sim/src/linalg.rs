@@ -126,7 +126,13 @@ pub(crate) struct DenseLu {
 
 impl std::fmt::Debug for DenseLu {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "DenseLu({} × {}, {} parts)", self.n, self.n, self.parts.len())
+        write!(
+            f,
+            "DenseLu({} × {}, {} parts)",
+            self.n,
+            self.n,
+            self.parts.len()
+        )
     }
 }
 
@@ -317,7 +323,10 @@ impl DenseLu {
     pub(crate) fn solve_columns(&self, mut b: faer::MatMut<'_, f64>, buf: &mut ColumnScratch) {
         use faer::linalg::lu::partial_pivoting::solve;
         let k = b.ncols();
-        assert!(b.nrows() == self.n && k <= buf.cols, "solve_columns: shapes");
+        assert!(
+            b.nrows() == self.n && k <= buf.cols,
+            "solve_columns: shapes"
+        );
         let mut rows = buf.rows.as_mut().subcols_mut(0, k);
         for c in 0..k {
             for (p, &i) in self.order.iter().enumerate() {

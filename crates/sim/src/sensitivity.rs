@@ -295,7 +295,11 @@ impl Sensitivity {
                     };
                 }
             }
-            let col = self.rhs.col_mut(k).try_as_col_major_mut().expect("contiguous column");
+            let col = self
+                .rhs
+                .col_mut(k)
+                .try_as_col_major_mut()
+                .expect("contiguous column");
             let col = col.as_slice_mut();
             for (i, z) in self.dres.iter().enumerate() {
                 col[2 * i] = -z.re;
@@ -305,7 +309,11 @@ impl Sensitivity {
         // Every parameter's `dz/dθ_k = −J⁻¹ ∂R/∂θ_k` in one blocked solve.
         solver.solve_factored_columns(self.rhs.as_mut(), &mut self.solve_scratch);
         for k in 0..self.params.len() {
-            let col = self.rhs.col(k).try_as_col_major().expect("contiguous column");
+            let col = self
+                .rhs
+                .col(k)
+                .try_as_col_major()
+                .expect("contiguous column");
             let col = col.as_slice();
             for (o, &r) in self.obs_line.iter().enumerate() {
                 let mut s = Z;
