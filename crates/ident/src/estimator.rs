@@ -251,8 +251,9 @@ fn run_ml(
                 continue;
             }
             let loose = prob.index_of(u).is_none_or(|i| {
+                // Loose: a relative standard error above 1, or none at all (NaN).
                 let se = start_cov.get(i).copied().unwrap_or(f64::NAN).sqrt();
-                !(se <= theta_lin[i].abs())
+                se.is_nan() || se > theta_lin[i].abs()
             });
             if only_loose && !loose {
                 continue;
