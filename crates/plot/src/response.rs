@@ -108,7 +108,7 @@ impl Figure for ResponseCurve {
             entries.push((LegendMark::Triangle, style::GREEN, "jump down-sweep".into()));
         }
         if !self.backbone.is_empty() {
-            entries.push((LegendMark::Dashed, style::GREY, "backbone".into()));
+            entries.push((LegendMark::Dashed, style::BLACK, "backbone".into()));
         }
         if !self.measured.is_empty() {
             entries.push((LegendMark::Dot, style::BLACK, "measured".into()));
@@ -136,24 +136,6 @@ impl Figure for ResponseCurve {
             .y_label_formatter(&|v| style::tick(*v))
             .draw()
             .drawn()?;
-        if !self.backbone.is_empty() {
-            let pts: Vec<(f64, f64)> = self
-                .backbone
-                .iter()
-                .filter(|(f, a)| {
-                    f.is_finite() && a.is_finite() && *f >= f_lo && *f <= f_hi && *a <= a_hi
-                })
-                .map(|&(f, a)| (f - off, a))
-                .collect();
-            chart
-                .draw_series(DashedLineSeries::new(
-                    pts,
-                    4,
-                    4,
-                    style::GREY.stroke_width(2),
-                ))
-                .drawn()?;
-        }
         for (k, b) in self.branches.iter().enumerate() {
             let color = style::PALETTE[k % style::PALETTE.len()];
             let n = b.f_hz.len().min(b.amp.len()).min(b.stable.len());
@@ -177,6 +159,26 @@ impl Figure for ResponseCurve {
                 }
                 i = j;
             }
+        }
+        // The backbone runs between the stable and the unstable branch, a pixel or two from
+        // each at large amplitude: drawn over them, thin, or it seems to stop halfway.
+        if !self.backbone.is_empty() {
+            let pts: Vec<(f64, f64)> = self
+                .backbone
+                .iter()
+                .filter(|(f, a)| {
+                    f.is_finite() && a.is_finite() && *f >= f_lo && *f <= f_hi && *a <= a_hi
+                })
+                .map(|&(f, a)| (f - off, a))
+                .collect();
+            chart
+                .draw_series(DashedLineSeries::new(
+                    pts,
+                    5,
+                    4,
+                    style::BLACK.stroke_width(2),
+                ))
+                .drawn()?;
         }
         for j in &self.jumps {
             let c = if j.up {

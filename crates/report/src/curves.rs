@@ -77,7 +77,10 @@ pub fn sweep_curve(model: &NumericModel, r: &SweepResult, n: usize) -> ResponseC
         .filter(|a| a.is_finite())
         .fold(0.0, f64::max);
     let amps: Vec<f64> = (1..=40).map(|k| a_max * k as f64 / 40.0).collect();
-    let backbone = harmonid_sim::backbone(model, n, &amps, r.harmonics.len().max(1))
+    // The backbone with the sweep's highest harmonic (not the count of harmonics kept: an odd
+    // model keeps only 1, 3, ...).
+    let h_max = r.harmonics.iter().copied().max().unwrap_or(1).max(1);
+    let backbone: Vec<(f64, f64)> = harmonid_sim::backbone(model, n, &amps, h_max)
         .map(|fs| {
             amps.iter()
                 .zip(fs)
@@ -86,8 +89,18 @@ pub fn sweep_curve(model: &NumericModel, r: &SweepResult, n: usize) -> ResponseC
         })
         .unwrap_or_default();
     let name = &model.mode_names[n];
+    // Where Newton fails (far beyond the weakly nonlinear regime), say how far the backbone goes.
+    let bb_top = backbone.iter().map(|p| p.1).fold(0.0, f64::max);
+    let note = if bb_top < 0.999 * a_max {
+        format!(
+            " (backbone found only up to {} m)",
+            harmonid_plot::style::tick(bb_top)
+        )
+    } else {
+        String::new()
+    };
     ResponseCurve {
-        title: format!("response of {name} to one tone"),
+        title: format!("response of {name} to one tone{note}"),
         y_label: format!("|{name}| at f (m)"),
         branches: vec![Branch {
             label: name.clone(),

@@ -602,7 +602,9 @@ pub fn sweep(
             folds.push(Fold {
                 f_hz: b,
                 index: i,
-                upper: (b - a) * dir > 0.0,
+                // A local maximum of the frequency along the curve, whichever way it was
+                // followed (`(b − a)·dir` swapped the two for a curve followed downwards).
+                upper: b > a,
             });
         }
     }
@@ -660,48 +662,110 @@ pub fn backbone(
     let mut jw = vec![0.0; nu];
     let mut piv = vec![0usize; nu];
     let mut out = Vec::with_capacity(amplitudes.len());
+    // Continuation in amplitude from the last converged state: a step Newton cannot take is
+    // halved (up to 2^-8 of it); an amplitude still not reached is `None`, and the next one
+    // starts again from the last converged state (a failed Newton leaves no garbage behind).
+    let (mut u_ok, mut w_ok, mut a_ok) = (u.clone(), w, 0.0f64);
     for &a in amplitudes {
-        u[k_re] = a;
-        u[k_im] = 0.0;
-        let mut ok = false;
-        for _ in 0..40 {
-            aft.eval(&u, w, 0.0, 0.0, &mut res, Some((&mut ju, &mut jw)));
-            let scale = model.omega(n).powi(2) * a.abs().max(1e-300);
-            let r = res.iter().fold(0.0f64, |m, v| m.max(v.abs())) / scale;
-            if r < 1e-12 {
-                ok = true;
-                break;
-            }
-            // Unknowns: ω takes the place of the fixed Re X (column k_re); Im X = 0 fixes the
-            // phase (row k_im becomes that condition; the free oscillation's sine balance holds
-            // by symmetry).
-            for i in 0..nu {
-                ju[i * nu + k_re] = jw[i];
-                ju[k_im * nu + i] = 0.0;
-            }
-            ju[k_im * nu + k_im] = 1.0;
-            res[k_im] = u[k_im];
-            if !lu_factor(&mut ju, nu, &mut piv) {
-                break;
-            }
-            let mut d: Vec<f64> = res.iter().map(|v| -v).collect();
-            lu_solve(&ju, nu, &piv, &mut d);
-            for i in 0..nu {
-                if i == k_re {
-                    w += d[i];
-                } else {
-                    u[i] += d[i];
+        let mut step = a - a_ok;
+        let mut reached = false;
+        for _ in 0..200 {
+            let target = if (a - a_ok).abs() <= step.abs() {
+                a
+            } else {
+                a_ok + step
+            };
+            u.copy_from_slice(&u_ok);
+            w = w_ok;
+            let ok = backbone_newton(
+                &mut aft,
+                model,
+                n,
+                target,
+                (k_re, k_im),
+                &mut u,
+                &mut w,
+                &mut res,
+                &mut ju,
+                &mut jw,
+                &mut piv,
+            );
+            if ok {
+                u_ok.copy_from_slice(&u);
+                (w_ok, a_ok) = (w, target);
+                if target == a {
+                    reached = true;
+                    break;
+                }
+            } else {
+                step *= 0.5;
+                if step.abs() < (a - a_ok).abs() / 256.0 {
+                    break;
                 }
             }
-            u[k_re] = a;
         }
-        out.push(if ok && w.is_finite() && w > 0.0 {
-            Some(w / TAU)
-        } else {
-            None
-        });
+        out.push(reached.then_some(w_ok / TAU));
     }
     Ok(out)
+}
+
+/// Newton for the free oscillation of mode `n` at fundamental amplitude `a` from `(u, w)`:
+/// `ω` takes the place of the fixed `Re X` (column `k_re`), `Im X = 0` fixes the phase (row
+/// `k_im`; the free oscillation's sine balance holds by symmetry). True when converged (residual
+/// below 1e-12 of `ω_n² a`) to a finite positive `ω`.
+#[allow(clippy::too_many_arguments)]
+fn backbone_newton(
+    aft: &mut Aft,
+    model: &NumericModel,
+    n: usize,
+    a: f64,
+    (k_re, k_im): (usize, usize),
+    u: &mut [f64],
+    w: &mut f64,
+    res: &mut [f64],
+    ju: &mut [f64],
+    jw: &mut [f64],
+    piv: &mut [usize],
+) -> bool {
+    let nu = u.len();
+    u[k_re] = a;
+    u[k_im] = 0.0;
+    for _ in 0..40 {
+        aft.eval(u, *w, 0.0, 0.0, res, Some((&mut *ju, &mut *jw)));
+        let scale = model.omega(n).powi(2) * a.abs().max(1e-300);
+        let r = res.iter().fold(0.0f64, |m, v| m.max(v.abs())) / scale;
+        if r < 1e-12 {
+            return w.is_finite() && *w > 0.0;
+        }
+        if !r.is_finite() {
+            return false;
+        }
+        for i in 0..nu {
+            ju[i * nu + k_re] = jw[i];
+            ju[k_im * nu + i] = 0.0;
+        }
+        ju[k_im * nu + k_im] = 1.0;
+        res[k_im] = u[k_im];
+        if !lu_factor(ju, nu, piv) {
+            return false;
+        }
+        for v in res.iter_mut() {
+            *v = -*v;
+        }
+        lu_solve(ju, nu, piv, res);
+        for i in 0..nu {
+            if i == k_re {
+                *w += res[i];
+            } else {
+                u[i] += res[i];
+            }
+        }
+        u[k_re] = a;
+        if !(w.is_finite() && *w > 0.0) {
+            return false;
+        }
+    }
+    false
 }
 
 #[cfg(test)]
@@ -746,6 +810,44 @@ mod tests {
                 p.f_hz
             );
             assert!(p.stable);
+        }
+    }
+
+    #[test]
+    fn folds_are_named_the_same_followed_up_or_down() {
+        // The upper fold (a local maximum of f, where an up-sweep jumps) is the one at the
+        // higher frequency, whichever way the curve is followed.
+        let m = duffing(1e14);
+        let f = [Complex64::new(20.0, 0.0)];
+        for (from, to) in [(990.0, 1030.0), (1030.0, 990.0)] {
+            let s = SweepSettings {
+                f_start_hz: from,
+                f_stop_hz: to,
+                points: 2000,
+                ..Default::default()
+            };
+            let r = sweep(&m, &f, &s).expect("sweep");
+            assert_eq!(r.folds.len(), 2, "{from} → {to}: {:?}", r.folds);
+            let up = r.folds.iter().find(|x| x.upper).expect("an upper fold");
+            let low = r.folds.iter().find(|x| !x.upper).expect("a lower fold");
+            assert!(up.f_hz > low.f_hz, "{from} → {to}: {:?}", r.folds);
+        }
+    }
+
+    #[test]
+    fn backbone_reaches_large_amplitudes_in_big_steps() {
+        // One harmonic: the balance is exactly ω² = ω0² + (3/4)·β·a². Amplitudes far apart
+        // (the frequency grows 4× and 14×) and out of order: each is reached by continuation
+        // from the last converged state, none is lost after a hard one.
+        let beta = 1e14;
+        let m = duffing(beta);
+        let w0 = m.omega(0);
+        let amps = [1e-6, 3e-3, 1e-2, 2e-4];
+        let bb = backbone(&m, 0, &amps, 1).expect("backbone");
+        for (&a, f) in amps.iter().zip(&bb) {
+            let f = f.expect("converged");
+            let want = (w0 * w0 + 0.75 * beta * a * a).sqrt() / TAU;
+            assert!((f - want).abs() < 1e-9 * want, "a = {a}: {f} vs {want}");
         }
     }
 

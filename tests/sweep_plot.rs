@@ -1,0 +1,49 @@
+//! `harmonid sweep --plot`: the response curve of the two-mode example followed downwards, with
+//! its backbone over the whole curve and the jumps named by the sweep that makes them.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+#[test]
+fn downward_sweep_plot() {
+    let ex = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples/nanostring_2mode");
+    let tmp = tempfile::tempdir().expect("tmp");
+    let svg = tmp.path().join("curve.svg");
+    let st = Command::new(env!("CARGO_BIN_EXE_harmonid"))
+        .arg("sweep")
+        .arg(ex.join("model.hb"))
+        .arg("--values")
+        .arg(ex.join("values.toml"))
+        .args(["--from", "207700", "--to", "207500", "--force", "q1=3.5"])
+        .args(["--points", "800", "--out"])
+        .arg(tmp.path().join("curve.csv"))
+        .arg("--plot")
+        .arg(&svg)
+        .output()
+        .expect("runs");
+    let stderr = String::from_utf8_lossy(&st.stderr);
+    assert!(st.status.success(), "{stderr}");
+    // Followed downwards, the up-sweep still jumps at the upper fold (207652 Hz) and the
+    // down-sweep at the lower one (207589 Hz).
+    let up = stderr
+        .split("up-sweep jumps at [")
+        .nth(1)
+        .and_then(|s| s.split(']').next())
+        .and_then(|s| s.parse::<f64>().ok())
+        .expect("one up-sweep jump");
+    assert!((up - 207_652.08).abs() < 0.1, "{stderr}");
+    let text = std::fs::read_to_string(&svg).expect("svg");
+    let structure = harmonid_plot::svg_structure_without_ticks(&text);
+    for label in [
+        "backbone",
+        "jump up-sweep",
+        "jump down-sweep",
+        "response of q1 to one tone",
+    ] {
+        assert!(
+            structure.lines().any(|l| l == label),
+            "{label}:\n{structure}"
+        );
+    }
+    insta::assert_snapshot!("sweep_down_plot_structure", structure);
+}
