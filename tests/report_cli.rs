@@ -184,6 +184,58 @@ fn chromium_draws_every_figure(index: &Path, n_figures: usize) {
     }
 }
 
+/// A result written by `harmonid identify --out` is read with the type that wrote it
+/// (`harmonid_ident::Report::from_json`): the page shows its values and says why there are no
+/// histograms; a file that is not a result, and a report over its own dataset, are refused.
+#[test]
+fn report_from_a_result_file() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let model = root().join("examples/nanostring_2mode/model.hb");
+    let result = tmp.path().join("r.json");
+    let st = Command::new(env!("CARGO_BIN_EXE_harmonid"))
+        .arg("identify")
+        .arg(&model)
+        .arg(dataset())
+        .arg("--out")
+        .arg(&result)
+        .output()
+        .expect("identify");
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let out = tmp.path().join("report");
+    let from_result = || {
+        report(&[
+            &model,
+            &dataset(),
+            Path::new("--result"),
+            &result,
+            Path::new("--out"),
+            &out,
+        ])
+    };
+    let (ok, stdout, stderr) = from_result();
+    assert!(ok, "{stdout}{stderr}");
+    let html = std::fs::read_to_string(out.join("index.html")).expect("page");
+    assert!(html.contains("Values from the result"), "source named");
+    assert!(stderr.contains("no histograms"), "{stderr}");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&result).expect("result")).expect("json");
+    let g12 = r["parameters"]["g12"]["value"].as_f64().expect("g12");
+    assert!(
+        html.contains(&harmonid_plot::style::num(g12, 8)),
+        "the page shows the result's g12 = {g12}"
+    );
+    std::fs::write(&result, r#"{"format": "something else"}"#).expect("write");
+    let (ok, _, stderr) = from_result();
+    assert!(!ok && stderr.contains("not a harmonid result"), "{stderr}");
+    let (ok, _, _) = report(&[&model, &dataset(), Path::new("--out"), &dataset()]);
+    assert!(!ok, "a report over its own dataset folder");
+    assert!(dataset().join("dataset.toml").is_file());
+}
+
 #[path = "roundtrip_support/gen.rs"]
 mod gen;
 
@@ -206,4 +258,33 @@ fn five_mode_report_time() {
     let secs = t.elapsed().as_secs_f64();
     assert!(ok, "{stderr}");
     println!("five-mode report, 15 measurements, 30 shots: {secs:.2} s wall ({stdout})");
+    // The default identification inside it, alone (harmonid identify on the same data).
+    let result = tmp.path().join("r.json");
+    let t = std::time::Instant::now();
+    let st = Command::new(env!("CARGO_BIN_EXE_harmonid"))
+        .arg("identify")
+        .arg(&model_path)
+        .arg(&data)
+        .arg("--out")
+        .arg(&result)
+        .output()
+        .expect("identify");
+    let ident = t.elapsed().as_secs_f64();
+    assert!(st.status.success());
+    println!("  of which the default identification (harmonid identify): {ident:.2} s wall");
+    // The report from that result (reconstructions, figures, page; no per-shot histograms).
+    let t = std::time::Instant::now();
+    let (ok, _, stderr) = report(&[
+        &model_path,
+        &data,
+        Path::new("--result"),
+        &result,
+        Path::new("--out"),
+        &out,
+    ]);
+    assert!(ok, "{stderr}");
+    println!(
+        "  report --result (no identification): {:.2} s wall",
+        t.elapsed().as_secs_f64()
+    );
 }

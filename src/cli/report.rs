@@ -2,7 +2,7 @@
 //! with every figure of the identification (the work is in `harmonid_report`).
 
 use harmonid_ident::{Dataset, Settings};
-use harmonid_report::{ResultView, Source};
+use harmonid_report::{ReportError, Source};
 use miette::{miette, IntoDiagnostic, WrapErr};
 use std::path::PathBuf;
 
@@ -31,13 +31,13 @@ pub fn run(args: Args) -> miette::Result<()> {
             let text = std::fs::read_to_string(path)
                 .into_diagnostic()
                 .wrap_err_with(|| format!("cannot read {}", path.display()))?;
-            let view = ResultView::from_json(&text).map_err(|e| {
+            let rep = harmonid_ident::Report::from_json(&text).map_err(|e| {
                 miette!(
                     "{}: not a harmonid result ({e}); write one with `harmonid identify MODEL DATASET --out r.json`",
                     path.display()
                 )
             })?;
-            Source::Result(path.clone(), Box::new(view))
+            Source::Result(path.clone(), Box::new(rep))
         }
         None => Source::Identify(Settings::default()),
     };
@@ -45,7 +45,14 @@ pub fn run(args: Args) -> miette::Result<()> {
     let page = harmonid_report::build(&args.model, &model, &ds, source);
     pb.finish_and_clear();
     let page = page.map_err(|e| miette!("{e}"))?;
-    page.write(&args.out).map_err(|e| miette!("{e}"))?;
+    let dataset_files = ds.input_files();
+    let mut inputs: Vec<&std::path::Path> = vec![args.model.as_path(), args.dataset.as_path()];
+    inputs.extend(args.result.as_deref());
+    inputs.extend(dataset_files.iter().map(|p| p.as_path()));
+    page.write(&args.out, &inputs).map_err(|e| match e {
+        ReportError::File(f) => miette::Report::new(f),
+        other => miette!("{other}"),
+    })?;
     for w in &page.warnings {
         eprintln!("warning: {w}");
     }

@@ -1,9 +1,10 @@
 //! The HTML page: one file, figures inline as SVG, a small style sheet, no script and no
 //! network.
 
-use crate::result::{EstimateView, FitView, ResultView};
 use crate::PageFigure;
+use harmonid_ident::report::FitReport as FitView;
 use harmonid_ident::{Dataset, Truth};
+use harmonid_ident::{Estimate, Report};
 use harmonid_model::Model;
 use harmonid_plot::style::num;
 use std::fmt::Write as _;
@@ -14,7 +15,7 @@ pub struct PageInputs<'a> {
     pub model_path: &'a Path,
     pub model: &'a Model,
     pub ds: &'a Dataset,
-    pub result: &'a ResultView,
+    pub result: &'a Report,
     pub result_from: Option<&'a Path>,
     pub truth: Option<&'a Truth>,
     pub figures: &'a [PageFigure],
@@ -47,16 +48,35 @@ fn fit_of<'a>(fits: &'a [FitView], unknown: &str) -> Option<&'a FitView> {
     })
 }
 
+/// An optional column of the parameter table.
+#[derive(Clone, Copy)]
+struct Extra {
+    title: &'static str,
+    get: fn(&Estimate) -> Option<f64>,
+}
+
+/// The optional columns: estimator diagnostics the result holds for some estimates.
+const EXTRA: [Extra; 2] = [
+    Extra {
+        title: "Cramér–Rao bound",
+        get: |e| e.crlb,
+    },
+    Extra {
+        title: "jackknife stderr",
+        get: |e| e.jackknife,
+    },
+];
+
 #[allow(clippy::too_many_arguments)] // one table row: each argument is one column
 fn row(
     out: &mut String,
     name: &str,
     unit: &str,
-    e: &EstimateView,
+    e: &Estimate,
     bound: &str,
     fit: Option<&FitView>,
     truth: Option<f64>,
-    extra_keys: &[String],
+    extra: &[Extra],
 ) {
     let cls = if e.identifiable { "" } else { " class=\"bad\"" };
     let _ = write!(
@@ -77,8 +97,8 @@ fn row(
         fit.map_or("–".into(), |f| num(f.condition_number, 3)),
         truth.map_or("–".into(), |t| num(t, 8)),
     );
-    for k in extra_keys {
-        let v = e.extra.get(k).and_then(|v| v.as_f64());
+    for x in extra {
+        let v = (x.get)(e);
         let _ = write!(out, "<td>{}</td>", v.map_or("–".into(), |v| num(v, 3)));
     }
     out.push_str("</tr>\n");
@@ -121,24 +141,21 @@ pub fn page(p: &PageInputs) -> String {
         s.push_str("</ul></div>\n");
     }
     // Parameter table.
-    let mut extra_keys: Vec<String> = r
-        .modes
-        .values()
-        .flat_map(|m| [&m.f_hz, &m.q])
-        .chain(r.parameters.values())
-        .flat_map(|e| {
-            e.extra
-                .iter()
-                .filter(|(_, v)| v.is_number())
-                .map(|(k, _)| k.clone())
+    // Optional columns, shown when any estimate has them.
+    let extra: Vec<Extra> = EXTRA
+        .iter()
+        .filter(|x| {
+            r.modes
+                .values()
+                .flat_map(|m| [&m.f_hz, &m.q])
+                .chain(r.parameters.values())
+                .any(|e| (x.get)(e).is_some())
         })
-        .filter(|k| k != "single_shot_std")
+        .copied()
         .collect();
-    extra_keys.sort();
-    extra_keys.dedup();
     s.push_str("<h2 id=\"parameters\">Parameters</h2>\n<table><tr><th class=\"l\">quantity</th><th>value</th><th>stderr</th><th>std (one shot)</th><th>unit</th><th class=\"l\">bound</th><th>identifiable</th><th class=\"l\">stage (measurements)</th><th>condition number</th><th>truth</th>");
-    for k in &extra_keys {
-        let _ = write!(s, "<th>{}</th>", esc(k));
+    for x in &extra {
+        let _ = write!(s, "<th>{}</th>", esc(x.title));
     }
     s.push_str("</tr>\n");
     for (n, m) in &r.modes {
@@ -152,7 +169,7 @@ pub fn page(p: &PageInputs) -> String {
             "",
             fit,
             tm.map(|t| t.f_hz),
-            &extra_keys,
+            &extra,
         );
         row(
             &mut s,
@@ -162,7 +179,7 @@ pub fn page(p: &PageInputs) -> String {
             "> 0",
             fit,
             tm.map(|t| t.q),
-            &extra_keys,
+            &extra,
         );
     }
     for (name, e) in &r.parameters {
@@ -178,7 +195,9 @@ pub fn page(p: &PageInputs) -> String {
                 (None, None) => String::new(),
             })
             .unwrap_or_default();
-        let truth = p.truth.and_then(|t| r.truth_of_param(name, t));
+        let truth = p
+            .truth
+            .and_then(|t| crate::result::truth_of_param(r, name, t));
         row(
             &mut s,
             name,
@@ -187,7 +206,7 @@ pub fn page(p: &PageInputs) -> String {
             &bound,
             fit_of(&r.fits, name),
             truth,
-            &extra_keys,
+            &extra,
         );
     }
     s.push_str("</table>\n<p>value: median over shots; stderr: uncertainty of the value; std: spread of one shot after rejecting outliers by the interquartile rule; condition number of the column-equilibrated fit.</p>\n");

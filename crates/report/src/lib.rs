@@ -13,16 +13,16 @@
 
 pub mod curves;
 mod html;
-mod output;
 pub mod plan;
 pub mod potential;
 pub mod result;
 pub mod spectra;
 
-pub use output::MARKER;
-pub use result::ResultView;
+/// The file that marks a folder as a harmonid report (an existing `--out` folder is replaced
+/// only when it holds this file, or is empty).
+pub const MARKER: &str = ".harmonid-report";
 
-use harmonid_ident::{Dataset, Settings};
+use harmonid_ident::{Dataset, Report, Settings};
 use harmonid_model::Model;
 use harmonid_plot::{Figure, Histogram, PlotError, PotentialMatrix, Spectrum};
 use harmonid_sim::NumericModel;
@@ -36,14 +36,9 @@ pub enum ReportError {
     /// The identification could not be set up.
     #[error(transparent)]
     Ident(#[from] harmonid_ident::IdentError),
-    /// The result file could not be read.
-    #[error("{}: not a harmonid result ({source}); write one with `harmonid identify MODEL DATASET --out r.json`", path.display())]
-    Result {
-        /// The file.
-        path: PathBuf,
-        /// The cause.
-        source: serde_json::Error,
-    },
+    /// Writing the report (or refusing to write it there) failed.
+    #[error(transparent)]
+    File(#[from] harmonid_files::FileError),
     /// A figure could not be drawn.
     #[error(transparent)]
     Plot(#[from] PlotError),
@@ -66,10 +61,11 @@ pub enum ReportError {
 /// Where the identified values come from.
 #[derive(Debug, Clone)]
 pub enum Source {
-    /// Identify now with these settings.
+    /// Identify now with these settings (`harmonid_ident::identify`, as `harmonid identify`).
     Identify(Settings),
-    /// A result JSON already written (its path, for the page).
-    Result(PathBuf, Box<ResultView>),
+    /// A result already written by `harmonid identify` (its path, for the page), read with
+    /// [`Report::from_json`]; it holds no per-shot estimates, so no histograms.
+    Result(PathBuf, Box<Report>),
 }
 
 /// Any figure of the report.
@@ -183,21 +179,15 @@ pub fn build(
 ) -> Result<Page, ReportError> {
     let (result, result_from) = match source {
         Source::Identify(settings) => {
-            let prob = harmonid_ident::Problem::new(model, ds, &settings)?;
-            let fit = prob.fit(ds)?;
-            let rep =
-                harmonid_ident::Report::new(&model_path.display().to_string(), ds, &prob, &fit);
-            let view = ResultView::from_report(&rep).map_err(|source| ReportError::Result {
-                path: model_path.to_path_buf(),
-                source,
-            })?;
-            (view, None)
+            let mut rep = harmonid_ident::identify(model, ds, &settings)?;
+            rep.model = model_path.display().to_string();
+            (rep, None)
         }
-        Source::Result(path, view) => (*view, Some(path)),
+        Source::Result(path, rep) => (*rep, Some(path)),
     };
     let mut warnings = result.warnings.clone();
     let names: Vec<String> = model.mode_names().iter().map(|s| s.to_string()).collect();
-    let identified = match NumericModel::from_values(&names, &result.model_values()) {
+    let identified = match NumericModel::from_values(&names, &result::model_values(&result)) {
         Ok(m) => Some(m),
         Err(e) => {
             warnings.push(format!(
@@ -249,7 +239,7 @@ pub fn build(
     }
     // Histograms of every quantity with per-shot estimates.
     let truth = ds.truth.as_ref();
-    let mut quantities: Vec<(String, String, &result::EstimateView, Option<f64>)> = Vec::new();
+    let mut quantities: Vec<(String, String, &harmonid_ident::Estimate, Option<f64>)> = Vec::new();
     for (n, m) in &result.modes {
         let tm = truth.and_then(|t| t.modes.get(n));
         quantities.push((format!("f_{n}"), "Hz".into(), &m.f_hz, tm.map(|t| t.f_hz)));
@@ -260,7 +250,7 @@ pub fn build(
             p.clone(),
             String::new(),
             e,
-            truth.and_then(|t| result.truth_of_param(p, t)),
+            truth.and_then(|t| result::truth_of_param(&result, p, t)),
         ));
     }
     let mut no_shots = Vec::new();
@@ -332,27 +322,40 @@ pub fn build(
 }
 
 impl Page {
-    /// Writes `out/index.html` and `out/figures/*.{svg,png}` (see the crate docs).
-    pub fn write(&self, out: &Path) -> Result<(), ReportError> {
-        output::write_folder(out, |dir| {
+    /// Writes `out/index.html` and `out/figures/*.{svg,png}` (see the crate docs) through
+    /// `harmonid_files`: the folder is filled as a staging folder beside `out` and swapped in
+    /// when complete; an existing `out` is replaced only when it is empty or a harmonid report
+    /// (it holds [`MARKER`]) and holds none of `inputs`.
+    pub fn write(&self, out: &Path, inputs: &[&Path]) -> Result<(), ReportError> {
+        let foreign = out.is_dir()
+            && !out.join(MARKER).is_file()
+            && std::fs::read_dir(out).map_or(true, |mut d| d.next().is_some());
+        if foreign || (out.exists() && !out.is_dir()) {
+            return Err(ReportError::Clobber {
+                path: out.to_path_buf(),
+            });
+        }
+        let opts = harmonid_files::DirWrite {
+            // Not a dataset folder: the report's own marker was checked above.
+            force: true,
+            inputs,
+        };
+        harmonid_files::replace_dir(out, opts, |dir| -> Result<(), ReportError> {
             let figs = dir.join("figures");
             std::fs::create_dir(&figs).map_err(|source| ReportError::Io {
                 path: figs.clone(),
                 source,
             })?;
-            let io = |path: &Path| {
-                let path = path.to_path_buf();
-                move |source| ReportError::Io { path, source }
-            };
-            let index = dir.join("index.html");
-            std::fs::write(&index, &self.html).map_err(io(&index))?;
+            let write = |path: &Path, bytes: &[u8]| harmonid_files::write_file(path, bytes, &[]);
+            write(&dir.join("index.html"), self.html.as_bytes())?;
             self.figures.par_iter().try_for_each(|f| {
-                let svg = figs.join(format!("{}.svg", f.stem));
-                std::fs::write(&svg, &f.svg).map_err(io(&svg))?;
-                let png = figs.join(format!("{}.png", f.stem));
-                std::fs::write(&png, harmonid_plot::to_png(&f.figure)?).map_err(io(&png))?;
-                Ok(())
-            })
+                write(&figs.join(format!("{}.svg", f.stem)), f.svg.as_bytes())?;
+                let png = harmonid_plot::to_png(&f.figure)?;
+                write(&figs.join(format!("{}.png", f.stem)), &png)?;
+                Ok::<(), ReportError>(())
+            })?;
+            write(&dir.join(MARKER), b"written by harmonid report\n")?;
+            Ok(())
         })
     }
 }

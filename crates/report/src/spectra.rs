@@ -2,7 +2,7 @@
 //! drive tones and classed as drive tone, sideband or mixing product, with the spectrum the
 //! identified model gives by harmonic balance (harmonid_sim's solver) and the residual.
 
-use crate::result::ResultView;
+use harmonid_ident::Report;
 use harmonid_ident::{Dataset, Measurement};
 use harmonid_plot::{LineKind, Spectrum, SpectrumLine};
 use harmonid_sim::{Excitation, HbSettings, NumericModel};
@@ -106,7 +106,7 @@ pub fn classify(
 /// displacements at each (frequency, local point), or why not.
 fn reconstruct(
     model: &NumericModel,
-    result: &ResultView,
+    result: &Report,
     ds: &Dataset,
     m: &Measurement,
 ) -> Result<Vec<Vec<Complex64>>, String> {
@@ -157,7 +157,7 @@ fn reconstruct(
 /// reconstruct it.
 pub fn spectra(
     model: Option<&NumericModel>,
-    result: &ResultView,
+    result: &Report,
     ds: &Dataset,
     m: &Measurement,
 ) -> (Vec<Spectrum>, Option<String>) {
