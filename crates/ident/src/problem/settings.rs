@@ -118,3 +118,27 @@ pub(super) fn resolve_force_model(
         f => f,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn force_model_messages_use_words_not_debug_names() {
+        // Issue 11: Rust debug names (`GainPerMode`, `NotConverged { .. }`) reached users.
+        let manifest = "format = \"harmonid-dataset/1\"\n[[measurement]]\nname = \"m1\"\ndrives_hz = [1000.0]\n";
+        let csv = "shot,freq_hz,re,im\n0,1000,1,2\n";
+        let ds = Dataset::from_readers(std::path::Path::new("d"), manifest, None, |_| {
+            Ok(csv.as_bytes())
+        })
+        .expect("a dataset without drive levels");
+        let e = resolve_force_model(ForceModel::GainPerMode, &ds, "d/dataset.toml")
+            .expect_err("gains need drive levels")
+            .to_string();
+        assert!(
+            e.contains("the force model \"gain per mode\" needs") && !e.contains("GainPerMode"),
+            "{e}"
+        );
+        assert_eq!(ForceModel::Free.to_string(), "free forces");
+    }
+}
