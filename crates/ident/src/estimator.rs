@@ -138,6 +138,8 @@ struct FisherOut {
     jackknife: Vec<(String, f64)>,
     /// Drift-check warnings.
     drift: Vec<String>,
+    /// Frequencies, Q and gains compared between measurements.
+    consistency: Vec<crate::consistency::Comparison>,
     /// Quantities held at a bound (names as in `jackknife`).
     at_bound: Vec<String>,
     /// Quantities the information at the estimate does not determine, with why.
@@ -325,6 +327,33 @@ fn run_ml(
     } else {
         Vec::new()
     };
+    let consistency = {
+        let kept: Vec<usize> = cols
+            .iter()
+            .copied()
+            .filter(|k| !fit.at_bound.contains(k))
+            .collect();
+        let sigma_used: Vec<f64> = match &noise {
+            Noise::PerObservation(v) => v.clone(),
+            Noise::Uniform(s) => vec![*s; meas.len()],
+        };
+        let names: Vec<String> = ds
+            .measurements
+            .iter()
+            .map(|m| m.spec.name.clone())
+            .collect();
+        crate::consistency::compare(&crate::consistency::Fitted {
+            fwd,
+            theta: &fit.theta,
+            meas: &meas,
+            x: &fit.x,
+            jac: &fit.jac,
+            sigma: &sigma_used,
+            cols: &kept,
+            dof: fit.dof,
+            names: &names,
+        })
+    };
     if !fit.converged {
         notes.push(format!(
             "the output-error fit stopped after {} steps before converging (χ² {:.4e} from {:.4e})",
@@ -349,6 +378,7 @@ fn run_ml(
         .collect();
     Ok(FisherOut {
         drift,
+        consistency,
         fit,
         unidentifiable,
         bounds: bounds_f,
@@ -676,5 +706,9 @@ fn merge(
     if let Some(f) = fo {
         report.notes.extend(f.notes.iter().cloned());
         report.warnings.extend(f.drift.iter().cloned());
+        report
+            .warnings
+            .extend(crate::consistency::warnings(&f.consistency));
+        report.consistency = f.consistency.clone();
     }
 }

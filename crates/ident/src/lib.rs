@@ -24,6 +24,7 @@
 
 #![warn(missing_docs)]
 
+pub mod consistency;
 pub mod dataset;
 pub mod drift;
 pub mod estimator;

@@ -260,6 +260,11 @@ pub struct Report {
     /// Warnings (conditioning, unidentifiable quantities, ...).
     #[serde(default)]
     pub warnings: Vec<String>,
+    /// Every comparison of a frequency, Q or actuator gain between two measurements
+    /// ([`crate::consistency`]); those beyond the threshold are also in `warnings`. Not
+    /// written to the result file.
+    #[serde(skip)]
+    pub consistency: Vec<crate::consistency::Comparison>,
 }
 
 fn estimate(per_shot: Vec<f64>, single_var: f64) -> Estimate {
@@ -547,6 +552,7 @@ impl Report {
             fits,
             outlier_shots,
             warnings,
+            consistency: Vec::new(),
         }
     }
 
@@ -857,6 +863,7 @@ mod tests {
             }],
             outlier_shots: vec![2],
             warnings: vec!["parameter g12 is not determined".into()],
+            consistency: Vec::new(),
         }
     }
 
