@@ -29,6 +29,11 @@ pub enum ComponentKind {
     Drive(usize),
     /// A sideband of the mode's own tones (an intermodulation product near its resonance).
     Sideband,
+    /// The response of a mode without a tone of its own at a line that a term of its equation,
+    /// made of other modes' motion, forces on it (e.g. `q1·q2` in the equation of `q3` with
+    /// tones on `q1` and `q2` only: `q3` moves at `Ω1 + Ω2` and `|Ω1 − Ω2|`). See
+    /// [`ToneAssignment::add_responses`].
+    Response,
 }
 
 /// One real component `X_c cos(2π f_c t)` of a mode's motion.
@@ -48,7 +53,8 @@ pub struct Component {
 /// optionally the mode's own sidebands.
 ///
 /// Symbols: drive tone `d` (1-based, tone-set order) in one mode only is `Xd`; a tone in the
-/// motion of several modes is `Xd_<mode>`; sidebands are `Y1`, `Y2`, ... in order of addition.
+/// motion of several modes is `Xd_<mode>`; sidebands are `Y1`, `Y2`, ... and responses of modes
+/// without a tone `Z1`, `Z2`, ..., each in order of addition.
 /// Symbol `i` is variable `VarId(i)` of the coefficients.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ToneAssignment {
@@ -186,7 +192,86 @@ impl ToneAssignment {
         Ok(added)
     }
 
+    /// Gives every mode that does not move yet (no tone, no component) its response through
+    /// the coupling: mode `n` moves at every line that the terms of its equation without `q_n`
+    /// (`equations[n]`: the monomials of mode `n`'s equation) make from the other modes'
+    /// components, each line a component of kind [`ComponentKind::Response`] with its own
+    /// amplitude `Zj` (terms holding `q_n` vanish while the mode is at rest). Repeated while a
+    /// mode gains components, so a chain `q1 → q2 → q3` is followed. Returns how many components
+    /// were added.
+    ///
+    /// The mixing tables of terms that hold such a mode then give the second-order lines
+    /// through the coupling ([`ToneAssignment::responses_in`] names the modes a line goes
+    /// through): with `U = κ q1 q2 q3` and tones `Ω1` on `q1`, `Ω2` on `q2`, `q3` moves at
+    /// `Ω1 + Ω2` and `Ω2 − Ω1`, and `κ q2 q3` in the equation of `q1` puts lines at `Ω1`
+    /// (and `2Ω2 ± Ω1`).
+    ///
+    /// Errors: as [`mixing_table`].
+    pub fn add_responses(
+        &mut self,
+        equations: &[Vec<PowerProduct>],
+    ) -> Result<usize, SpectralError> {
+        let nominal = vec![None; self.mode_names.len()];
+        let mut added = 0;
+        loop {
+            let mut changed = false;
+            for n in 0..self.mode_names.len() {
+                if self.components.iter().any(|c| c.mode == n) {
+                    continue;
+                }
+                let mut lines: Vec<(f64, Combination)> = Vec::new();
+                for m in equations.get(n).map_or(&[][..], |v| &v[..]) {
+                    if m.factors().iter().any(|&(v, _)| v.index() == n) {
+                        continue;
+                    }
+                    for l in mixing_table(m, self, &nominal, Window::default())?.lines {
+                        if !lines
+                            .iter()
+                            .any(|(hz, _)| (hz - l.hz).abs() <= FREQ_TOLERANCE_HZ)
+                        {
+                            lines.push((l.hz, l.combination));
+                        }
+                    }
+                }
+                lines.sort_by(|a, b| a.0.total_cmp(&b.0));
+                for (_, combination) in lines {
+                    self.components.push(Component {
+                        mode: n,
+                        combination,
+                        kind: ComponentKind::Response,
+                        symbol: String::new(),
+                    });
+                    added += 1;
+                    changed = true;
+                }
+            }
+            if !changed {
+                break;
+            }
+        }
+        self.rename();
+        Ok(added)
+    }
+
+    /// The modes (ascending) whose responses through the coupling
+    /// ([`ComponentKind::Response`]) the coefficient `c` (a line's, variable `i` = component
+    /// `i`) holds: empty for a first-order line, e.g. `[q3]` for a line that goes through
+    /// `q3`'s response.
+    pub fn responses_in(&self, c: &Coeff) -> Vec<usize> {
+        let mut modes: Vec<usize> = c
+            .variables()
+            .iter()
+            .filter_map(|v| self.components.get(v.index()))
+            .filter(|c| c.kind == ComponentKind::Response)
+            .map(|c| c.mode)
+            .collect();
+        modes.sort_unstable();
+        modes.dedup();
+        modes
+    }
+
     fn rename(&mut self) {
+        let mut z = 0;
         let mut y = 0;
         let counts: Vec<usize> = (0..self.tones.len())
             .map(|d| {
@@ -205,6 +290,10 @@ impl ToneAssignment {
                 ComponentKind::Sideband => {
                     y += 1;
                     format!("Y{y}")
+                }
+                ComponentKind::Response => {
+                    z += 1;
+                    format!("Z{z}")
                 }
             };
         }
@@ -346,7 +435,8 @@ impl MixingTable {
 ///
 /// `nominal_hz[n]` is mode `n`'s nominal resonance (Hz, `None` if unknown) and decides which
 /// lines are near which resonance within `window`. A mode with no component does not move, so a
-/// monomial containing it has no lines.
+/// monomial containing it has no lines (give a mode without tones its response through the
+/// coupling first: [`ToneAssignment::add_responses`]).
 ///
 /// Errors: a mode of `m` beyond the assignment's modes, an expansion beyond
 /// [`MAX_EXPANSION_TERMS`], or exact-arithmetic overflow.
