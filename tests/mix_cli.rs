@@ -117,11 +117,12 @@ fn text_markdown_and_latex_render() {
     ];
     let (ok, text, _) = mix(&base);
     assert!(ok);
-    assert!(text.contains("f1 + f3 − f2"), "{text}");
+    assert!(text.contains("Ω1 + Ω3 − Ω2"), "{text}");
+    assert!(!text.contains("f1 + f3"), "{text}");
     assert!(text.contains("3/4*X1^3 + 3/2*X1*X2^2"));
     let (ok, md, _) = mix(&[&base[..], &["--markdown"]].concat());
     assert!(
-        ok && md.contains("| near q1 (207580 Hz) | f1 | 207572.000 | `3/4*X1^3 + 3/2*X1*X2^2` |"),
+        ok && md.contains("| near q1 (207580 Hz) | Ω1 | 207572.000 | `3/4*X1^3 + 3/2*X1*X2^2` |"),
         "{md}"
     );
     let (ok, tex, _) = mix(&[&base[..], &["--latex"]].concat());
@@ -199,4 +200,85 @@ fn bad_input_gives_clear_errors() {
     let arg = format!("q1:{}", many.join(","));
     let (ok, _, err) = mix(&[MODEL, "--drives", &arg]);
     assert!(!ok && err.contains("at most 64 are supported"), "{err}");
+}
+
+/// Three-wave mixing (`U = κ q1 q2 q3`, f3 ≈ f1 + f2) with tones on q1 and q2 only: q3 has no
+/// tone but responds at Ω2 − Ω1 (Z1) and Ω1 + Ω2 (Z2, its resonance); κ·q2·q3 in the equation of
+/// q1 then puts `½X2·Z1 + ½X2·Z2` at Ω1 (`q2·q3 = X2 cos Ω2t · (Z1 cos(Ω2 − Ω1)t + Z2 cos(Ω1 +
+/// Ω2)t)`), marked second order via q3; q3's own forcing κ·q1·q2 is first order.
+#[test]
+fn a_mode_without_tones_responds_through_the_coupling() {
+    let model = "examples/three_wave/model.hb";
+    let args = [model, "--drives", "q1:1000100", "--drives", "q2:1599960"];
+    let v = json(&[&args[..], &["--json"]].concat());
+    let z: Vec<(String, f64, String, String)> = v["components"]
+        .as_array()
+        .expect("components")
+        .iter()
+        .filter(|c| c["kind"] == "response")
+        .map(|c| {
+            (
+                c["symbol"].as_str().expect("symbol").to_string(),
+                c["freq_hz"].as_f64().expect("hz"),
+                c["mode"].as_str().expect("mode").to_string(),
+                c["name"].as_str().expect("name").to_string(),
+            )
+        })
+        .collect();
+    assert_eq!(
+        z,
+        vec![
+            ("Z1".into(), 599860.0, "q3".into(), "Ω2 − Ω1".into()),
+            ("Z2".into(), 2600060.0, "q3".into(), "Ω1 + Ω2".into()),
+        ]
+    );
+    let term = |eq: &str, mono: &str| -> Vec<Value> {
+        v["terms"]
+            .as_array()
+            .expect("terms")
+            .iter()
+            .find(|t| t["equation"] == eq && t["monomial"] == mono)
+            .unwrap_or_else(|| panic!("{mono} in the equation of {eq}"))["lines"]
+            .as_array()
+            .expect("lines")
+            .clone()
+    };
+    let q2q3 = term("q1", "q2*q3");
+    let line = q2q3
+        .iter()
+        .find(|l| l["freq_hz"] == 1000100.0)
+        .expect("a line at Ω1");
+    assert_eq!(line["coefficient"], "1/2*X2*Z1 + 1/2*X2*Z2");
+    assert_eq!(line["near"], "q1");
+    assert_eq!(line["name"], "Ω1");
+    assert_eq!(line["label"], "f1");
+    assert_eq!(line["second_order"], true);
+    assert_eq!(line["via"], serde_json::json!(["q3"]));
+    // The forcing of q3 (κ·q1·q2 in its equation) is first order; its sum line sits at q3's
+    // resonance.
+    let q1q2 = term("q3", "q1*q2");
+    assert!(q1q2
+        .iter()
+        .all(|l| l["second_order"] == false && l["via"] == serde_json::json!([])));
+    assert!(q1q2
+        .iter()
+        .any(|l| l["freq_hz"] == 2600060.0 && l["near"] == "q3"));
+    let (ok, text, err) = mix(&args);
+    assert!(ok, "{err}");
+    insta::assert_snapshot!("mix_three_wave_text", text);
+}
+
+/// The two-mode nanostring with a tone on q1 only: q2 is forced only parametrically (q1²·q2,
+/// q2³ hold q2), so it stays at rest and its terms say so.
+#[test]
+fn a_mode_forced_only_parametrically_stays_at_rest() {
+    let (ok, text, err) = mix(&[MODEL, "--drives", "q1:207572,207592"]);
+    assert!(ok, "{err}");
+    assert!(
+        text.contains(
+            "no lines (q2 at rest: no tone, and no term of its equation without it is forced)"
+        ),
+        "{text}"
+    );
+    assert!(!text.contains("second order"), "{text}");
 }

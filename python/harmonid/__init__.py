@@ -76,7 +76,10 @@ def mix(model, drives, *, sidebands=None, window_hz=None, nominal_hz=None):
 
     Returns one record (dict) per line, as ``harmonid mix --json`` lists them: ``equation``,
     ``monomial``, ``term_coefficient``, ``combination``, ``coeffs``, ``freq_hz``,
-    ``coefficient`` (the amplitude of ``cos(2π f t)`` in the monomial), ``near``.
+    ``coefficient`` (the amplitude of ``cos(2π f t)`` in the monomial), ``near``,
+    ``second_order`` and ``via``: a mode without a tone responds through the coupling at the
+    lines its equation's terms force on it (amplitudes Z1, Z2, ...), and a line that goes
+    through such a response is second order, ``via`` naming those modes.
     ``pandas.DataFrame(mix(...))`` is the table.
     """
     if isinstance(drives, Mapping):

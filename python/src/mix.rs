@@ -16,8 +16,11 @@ fn spectral_error(e: harmonid_spectral::SpectralError) -> PyErr {
 /// One record per line of every term's mixing table: `equation`, `monomial`,
 /// `term_coefficient`, `combination` (e.g. `2·f1 − f2`), `coeffs` (the integer combination of
 /// the tones), `freq_hz`, `coefficient` (the line's amplitude as a polynomial in the component
-/// amplitudes X1, X2, ...), `near` (the mode it is near, or None). `pandas.DataFrame(records)`
-/// takes them as they are. Tones are numbered f1, f2, ... in the order `drives` gives them.
+/// amplitudes X1, X2, ...), `near` (the mode it is near, or None), `second_order` and `via` (the
+/// modes without a tone whose response through the coupling, amplitudes Z1, Z2, ..., the line
+/// goes through; empty for a first-order line). `pandas.DataFrame(records)` takes them as they
+/// are. Tones are numbered f1, f2, ... in the order `drives` gives them (`harmonid mix` prints
+/// them as Ω1, Ω2, ...).
 #[pyfunction]
 #[pyo3(signature = (model, drives, sidebands = None, window_hz = None, nominal_hz = None))]
 pub fn mix<'py>(
@@ -66,6 +69,15 @@ pub fn mix<'py>(
     }
     // A mode without a nominal frequency sits at the mean of its own tones (as `harmonid mix`).
     assignment.fill_nominal_from_drives(&mut nominal);
+    // A mode without a tone responds through the coupling (as `harmonid mix`).
+    let equations: Vec<Vec<harmonid_poly::PowerProduct>> = m
+        .eom
+        .iter()
+        .map(|eq| eq.terms().map(|(mono, _)| mono.clone()).collect())
+        .collect();
+    assignment
+        .add_responses(&equations)
+        .map_err(spectral_error)?;
     let window = match window_hz {
         Some(w) if w.is_finite() && w >= 0.0 => Window::Hz(w),
         Some(w) => {
@@ -95,6 +107,13 @@ pub fn mix<'py>(
                 r.set_item("freq_hz", l.hz)?;
                 r.set_item("coefficient", l.coefficient.to_string_with(&symbols))?;
                 r.set_item("near", l.near_mode().map(|k| mode_names[k].as_str()))?;
+                let via: Vec<&str> = assignment
+                    .responses_in(&l.coefficient)
+                    .into_iter()
+                    .map(|k| mode_names[k].as_str())
+                    .collect();
+                r.set_item("second_order", !via.is_empty())?;
+                r.set_item("via", via)?;
                 records.push(r);
             }
         }

@@ -21,6 +21,8 @@ def cli_records(cli, *args):
                     "freq_hz": line["freq_hz"],
                     "coefficient": line["coefficient"],
                     "near": line["near"],
+                    "second_order": line["second_order"],
+                    "via": line["via"],
                 }
             )
     return out

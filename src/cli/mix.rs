@@ -1,6 +1,9 @@
 //! `harmonid mix MODEL --drives q1:207572,207592 --drives q2:415842`: for every term of every
 //! equation, the lines it generates near each resonance and off resonance, with exact
-//! coefficients in the tone amplitudes (Supplementary Note II, Table S1).
+//! coefficients in the tone amplitudes (Supplementary Note II, Table S1). A mode without a tone
+//! responds at the lines its equation's terms force on it (amplitudes Z1, Z2, ...), and the
+//! lines those responses make in turn are marked `second order, via <mode>`. Drive tones are
+//! named Ω1, Ω2, ... (mode frequencies are f_n).
 
 use harmonid_ident::Manifest;
 use harmonid_model::Model;
@@ -19,8 +22,9 @@ pub struct Args {
     /// The model file (`*.hb`), e.g. examples/nanostring_2mode/model.hb.
     pub model: PathBuf,
     /// Tones in a mode's motion, `MODE:HZ[,HZ...]`, e.g. `--drives q1:207572,207592
-    /// --drives q2:415842`. Tones are numbered f1, f2, ... in the order given; tone d's real
-    /// amplitude is the symbol Xd.
+    /// --drives q2:415842`. Tones are numbered Ω1, Ω2, ... in the order given; tone d's real
+    /// amplitude is the symbol Xd. A mode without a tone responds through the coupling
+    /// (amplitudes Z1, Z2, ...).
     #[arg(long, value_name = "MODE:HZ,...", conflicts_with = "dataset")]
     pub drives: Vec<String>,
     /// Read the tones from a dataset folder's `dataset.toml` (with --measurement); each tone goes
@@ -48,7 +52,7 @@ pub struct Args {
     #[arg(long, conflicts_with = "json")]
     pub latex: bool,
     /// JSON: one entry per equation and monomial, each line with `combination`, `freq_hz`,
-    /// `coefficient` and `near`.
+    /// `coefficient`, `near`, `second_order` and `via`.
     #[arg(long)]
     pub json: bool,
     /// Write to this file (atomically) instead of standard output.
@@ -244,6 +248,13 @@ fn build(args: &Args, model: &Model) -> miette::Result<Report> {
     }
     // A mode without a nominal frequency sits at the mean of its own tones.
     assignment.fill_nominal_from_drives(&mut nominal);
+    // A mode without a tone moves at the lines its equation's other terms force on it.
+    let equations: Vec<Vec<PowerProduct>> = model
+        .eom
+        .iter()
+        .map(|eq| eq.terms().map(|(m, _)| m.clone()).collect())
+        .collect();
+    assignment.add_responses(&equations).map_err(spectral_err)?;
     let window = match args.window {
         Some(w) if w.is_finite() && w >= 0.0 => Window::Hz(w),
         Some(w) => return Err(miette!("--window {w}: the window must be a number ≥ 0 Hz")),
@@ -297,26 +308,76 @@ fn window_text(r: &Report) -> String {
     }
 }
 
+/// Drive tones are `Ω1, Ω2, ...` in the text and Markdown tables (mode frequencies are `f_n`).
+fn tone_labels(r: &Report) -> Vec<String> {
+    (1..=r.assignment.tones().len())
+        .map(|d| format!("Ω{d}"))
+        .collect()
+}
+
+/// The modes whose response (no tone of their own) a line goes through, by name.
+fn via(r: &Report, l: &Line) -> Vec<String> {
+    r.assignment
+        .responses_in(&l.coefficient)
+        .into_iter()
+        .map(|n| r.mode_names[n].clone())
+        .collect()
+}
+
+/// `"second order, via q3"` for a line through a response, else empty.
+fn order_mark(r: &Report, l: &Line) -> String {
+    let v = via(r, l);
+    if v.is_empty() {
+        String::new()
+    } else {
+        format!("second order, via {}", v.join(", "))
+    }
+}
+
+fn component_kind(r: &Report, kind: &ComponentKind, mode: usize) -> String {
+    match kind {
+        ComponentKind::Drive(_) => "tone".into(),
+        ComponentKind::Sideband => "sideband".into(),
+        ComponentKind::Response => format!(
+            "response: {} has no tone, its equation's terms force this line",
+            r.mode_names[mode]
+        ),
+    }
+}
+
 fn tone_lines(r: &Report) -> Vec<String> {
     let a = &r.assignment;
-    let labels = a.tones().labels();
+    let labels = tone_labels(r);
     a.components()
         .iter()
         .map(|c| {
             let hz = c.combination.hz(a.tones());
-            let what = match c.kind {
-                ComponentKind::Drive(_) => "tone",
-                ComponentKind::Sideband => "sideband",
-            };
             format!(
-                "{} = {} = {} Hz in {} ({what})",
+                "{} = {} = {} Hz in {} ({})",
                 c.symbol,
-                c.combination.display_with(labels),
+                c.combination.display_with(&labels),
                 hz,
-                r.mode_names[c.mode]
+                r.mode_names[c.mode],
+                component_kind(r, &c.kind, c.mode)
             )
         })
         .collect()
+}
+
+/// Why a term has no lines: the modes of its factors that do not move.
+fn at_rest(r: &Report, t: &Term) -> String {
+    let still: Vec<&str> = t
+        .monomial
+        .factors()
+        .iter()
+        .map(|&(v, _)| v.index())
+        .filter(|&n| !r.assignment.components().iter().any(|c| c.mode == n))
+        .map(|n| r.mode_names[n].as_str())
+        .collect();
+    format!(
+        "no lines ({} at rest: no tone, and no term of its equation without it is forced)",
+        still.join(", ")
+    )
 }
 
 fn to_text(r: &Report) -> String {
@@ -331,7 +392,7 @@ fn to_text(r: &Report) -> String {
         s,
         "each line: combination, frequency, amplitude of cos(2π f t) in the monomial (DC value at 0 Hz)"
     );
-    let labels = r.assignment.tones().labels();
+    let labels = tone_labels(r);
     let symbols = r.assignment.symbols();
     let mut last_eq = usize::MAX;
     for t in &r.terms {
@@ -347,17 +408,19 @@ fn to_text(r: &Report) -> String {
         );
         let gs = groups(r, &t.table);
         if gs.is_empty() {
-            let _ = writeln!(s, "    no lines (a factor's mode has no tone)");
+            let _ = writeln!(s, "    {}", at_rest(r, t));
         }
         for (title, lines) in gs {
             let _ = writeln!(s, "    {title}:");
             for l in lines {
+                let mark = order_mark(r, l);
                 let _ = writeln!(
                     s,
-                    "      {:<24} {:>16.3} Hz   {}",
-                    l.combination.display_with(labels),
+                    "      {:<24} {:>16.3} Hz   {}{}{mark}",
+                    l.combination.display_with(&labels),
                     l.hz,
-                    l.coefficient.to_string_with(&symbols)
+                    l.coefficient.to_string_with(&symbols),
+                    if mark.is_empty() { "" } else { "   " },
                 );
             }
         }
@@ -376,7 +439,7 @@ fn to_markdown(r: &Report) -> String {
         "\nNear means {}. Coefficients are amplitudes of cos(2π f t).",
         window_text(r)
     );
-    let labels = r.assignment.tones().labels();
+    let labels = tone_labels(r);
     let symbols = r.assignment.symbols();
     for t in &r.terms {
         let _ = writeln!(
@@ -390,10 +453,12 @@ fn to_markdown(r: &Report) -> String {
         let _ = writeln!(s, "|---|---|---:|---|");
         for (title, lines) in groups(r, &t.table) {
             for l in lines {
+                let mark = order_mark(r, l);
                 let _ = writeln!(
                     s,
-                    "| {title} | {} | {:.3} | `{}` |",
-                    l.combination.display_with(labels),
+                    "| {title}{}{mark} | {} | {:.3} | `{}` |",
+                    if mark.is_empty() { "" } else { ", " },
+                    l.combination.display_with(&labels),
                     l.hz,
                     l.coefficient.to_string_with(&symbols)
                 );
@@ -434,11 +499,12 @@ fn to_latex(r: &Report) -> String {
     for c in r.assignment.components() {
         let _ = writeln!(
             s,
-            "% {} = {} ({} Hz) in {}",
+            "% {} = {} ({} Hz) in {} ({})",
             c.symbol,
-            c.combination.display_with(r.assignment.tones().labels()),
+            c.combination.display_with(&tone_labels(r)),
             c.combination.hz(r.assignment.tones()),
-            r.mode_names[c.mode]
+            r.mode_names[c.mode],
+            component_kind(r, &c.kind, c.mode)
         );
     }
     for t in &r.terms {
@@ -451,9 +517,11 @@ fn to_latex(r: &Report) -> String {
         );
         for (title, lines) in groups(r, &t.table) {
             for l in lines {
+                let mark = order_mark(r, l);
                 let _ = writeln!(
                     s,
-                    "{title} & ${}$ & {:.3} Hz & ${}$ \\\\",
+                    "{title}{}{mark} & ${}$ & {:.3} Hz & ${}$ \\\\",
+                    if mark.is_empty() { "" } else { ", " },
                     l.combination.latex_with(&labels),
                     l.hz,
                     l.coefficient.to_latex_with(&symbols)
@@ -477,12 +545,16 @@ fn to_json(r: &Report) -> String {
                 "mode": r.mode_names[c.mode],
                 "combination": c.combination.coeffs(),
                 "freq_hz": c.combination.hz(a.tones()),
-                "kind": match c.kind { ComponentKind::Drive(_) => "tone", ComponentKind::Sideband => "sideband" },
+                "kind": match c.kind { ComponentKind::Drive(_) => "tone", ComponentKind::Sideband => "sideband", ComponentKind::Response => "response" },
+                "name": c.combination.display_with(&tone_labels(r)),
             })
         })
         .collect();
     let symbols = a.symbols();
+    // `label` keeps format harmonid-mix/1's names f1, f2, ... (the Python records' `combination`);
+    // `name` is the same combination with the tones as Ω1, Ω2, ...
     let labels = a.tones().labels();
+    let omega = tone_labels(r);
     let terms: Vec<Value> = r
         .terms
         .iter()
@@ -498,6 +570,9 @@ fn to_json(r: &Report) -> String {
                         "freq_hz": l.hz,
                         "coefficient": l.coefficient.to_string_with(&symbols),
                         "near": l.near_mode().map(|n| r.mode_names[n].clone()),
+                        "name": l.combination.display_with(&omega),
+                        "second_order": !via(r, l).is_empty(),
+                        "via": via(r, l),
                     })
                 })
                 .collect();
