@@ -64,7 +64,7 @@ fn inconsistency_warnings(r: &Report) -> Vec<&String> {
 #[test]
 fn shipped_example_is_consistent_within_its_uncertainties() {
     let m = model("examples/nanostring_2mode/model.hb");
-    let ds = Dataset::load(&root().join("examples/nanostring_2mode/data")).expect("dataset");
+    let ds = Dataset::load(root().join("examples/nanostring_2mode/data")).expect("dataset");
     let r = identify(&m, &ds, &Settings::default()).expect("identify");
     print("examples/nanostring_2mode/data", &r);
     let g = find(&r, Quantity::Gain, "q2");
@@ -105,8 +105,7 @@ fn shipped_example_is_consistent_within_its_uncertainties() {
 #[test]
 fn independent_noisy_dataset_is_consistent() {
     let m = model("examples/nanostring_2mode/model.hb");
-    let ds =
-        Dataset::load(&root().join("tests/data/nanostring_ls50_2mode_noisy")).expect("dataset");
+    let ds = Dataset::load(root().join("tests/data/nanostring_ls50_2mode_noisy")).expect("dataset");
     let r = identify(&m, &ds, &Settings::default()).expect("identify");
     print("tests/data/nanostring_ls50_2mode_noisy", &r);
     assert!(r.consistency.len() >= 4, "{:?}", r.consistency);

@@ -441,35 +441,35 @@ mod tests {
             ("a", [995.0, 1005.0], 1.0, Complex64::new(3.0, -1.0), 1000.0),
             ("b", [990.0, 1010.0], 0.7, gain_b, f_b),
         ];
-        let mut measurements = Vec::new();
-        for (name, tones, level, gain, f0) in designs {
-            let spec = MeasurementSpec {
-                name: name.to_string(),
-                file: None,
-                drives_hz: tones.to_vec(),
-                drive_levels_v: Some(vec![level; 2]),
-                drive_phases_rad: Some(vec![0.0; 2]),
-                bandwidth_hz: None,
-            };
-            let shots = 10;
-            let mut m = Measurement::zeros(spec, tones.to_vec(), vec![0], shots);
-            let w = 2.0 * PI * f0;
-            for s in 0..shots {
-                for (r, &f) in tones.iter().enumerate() {
-                    let om = 2.0 * PI * f;
-                    let x = gain * level / Complex64::new(w * w - om * om, om * w / 100.0);
+        let measurements: Vec<Measurement> = designs
+            .map(|(name, tones, level, gain, f0)| {
+                let spec = MeasurementSpec {
+                    name: name.to_string(),
+                    file: None,
+                    drives_hz: tones.to_vec(),
+                    drive_levels_v: Some(vec![level; 2]),
+                    drive_phases_rad: Some(vec![0.0; 2]),
+                    bandwidth_hz: None,
+                };
+                let shots = 10;
+                let mut m = Measurement::zeros(spec, tones.to_vec(), vec![0], shots);
+                let w = 2.0 * PI * f0;
+                // Every shot: the linear response at each tone plus noise.
+                for (k, x) in m.data.iter_mut().enumerate() {
+                    let om = 2.0 * PI * tones[k % 2];
                     let e = Complex64::new(normal.sample(&mut rng), normal.sample(&mut rng));
-                    *m.amplitude_mut(s, r, 0) = x + e;
+                    *x = gain * level / Complex64::new(w * w - om * om, om * w / 100.0) + e;
                 }
-            }
-            measurements.push(m);
-        }
-        manifest.measurements = measurements.iter().map(|m| m.spec.clone()).collect();
+                m
+            })
+            .into();
+        let specs = measurements.iter().map(|m| m.spec.clone());
+        manifest.measurements = specs.collect();
         Dataset {
-            dir: "tiny".into(),
+            truth: None,
             manifest,
             measurements,
-            truth: None,
+            dir: "two_measurements".into(),
         }
     }
 
