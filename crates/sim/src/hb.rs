@@ -17,7 +17,7 @@
 //! Newton leaves it at zero (it is set exactly to zero in the returned state).
 
 use crate::lattice::{choose_lattice, low_order_lines, LatticeSettings, LINE_TOL_HZ};
-use crate::linalg::DenseLu;
+use crate::linalg::{coupled_parts, DenseLu};
 use crate::{Excitation, NumericModel, SimError};
 use harmonid_poly::PowerProduct;
 use harmonid_spectral::{ProductPlan, SystemPlan, SystemScratch};
@@ -511,18 +511,38 @@ impl HbSolver {
                 c[n * nr + r] = Complex64::new(1.0, 0.0) / Complex64::new(g, 2.0 * TAU * f);
             }
         }
-        // A = −C J with C the complex factors as real 2×2 blocks on the rows.
-        let a = faer::Mat::<f64>::from_fn(nu, nu, |i, j| {
-            let k = i / 2;
-            let (r0, r1) = (self.jac[(2 * k) * nu + j], self.jac[(2 * k + 1) * nu + j]);
-            let z = c[k] * Complex64::new(r0, r1);
-            -if i % 2 == 0 { z.re } else { z.im }
+        // A = −C J with C the complex factors as real 2×2 blocks on the rows. C is diagonal
+        // per mode, so A couples the modes as J does: modes J leaves uncoupled (an undriven
+        // mode nothing forces) are blocks of their own, and the spectrum is the union of the
+        // blocks' spectra (n³ → Σ nᵢ³).
+        let mut parts: Vec<Vec<usize>> = Vec::new();
+        coupled_parts(&self.coupled, nm, &mut [0; MAX_MODES], |n, first| {
+            if first {
+                parts.push(Vec::new());
+            }
+            if let Some(p) = parts.last_mut() {
+                p.push(n);
+            }
         });
-        if a.col_iter().any(|col| col.iter().any(|v| !v.is_finite())) {
-            return Err(SimError::NonFiniteState);
+        let mut growth = f64::NEG_INFINITY;
+        for part in parts {
+            let idx: Vec<usize> = part
+                .iter()
+                .flat_map(|&n| 2 * n * nr..2 * (n + 1) * nr)
+                .collect();
+            let a = faer::Mat::<f64>::from_fn(idx.len(), idx.len(), |i, j| {
+                let (gi, gj) = (idx[i], idx[j]);
+                let k = gi / 2;
+                let (r0, r1) = (self.jac[(2 * k) * nu + gj], self.jac[(2 * k + 1) * nu + gj]);
+                let z = c[k] * Complex64::new(r0, r1);
+                -if gi % 2 == 0 { z.re } else { z.im }
+            });
+            if a.col_iter().any(|col| col.iter().any(|v| !v.is_finite())) {
+                return Err(SimError::NonFiniteState);
+            }
+            let eig = a.eigenvalues().map_err(|_| SimError::NoEigenvalues)?;
+            growth = eig.iter().map(|z| z.re).fold(growth, f64::max);
         }
-        let eig = a.eigenvalues().map_err(|_| SimError::NoEigenvalues)?;
-        let growth = eig.iter().map(|z| z.re).fold(f64::NEG_INFINITY, f64::max);
         let decay = (0..nm)
             .map(|n| 0.5 * self.model.gamma(n))
             .fold(f64::INFINITY, f64::min);
@@ -555,7 +575,7 @@ impl HbSolver {
     }
 
     /// Loads `state` and factorises the Jacobian `∂(Re R, Im R)/∂(Re X, Im X)` there (unknowns
-    /// interleaved re/im, `[n·R + r]` order), for [`HbSolver::solve_factored`]. Errors: a
+    /// interleaved re/im, `[n·R + r]` order), for [`HbSolver::solve_factored_columns`]. Errors: a
     /// state of another lattice, a singular Jacobian (a fold or bifurcation point).
     pub(crate) fn factor_at(&mut self, state: &SteadyState) -> Result<(), SimError> {
         self.load_state(state)?;
@@ -568,7 +588,6 @@ impl HbSolver {
         Ok(())
     }
 
-    /// Solves `J y = b` in place with the Jacobian factorised by [`HbSolver::factor_at`].
     /// Scratch for [`HbSolver::solve_factored_columns`] with `k` right-hand sides.
     pub(crate) fn columns_scratch(&self, k: usize) -> crate::linalg::ColumnScratch {
         self.lu.columns_scratch(k)

@@ -60,6 +60,46 @@ pub(crate) fn lu_solve(a: &[f64], n: usize, piv: &[usize], b: &mut [f64]) {
     }
 }
 
+/// The groups `0..ng` joined into parts when `coupled[gi·ng + gj]` marks a block between them
+/// (either way): calls `visit(group, first)` for every group, part after part (in the order of
+/// their first group, `first` on it), groups ascending within a part. `parent` is scratch of
+/// `ng` entries. Does not allocate.
+pub(crate) fn coupled_parts(
+    coupled: &[bool],
+    ng: usize,
+    parent: &mut [usize],
+    mut visit: impl FnMut(usize, bool),
+) {
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for (g, p) in parent.iter_mut().enumerate().take(ng) {
+        *p = g;
+    }
+    for gi in 0..ng {
+        for gj in 0..ng {
+            if gi != gj && coupled[gi * ng + gj] {
+                let (ri, rj) = (root(parent, gi), root(parent, gj));
+                parent[ri.max(rj)] = ri.min(rj);
+            }
+        }
+    }
+    for g0 in 0..ng {
+        if root(parent, g0) != g0 {
+            continue;
+        }
+        for g in g0..ng {
+            if root(parent, g) == g0 {
+                visit(g, g == g0);
+            }
+        }
+    }
+}
+
 /// Scratch of a multi-column solve ([`DenseLu::solve_columns`]) of `n` rows and up to `cols`
 /// columns.
 pub(crate) struct ColumnScratch {
@@ -118,10 +158,10 @@ pub(crate) struct DenseLu {
     perm_inv: Vec<usize>,
     rhs: faer::Mat<f64>,
     buf: faer::dyn_stack::MemBuffer,
-    /// Union–find parents of the groups (factorisation scratch).
-    parent: Vec<usize>,
     /// `[gi·G + gj]`: the block of groups `gi`, `gj` holds a non-zero (scratch).
     coupled: Vec<bool>,
+    /// Union–find scratch of the groups.
+    parent: Vec<usize>,
 }
 
 impl std::fmt::Debug for DenseLu {
@@ -178,8 +218,8 @@ impl DenseLu {
             perm_inv: (0..n).collect(),
             rhs: faer::Mat::zeros(n, 1),
             buf: faer::dyn_stack::MemBuffer::new(req),
-            parent: (0..n / block).collect(),
             coupled: vec![true; (n / block).pow(2)],
+            parent: vec![0; n / block],
         }
     }
 
@@ -199,47 +239,25 @@ impl DenseLu {
         }
     }
 
-    /// The coupled parts from `self.coupled`: groups joined when a block between them (either
-    /// way) is marked.
+    /// The coupled parts from `self.coupled` into `order` and `parts`.
     fn find_parts(&mut self) {
         let b = self.block;
         let ng = self.n / b;
-        fn root(parent: &mut [usize], mut i: usize) -> usize {
-            while parent[i] != i {
-                parent[i] = parent[parent[i]];
-                i = parent[i];
-            }
-            i
-        }
-        for (g, p) in self.parent.iter_mut().enumerate() {
-            *p = g;
-        }
-        for gi in 0..ng {
-            for gj in 0..ng {
-                if gi != gj && self.coupled[gi * ng + gj] {
-                    let (ri, rj) = (root(&mut self.parent, gi), root(&mut self.parent, gj));
-                    self.parent[ri.max(rj)] = ri.min(rj);
-                }
-            }
-        }
-        // Parts in the order of their first group; groups ascending within.
         self.parts.clear();
+        let (order, parts) = (&mut self.order, &mut self.parts);
         let mut pos = 0;
-        for g0 in 0..ng {
-            if root(&mut self.parent, g0) != g0 {
-                continue;
+        coupled_parts(&self.coupled, ng, &mut self.parent, |g, first| {
+            if first {
+                parts.push((pos, 0));
             }
-            let start = pos;
-            for g in g0..ng {
-                if root(&mut self.parent, g) == g0 {
-                    for i in g * b..(g + 1) * b {
-                        self.order[pos] = i;
-                        pos += 1;
-                    }
-                }
+            for i in g * b..(g + 1) * b {
+                order[pos] = i;
+                pos += 1;
             }
-            self.parts.push((start, pos - start));
-        }
+            if let Some(last) = parts.last_mut() {
+                last.1 += b;
+            }
+        });
     }
 
     /// As [`DenseLu::factor`], with the blocks that may hold non-zeros given (`coupled[gi·G +
