@@ -78,12 +78,13 @@ fn run(
     out
 }
 
-/// (name, bias/stderr, within 1 stderr, within 2, scatter/crlb) per quantity.
-fn table(samples: &Samples, label: &str) -> Vec<(String, f64, f64, f64, f64)> {
+/// (name, bias/stderr, within 1 stderr, within 2, scatter/crlb, median relative stderr) per
+/// quantity.
+fn table(samples: &Samples, label: &str) -> Vec<(String, f64, f64, f64, f64, f64)> {
     println!("\n{label}");
     println!(
-        "{:<12} {:>12} {:>9} {:>9} {:>14}",
-        "quantity", "bias/stderr", "in ±1", "in ±2", "scatter/crlb"
+        "{:<12} {:>12} {:>9} {:>9} {:>14} {:>12}",
+        "quantity", "bias/stderr", "in ±1", "in ±2", "scatter/crlb", "rel. stderr"
     );
     let mut rows = Vec::new();
     for (name, truth, est, se, crlb) in samples {
@@ -91,18 +92,25 @@ fn table(samples: &Samples, label: &str) -> Vec<(String, f64, f64, f64, f64)> {
         let mean = est.iter().sum::<f64>() / n;
         let scatter = (est.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
         let mse = se.iter().sum::<f64>() / n;
+        if mse == 0.0 {
+            println!("{name:<12} fixed by the model");
+            continue;
+        }
         let mcrlb = crlb.iter().sum::<f64>() / n;
         let z: Vec<f64> = est.iter().zip(se).map(|(x, s)| (x - truth) / s).collect();
         let in1 = z.iter().filter(|z| z.abs() <= 1.0).count() as f64 / n;
         let in2 = z.iter().filter(|z| z.abs() <= 2.0).count() as f64 / n;
         let bias = (mean - truth) / mse;
         let ratio = scatter / mcrlb;
+        let mut rel: Vec<f64> = se.iter().map(|s| s / truth.abs()).collect();
+        rel.sort_by(f64::total_cmp);
+        let rel = rel[rel.len() / 2];
         println!(
-            "{name:<12} {bias:>+12.3} {:>8.1}% {:>8.1}% {ratio:>14.3}",
+            "{name:<12} {bias:>+12.3} {:>8.1}% {:>8.1}% {ratio:>14.3} {rel:>12.2e}",
             100.0 * in1,
             100.0 * in2
         );
-        rows.push((name.clone(), bias, in1, in2, ratio));
+        rows.push((name.clone(), bias, in1, in2, ratio, rel));
     }
     rows
 }
@@ -116,7 +124,7 @@ fn two_mode_nanostring_stderrs_cover_the_truth() {
         &s,
         "two-mode nanostring, 0.05 nm, 10 shots, 24 realisations",
     );
-    for (name, bias, in1, in2, _) in rows {
+    for (name, bias, in1, in2, _, _) in rows {
         // 24 realisations: loose versions of the long test's targets.
         assert!(bias.abs() < 0.6, "{name}: bias {bias:.2} stderr");
         assert!(
@@ -144,7 +152,14 @@ fn long_case(
         "{model_path}, {:.2} nm, {shots} shots, 100 realisations",
         sigma * 1e9
     );
-    for (name, bias, in1, in2, ratio) in table(&s, &label) {
+    for (name, bias, in1, in2, ratio, rel) in table(&s, &label) {
+        // A quantity the plan does not determine (harmonid reports it NOT DETERMINED, relative
+        // stderr above 0.3) is listed but not held to the targets: near a bound its estimates
+        // are clipped and its error bar is not a Gaussian one.
+        if rel > harmonid_ident::MAX_REL_STDERR {
+            println!("  {name}: not determined by this plan (median relative stderr {rel:.2}): not held to the targets");
+            continue;
+        }
         if bias.abs() >= 0.3
             || !(0.60..=0.76).contains(&in1)
             || !(0.91..=0.99).contains(&in2)
@@ -172,7 +187,7 @@ fn calibration_long() {
             &mut failures,
         );
     }
-    for sigma in [1e-11, 1e-10] {
+    for sigma in [1e-11, 5e-11, 1e-10] {
         long_case(
             "examples/nanostring_5mode/model.hb",
             gen::nanostring_5mode_plan(),
@@ -183,9 +198,100 @@ fn calibration_long() {
             &mut failures,
         );
     }
+    for sigma in [1e-11, 5e-11, 1e-10] {
+        long_case(
+            "examples/three_wave/model.hb",
+            three_wave_plan(),
+            &[0.5, 0.5, 0.5],
+            sigma,
+            20,
+            13000,
+            &mut failures,
+        );
+        long_case(
+            "examples/cubic_3mode/model.hb",
+            cubic_3mode_plan(),
+            &[0.5, 0.5, 0.5],
+            sigma,
+            20,
+            17000,
+            &mut failures,
+        );
+    }
     assert!(
         failures.is_empty(),
         "missed targets:\n{}",
         failures.join("\n")
     );
+}
+
+/// Values of `examples/three_wave/values.toml`; a tone pair 5.5 linewidths either side of each
+/// resonance (forces for about 7.5 nm, a quarter of a linewidth of Duffing shift; three times that makes single_q1 of the three-wave set parametrically unstable: f3 − f2 = f1), and q1 and q2
+/// driven together with q3 observed (it responds at f1 + f2 through κ).
+fn three_wave_plan() -> (Values, Vec<Design>) {
+    let v = Values {
+        f_hz: vec![1.0e6, 1.6e6, 2.6e6],
+        q: vec![2.0e4, 2.5e4, 3.0e4],
+        params: [
+            ("kappa", 2.0e17),
+            ("beta1", 2.6e25),
+            ("beta2", 5.4e25),
+            ("beta3", 1.2e26),
+        ]
+        .into_iter()
+        .map(|(k, x)| (k.to_string(), x))
+        .collect(),
+    };
+    let names: Vec<String> = (1..=3).map(|n| format!("q{n}")).collect();
+    let mut d = gen::designs(&v, &names, &[165.0, 333.0, 735.0], 5.5, &[(0, 1)]);
+    d[3].observe = vec![2];
+    (v, d)
+}
+
+/// Values of `examples/cubic_3mode/values.toml` (Q of q1 fixed by the model); tone pairs as
+/// [`three_wave_plan`], and each pair driven together with the third mode observed (μ makes it
+/// respond at 2f1 − f2 = f3, 2f1 − f3 = f2, f2 + f3 − f1 = f1).
+fn cubic_3mode_plan() -> (Values, Vec<Design>) {
+    let v = Values {
+        f_hz: vec![1.0e6, 0.8e6, 1.2e6],
+        q: vec![2.0e4, 1.5e4, 2.5e4],
+        params: [
+            ("beta1", 2.6e25),
+            ("beta2", 2.2e25),
+            ("beta3", 3.0e25),
+            ("g12", 1.5e25),
+            ("g13", 2.0e25),
+            ("g23", 1.8e25),
+            ("mu", 1.0e25),
+        ]
+        .into_iter()
+        .map(|(k, x)| (k.to_string(), x))
+        .collect(),
+    };
+    let names: Vec<String> = (1..=3).map(|n| format!("q{n}")).collect();
+    let mut d = gen::designs(
+        &v,
+        &names,
+        &[165.0, 140.0, 190.0],
+        5.5,
+        &[(0, 1), (0, 2), (1, 2)],
+    );
+    d[3].observe = vec![2];
+    d[4].observe = vec![1];
+    d[5].observe = vec![0];
+    (v, d)
+}
+
+/// A few realisations of the three-wave and cubic cases, to try the long test's set-up.
+#[test]
+#[ignore = "a quick look at the three-mode cases; run with --ignored --nocapture"]
+fn three_mode_cases_quick() {
+    for (path, (v, d)) in [
+        ("examples/three_wave/model.hb", three_wave_plan()),
+        ("examples/cubic_3mode/model.hb", cubic_3mode_plan()),
+    ] {
+        let m = model(path);
+        let s = run(&m, &v, &d, &[0.5, 0.5, 0.5], 5e-11, 20, 5, 100);
+        table(&s, path);
+    }
 }

@@ -40,7 +40,7 @@ pub use dataset::{
     Dataset, DatasetError, Manifest, Measurement, MeasurementSpec, Point, Truth, TruthForce,
     TruthMode, TruthNoise,
 };
-pub use estimator::{identify, Estimator};
+pub use estimator::{identify, Estimator, MAX_REL_STDERR};
 pub use fisher::{crlb, Bounds, FisherError, Noise};
 pub use forward::{ForwardError, ForwardModel, ForwardSettings};
 pub use problem::{ForceModel, IdentError, Problem, Settings, Unknown};
