@@ -127,6 +127,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         noise: true,
         seed: args.seed,
         min_line_rel: 0.0,
+        stop_at_fold: false,
     };
     let pb = super::progress::spinner(&format!(
         "simulating {} measurement(s){}",

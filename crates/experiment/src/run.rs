@@ -108,6 +108,10 @@ pub struct Settings {
     /// tones whose amplitude at every point is at most this fraction of the measurement's
     /// largest (lines a lock-in would not resolve; 0 keeps every line).
     pub min_line_rel: f64,
+    /// Stop a measurement's drive ramp at a fold (an error naming it) instead of following
+    /// the jump, which costs far more: for a planner probing for the strongest drive without
+    /// a jump. Default `false`.
+    pub stop_at_fold: bool,
 }
 
 impl Default for Settings {
@@ -121,6 +125,7 @@ impl Default for Settings {
             noise: true,
             seed: 0,
             min_line_rel: 0.0,
+            stop_at_fold: false,
         }
     }
 }
@@ -320,8 +325,12 @@ impl PlanMeasurement {
         drive: &Excitation,
         order: usize,
         truncation: &Truncation,
+        stop_at_fold: bool,
     ) -> Result<(SteadyState, usize, Option<f64>), ExperimentError> {
-        let mut hs = HbSettings::default();
+        let mut hs = HbSettings {
+            stop_at_fold,
+            ..HbSettings::default()
+        };
         hs.lattice.order = order;
         if let Some(f) = &self.measure_hz {
             hs.lattice.extra_hz = f.clone();
@@ -508,7 +517,13 @@ impl Plan {
         for (mi, pm) in self.measurements.iter().enumerate() {
             let drive = pm.excitation(model)?;
             let (st, order, change) =
-                pm.steady_state(model, &drive, settings.order, &settings.truncation)?;
+                pm.steady_state(
+                    model,
+                    &drive,
+                    settings.order,
+                    &settings.truncation,
+                    settings.stop_at_fold,
+                )?;
             let mut notes = Vec::new();
             if let Some(c) = change {
                 if c.is_nan() || c >= settings.truncation.tol {

@@ -43,8 +43,10 @@ pub(crate) fn simulate(
     base: &Plan,
     pm: &PlanMeasurement,
 ) -> Result<Dataset, PlanError> {
+    // A fold is infeasible here: stop the ramp at it rather than follow the jump.
     let settings = Settings {
         check_stability: true,
+        stop_at_fold: true,
         ..Settings::noise_free()
     };
     let sim = single(base, pm).simulate_numeric(num, &settings)?;

@@ -65,6 +65,11 @@ pub struct HbSettings {
     pub ramp_step_max: f64,
     /// Most ramp steps before giving up (status [`HbStatus::NotConverged`]).
     pub max_ramp_steps: usize,
+    /// At a fold of the ramp, stop (status [`HbStatus::NotConverged`] at the fold, the fold
+    /// in [`SteadyState::drive_jumps`]) instead of following the jump to the other branch,
+    /// which costs far more: for callers that only need to know that the drive jumps (a
+    /// planner looking for the strongest drive without one). Default `false`.
+    pub stop_at_fold: bool,
 }
 
 impl Default for HbSettings {
@@ -78,6 +83,7 @@ impl Default for HbSettings {
             ramp_step: 0.05,
             ramp_step_max: 0.25,
             max_ramp_steps: 2000,
+            stop_at_fold: false,
         }
     }
 }
@@ -818,6 +824,18 @@ impl HbSolver {
                 if it <= 3 {
                     ds = (ds * 1.6).min(settings.ramp_step_max);
                 }
+            } else if ds <= FOLD_STEP && settings.stop_at_fold {
+                // The branch ends between s and s + ds: a fold; the caller only wanted to know.
+                self.x.copy_from_slice(&good);
+                jumps.push(s);
+                let r = self.residual(false, s);
+                return self.finish(
+                    HbStatus::NotConverged { drive_fraction: s },
+                    r,
+                    steps,
+                    false,
+                    jumps,
+                );
             } else if ds <= FOLD_STEP {
                 // The branch ends between s and s + ds: a fold in the drive. An experiment
                 // jumps there; follow the slow flow from the last state at the next level.
