@@ -516,14 +516,13 @@ impl Plan {
         let mut forces = BTreeMap::new();
         for (mi, pm) in self.measurements.iter().enumerate() {
             let drive = pm.excitation(model)?;
-            let (st, order, change) =
-                pm.steady_state(
-                    model,
-                    &drive,
-                    settings.order,
-                    &settings.truncation,
-                    settings.stop_at_fold,
-                )?;
+            let (st, order, change) = pm.steady_state(
+                model,
+                &drive,
+                settings.order,
+                &settings.truncation,
+                settings.stop_at_fold,
+            )?;
             let mut notes = Vec::new();
             if let Some(c) = change {
                 if c.is_nan() || c >= settings.truncation.tol {
