@@ -14,10 +14,12 @@ fn fixtures() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures")
 }
 
-/// The diagnostic as a user sees it, without colours, 100 columns, the checkout's path removed.
+/// The diagnostic as a user sees it, without colours, the checkout's path removed. Lines are not
+/// wrapped: miette wraps before the path is removed, so a wrapped rendering would depend on
+/// where the repository is checked out.
 fn render(d: &dyn Diagnostic) -> String {
     let handler = GraphicalReportHandler::new_themed(GraphicalTheme::unicode_nocolor())
-        .with_width(100)
+        .with_width(10_000)
         .with_links(false);
     let mut out = String::new();
     handler
