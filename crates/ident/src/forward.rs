@@ -710,15 +710,6 @@ impl ForwardModel {
         out_x: &mut [Complex64],
         out_jac: Option<&mut [Complex64]>,
     ) -> Result<(), ForwardError> {
-        let nk = self.unknowns.len();
-        if theta.len() != nk || out_x.len() != self.n_obs {
-            return Err(ForwardError::Shape(format!(
-                "evaluate: θ has {} entries ({nk} unknowns), out_x {} ({} observations)",
-                theta.len(),
-                out_x.len(),
-                self.n_obs
-            )));
-        }
         self.check_jacobian_len(out_jac.as_deref())?;
         self.solve_all(theta, out_x, true)?;
         match out_jac {
@@ -737,24 +728,25 @@ impl ForwardModel {
         theta: &[f64],
         out_x: &mut [Complex64],
     ) -> Result<(), ForwardError> {
-        let nk = self.unknowns.len();
-        if theta.len() != nk || out_x.len() != self.n_obs {
-            return Err(ForwardError::Shape(format!(
-                "evaluate_trial: θ has {} entries ({nk} unknowns), out_x {} ({} observations)",
-                theta.len(),
-                out_x.len(),
-                self.n_obs
-            )));
-        }
         self.solve_all(theta, out_x, false)
     }
 
+    /// Every measurement's steady state at `θ` into `out_x` (shapes checked first).
     fn solve_all(
         &mut self,
         theta: &[f64],
         out_x: &mut [Complex64],
         ramp: bool,
     ) -> Result<(), ForwardError> {
+        let nk = self.unknowns.len();
+        if theta.len() != nk || out_x.len() != self.n_obs {
+            return Err(ForwardError::Shape(format!(
+                "evaluate: θ has {} entries ({nk} unknowns), out_x {} ({} observations)",
+                theta.len(),
+                out_x.len(),
+                self.n_obs
+            )));
+        }
         self.at = None;
         let numeric = self.numeric(theta)?;
         for mi in 0..self.meas.len() {

@@ -784,15 +784,7 @@ impl HbSolver {
         let mut good = self.x.clone();
         while s < 1.0 {
             if steps >= settings.max_ramp_steps || ds < 1e-7 {
-                self.x.copy_from_slice(&good);
-                let r = self.residual(false, s);
-                return self.finish(
-                    HbStatus::NotConverged { drive_fraction: s },
-                    r,
-                    steps,
-                    false,
-                    jumps,
-                );
+                return self.stop_ramp(&good, s, steps, jumps);
             }
             let s_new = (s + ds).min(1.0);
             // Secant predictor.
@@ -826,16 +818,8 @@ impl HbSolver {
                 }
             } else if ds <= FOLD_STEP && settings.stop_at_fold {
                 // The branch ends between s and s + ds: a fold; the caller only wanted to know.
-                self.x.copy_from_slice(&good);
                 jumps.push(s);
-                let r = self.residual(false, s);
-                return self.finish(
-                    HbStatus::NotConverged { drive_fraction: s },
-                    r,
-                    steps,
-                    false,
-                    jumps,
-                );
+                return self.stop_ramp(&good, s, steps, jumps);
             } else if ds <= FOLD_STEP {
                 // The branch ends between s and s + ds: a fold in the drive. An experiment
                 // jumps there; follow the slow flow from the last state at the next level.
@@ -858,6 +842,25 @@ impl HbSolver {
         let r = self.residual(false, 1.0);
         self.finish(
             HbStatus::Converged { iterations: iters },
+            r,
+            steps,
+            false,
+            jumps,
+        )
+    }
+
+    /// Ends a ramp that cannot go on: the last converged state `good`, at drive fraction `s`.
+    fn stop_ramp(
+        &mut self,
+        good: &[Complex64],
+        s: f64,
+        steps: usize,
+        jumps: Vec<f64>,
+    ) -> SteadyState {
+        self.x.copy_from_slice(good);
+        let r = self.residual(false, s);
+        self.finish(
+            HbStatus::NotConverged { drive_fraction: s },
             r,
             steps,
             false,

@@ -303,30 +303,27 @@ impl DenseLu {
 
     /// Solves `A x = b` in place with the last factorisation.
     pub(crate) fn solve(&mut self, b: &mut [f64]) {
-        use faer::linalg::lu::partial_pivoting::solve;
-        for (p, &i) in self.order.iter().enumerate() {
-            self.rhs[(p, 0)] = b[i];
-        }
-        for &(off, size) in &self.parts {
-            let perm = faer::perm::PermRef::new_checked(
-                &self.perm[off..off + size],
-                &self.perm_inv[off..off + size],
-                size,
-            );
-            let lu = self.lu.as_ref().submatrix(off, off, size, size);
-            let stack = faer::dyn_stack::MemStack::new(&mut self.buf);
-            solve::solve_in_place(
-                lu,
-                lu,
-                perm,
-                self.rhs.as_mut().subrows_mut(off, size),
-                faer::Par::Seq,
-                stack,
-            );
-        }
-        for (p, &i) in self.order.iter().enumerate() {
-            b[i] = self.rhs[(p, 0)];
-        }
+        let n = self.n;
+        let b = faer::MatMut::from_column_major_slice_mut(b, n, 1);
+        let Self {
+            lu,
+            order,
+            parts,
+            perm,
+            perm_inv,
+            rhs,
+            buf,
+            ..
+        } = self;
+        solve_ordered(
+            lu.as_ref(),
+            order,
+            parts,
+            (perm, perm_inv),
+            b,
+            rhs.as_mut(),
+            buf,
+        );
     }
 
     /// Scratch for [`DenseLu::solve_columns`] with `k` right-hand sides.
@@ -338,40 +335,60 @@ impl DenseLu {
     /// factorisation: one blocked triangular solve per coupled part (matrix products) instead
     /// of one matrix-vector sweep per column. `buf` from [`DenseLu::columns_scratch`] for at
     /// least `b.ncols()` columns. Does not allocate.
-    pub(crate) fn solve_columns(&self, mut b: faer::MatMut<'_, f64>, buf: &mut ColumnScratch) {
-        use faer::linalg::lu::partial_pivoting::solve;
+    pub(crate) fn solve_columns(&self, b: faer::MatMut<'_, f64>, buf: &mut ColumnScratch) {
         let k = b.ncols();
         assert!(
             b.nrows() == self.n && k <= buf.cols,
             "solve_columns: shapes"
         );
-        let mut rows = buf.rows.as_mut().subcols_mut(0, k);
-        for c in 0..k {
-            for (p, &i) in self.order.iter().enumerate() {
-                rows[(p, c)] = b[(i, c)];
-            }
+        solve_ordered(
+            self.lu.as_ref(),
+            &self.order,
+            &self.parts,
+            (&self.perm, &self.perm_inv),
+            b,
+            buf.rows.as_mut().subcols_mut(0, k),
+            &mut buf.buf,
+        );
+    }
+}
+
+/// The solve of [`DenseLu`]: `b`'s rows gathered into `rows` in the factorisation's order,
+/// each coupled part solved with its factors, the solution scattered back into `b`.
+fn solve_ordered(
+    lu: faer::MatRef<'_, f64>,
+    order: &[usize],
+    parts: &[(usize, usize)],
+    (perm, perm_inv): (&[usize], &[usize]),
+    mut b: faer::MatMut<'_, f64>,
+    mut rows: faer::MatMut<'_, f64>,
+    buf: &mut faer::dyn_stack::MemBuffer,
+) {
+    use faer::linalg::lu::partial_pivoting::solve;
+    for c in 0..b.ncols() {
+        for (p, &i) in order.iter().enumerate() {
+            rows[(p, c)] = b[(i, c)];
         }
-        for &(off, size) in &self.parts {
-            let perm = faer::perm::PermRef::new_checked(
-                &self.perm[off..off + size],
-                &self.perm_inv[off..off + size],
-                size,
-            );
-            let lu = self.lu.as_ref().submatrix(off, off, size, size);
-            let stack = faer::dyn_stack::MemStack::new(&mut buf.buf);
-            solve::solve_in_place(
-                lu,
-                lu,
-                perm,
-                rows.as_mut().subrows_mut(off, size),
-                faer::Par::Seq,
-                stack,
-            );
-        }
-        for c in 0..k {
-            for (p, &i) in self.order.iter().enumerate() {
-                b[(i, c)] = rows[(p, c)];
-            }
+    }
+    for &(off, size) in parts {
+        let perm = faer::perm::PermRef::new_checked(
+            &perm[off..off + size],
+            &perm_inv[off..off + size],
+            size,
+        );
+        let lu = lu.submatrix(off, off, size, size);
+        solve::solve_in_place(
+            lu,
+            lu,
+            perm,
+            rows.as_mut().subrows_mut(off, size),
+            faer::Par::Seq,
+            faer::dyn_stack::MemStack::new(buf),
+        );
+    }
+    for c in 0..b.ncols() {
+        for (p, &i) in order.iter().enumerate() {
+            b[(i, c)] = rows[(p, c)];
         }
     }
 }
