@@ -32,23 +32,10 @@ fn two_mode() -> Case {
     }
 }
 
-fn three_wave() -> Case {
+/// A three-mode example designed at 0.05 nm, 20 shots, one point of shape 0.5 for every mode.
+fn three_mode(example: &'static str) -> Case {
     Case {
-        example: "three_wave",
-        points: point(&[0.5, 0.5, 0.5]),
-        sigma_m: 5e-11,
-        shots: 20,
-        source: Source::Design,
-        // The designed measurement coupling all three modes drives six tones: its lattice at
-        // order 11 is too large to plan, so the truncation check cannot run (see
-        // docs/planning.md, "The round trip").
-        allow_truncation: true,
-    }
-}
-
-fn cubic_3mode() -> Case {
-    Case {
-        example: "cubic_3mode",
+        example,
         points: point(&[0.5, 0.5, 0.5]),
         sigma_m: 5e-11,
         shots: 20,
@@ -182,13 +169,13 @@ fn plan_roundtrip_long_two_mode() {
 #[test]
 #[ignore = "long Monte Carlo (minutes); run with --ignored --nocapture --test-threads 1"]
 fn plan_roundtrip_long_three_wave() {
-    long_case(three_wave(), 20_000);
+    long_case(three_mode("three_wave"), 20_000);
 }
 
 #[test]
 #[ignore = "long Monte Carlo (minutes); run with --ignored --nocapture --test-threads 1"]
 fn plan_roundtrip_long_cubic_3mode() {
-    long_case(cubic_3mode(), 30_000);
+    long_case(three_mode("cubic_3mode"), 30_000);
 }
 
 #[test]
