@@ -6,14 +6,18 @@
 //! with the smaller bounds. Lines: the drive tones and the largest predicted lines near any
 //! resonance, at most `max_frequencies`; every tone on the instrument grid, so every line is.
 
+use crate::coupled::{cheapest_comparable, coupled_variants, Tones, Variant};
 use crate::evaluate::{joint_bounds, param_modes, Evaluation};
-use crate::info::{is_infeasible, measurement_info, simulate, MeasInfo};
+use crate::info::{
+    info_of, is_infeasible, measurement_info, restrict_lines, simulate, Fidelity, MeasInfo, Target,
+};
+use crate::level::{pair_fold_estimate, strongest};
 use crate::PlanError;
 use harmonid_experiment::{Plan, PlanMeasurement, PlanNoise};
-use harmonid_ident::{Point, Unknown};
+use harmonid_ident::{Dataset, Point, Unknown};
 use harmonid_model::{Linear, Model};
 use harmonid_sim::{ModelValues, NumericModel};
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeMap;
 
 /// Limits and noise of a design.
 #[derive(Debug, Clone)]
@@ -52,15 +56,35 @@ impl Default for DesignSettings {
 /// spacing, level and centre.
 type Candidate = (f64, PlanMeasurement, MeasInfo, (f64, f64, f64));
 
+/// Tone-pair spacings tried per mode, in linewidths, narrowest first.
+const SPACINGS: [f64; 3] = [3.0, 6.0, 12.0];
+/// A spacing whose worst bound exceeds the best so far by this factor ends the search: the
+/// bounds only grow with wider pairs from there.
+const CLEARLY_WORSE: f64 = 1.5;
+
+/// A worst relative bound of a group's unknowns this small ends the search for drives of that
+/// group with more tones: the three-tone variants are kept when they reach it.
+const GOOD_ENOUGH: f64 = 0.1;
+
+/// `Some` of a usable result, `None` when the drive is infeasible (fold, instability, no steady
+/// state), the error otherwise.
+fn feasible<T>(r: Result<T, PlanError>) -> Result<Option<T>, PlanError> {
+    match r {
+        Ok(x) => Ok(Some(x)),
+        Err(e) if is_infeasible(&e) => Ok(None),
+        Err(e) => Err(e),
+    }
+}
+
 /// Rounds `x` to a multiple of `g`.
 fn on_grid(x: f64, g: f64) -> f64 {
     (x / g).round() * g
 }
 
-/// Rounds a force to 3 significant digits.
+/// Rounds a force to 3 significant digits (through its decimal form, so the plan file shows
+/// `10.7`, not `10.700000000000001`).
 fn round3(x: f64) -> f64 {
-    let e = 10f64.powf(x.abs().log10().floor() - 2.0);
-    (x / e).round() * e
+    format!("{x:.2e}").parse().unwrap_or(x)
 }
 
 /// A measurement with `tones` (`(Hz, mode, force N/kg)`), drive levels = forces (gain 1 N/kg
@@ -84,10 +108,10 @@ fn measurement(name: &str, tones: &[(f64, usize, f64)], names: &[String]) -> Pla
     }
 }
 
-/// Keeps the drive tones and the largest lines (over points) of `info`'s dataset, at most
-/// `max` in all, as the measurement's `measure_hz`.
-fn choose_lines(pm: &mut PlanMeasurement, info: &MeasInfo, max: usize) {
-    let m = &info.dataset.measurements[0];
+/// The drive tones and the largest lines (over points) of `data` (the noise-free simulation of
+/// `pm`), at most `max` in all, ascending: the lines the lock-in reads.
+fn choose_lines(pm: &PlanMeasurement, data: &Dataset, max: usize) -> Vec<f64> {
+    let m = &data.measurements[0];
     let np = m.points.len();
     let mut lines: Vec<(f64, f64)> = m
         .freqs_hz
@@ -104,7 +128,7 @@ fn choose_lines(pm: &mut PlanMeasurement, info: &MeasInfo, max: usize) {
     lines.sort_by(|a, b| b.1.total_cmp(&a.1));
     let mut keep: Vec<f64> = lines.iter().take(max).map(|l| l.0).collect();
     keep.sort_by(f64::total_cmp);
-    pm.measure_hz = Some(keep);
+    keep
 }
 
 /// Worst relative bound of `names` (quantity names) in `ev` (infinite when one is missing or
@@ -242,6 +266,27 @@ pub fn design_with_progress(
             });
         }
     }
+    let target = Target {
+        model,
+        num: &num,
+        values,
+        sigma_m: s.sigma_m,
+        shots: s.shots,
+    };
+    // Every candidate: simulated once at search fidelity, its lines chosen, its information
+    // computed on those lines (infeasible drives: `None`).
+    let candidate =
+        |mut pm: PlanMeasurement| -> Result<Option<(PlanMeasurement, MeasInfo)>, PlanError> {
+            let Some((data, lattice)) = feasible(simulate(&num, &base, &pm, Fidelity::Search))?
+            else {
+                return Ok(None);
+            };
+            let keep = choose_lines(&pm, &data, s.max_frequencies);
+            let data = restrict_lines(&data, &pm, &keep);
+            pm.measure_hz = Some(keep);
+            let info = feasible(info_of(&target, &pm, &data, lattice))?;
+            Ok(info.map(|i| (pm, i)))
+        };
     // Stage 1: a tone pair per mode.
     let mut pairs: Vec<Option<(f64, f64, f64)>> = vec![None; nm]; // (centre, spacing, force)
     let mut infos: Vec<MeasInfo> = Vec::new();
@@ -257,61 +302,34 @@ pub fn design_with_progress(
         let w2 = (std::f64::consts::TAU * f).powi(2);
         let centre = on_grid(f, s.grid_hz);
         let wanted = quantity_names(model, &own[n]);
+        let name = format!("single_{}", names[n]);
+        // The weakest useful drive: a linear peak response of 100 σ.
+        let f_lin = (100.0 * s.sigma_m * w2 / num.q_factor[n]).min(s.max_force);
         let mut best: Option<Candidate> = None;
-        for mult in [3.0, 6.0, 12.0] {
+        for mult in SPACINGS {
             let half = (on_grid(0.5 * mult * kappa, s.grid_hz)).max(s.grid_hz);
             let tones = |force: f64| [(centre - half, n, force), (centre + half, n, force)];
-            let name = format!("single_{}", names[n]);
-            // Strongest drive without a jump or instability: double, then bisect.
-            let f_lin = 100.0 * s.sigma_m * w2 / num.q_factor[n];
             let ok = |force: f64| -> Result<bool, PlanError> {
-                match simulate(&num, &base, &measurement(&name, &tones(force), &names)) {
-                    Ok(_) => Ok(true),
-                    Err(e) if is_infeasible(&e) => Ok(false),
-                    Err(e) => Err(e),
-                }
+                let pm = measurement(&name, &tones(force), &names);
+                Ok(feasible(simulate(&num, &base, &pm, Fidelity::Search))?.is_some())
             };
-            let mut good = f_lin.min(s.max_force);
-            if !ok(good)? {
+            let start = pair_fold_estimate(&num, n, 2.0 * half / kappa).unwrap_or(f_lin);
+            let Some((good, folds)) = strongest(start, f_lin, s.max_force, ok)? else {
                 continue;
-            }
-            let mut bad = f64::INFINITY;
-            for _ in 0..24 {
-                let next = (2.0 * good).min(s.max_force);
-                if next <= good {
-                    break;
-                }
-                if ok(next)? {
-                    good = next;
-                } else {
-                    bad = next;
-                    break;
-                }
-            }
-            if bad.is_finite() {
-                for _ in 0..3 {
-                    let mid = (good * bad).sqrt();
-                    if ok(mid)? {
-                        good = mid;
-                    } else {
-                        bad = mid;
-                    }
-                }
-            }
-            // A margin below the fold: the guess is a guess.
-            let force = round3(if bad.is_finite() { 0.8 * good } else { good });
-            let mut pm = measurement(&name, &tones(force), &names);
-            let info = match measurement_info(model, &num, values, &base, &pm, s.sigma_m, s.shots) {
-                Ok(i) => i,
-                Err(e) if is_infeasible(&e) => continue,
-                Err(e) => return Err(e),
             };
-            choose_lines(&mut pm, &info, s.max_frequencies);
-            let info = measurement_info(model, &num, values, &base, &pm, s.sigma_m, s.shots)?;
+            // A margin below the fold: the guess is a guess.
+            let force = round3(if folds { 0.8 * good } else { good });
+            let Some((pm, info)) = candidate(measurement(&name, &tones(force), &names))? else {
+                continue;
+            };
             let ev = joint_bounds(model, &[&info], s.shots)?;
             let score = worst_of(&ev, &wanted);
-            if best.as_ref().is_none_or(|b| score < b.0) {
+            let best_score = best.as_ref().map_or(f64::INFINITY, |b| b.0);
+            if score < best_score {
                 best = Some((score, pm, info, (centre, 2.0 * half, force)));
+            } else if score > CLEARLY_WORSE * best_score {
+                // The bounds rise with the spacing from here on: wider pairs only lose more.
+                break;
             }
         }
         let Some((_, pm, info, pair)) = best else {
@@ -340,66 +358,49 @@ pub fn design_with_progress(
             total: needed,
             name: &name,
         });
-        // Variants: every mode of the term driven; or all but one whose frequency is a sum or
-        // difference of the others' (within the lattice window).
-        let mut variants: Vec<BTreeSet<usize>> = vec![modes.iter().copied().collect()];
-        for &m in modes {
-            let others: Vec<f64> = modes
-                .iter()
-                .filter(|&&k| k != m)
-                .map(|&k| num.f_hz[k])
-                .collect();
-            let fm = num.f_hz[m];
-            let hit = (1..1u32 << (2 * others.len())).any(|mask| {
-                let mut sum = 0.0;
-                for (i, &fo) in others.iter().enumerate() {
-                    let c = (mask >> (2 * i)) & 3;
-                    sum += match c {
-                        1 => fo,
-                        2 => -fo,
-                        3 => 2.0 * fo,
-                        _ => 0.0,
-                    };
-                }
-                (sum.abs() - fm).abs() <= 0.005 * fm
-            });
-            if hit {
-                variants.push(modes.iter().copied().filter(|&k| k != m).collect());
-            }
-        }
-        let mut best: Option<(f64, PlanMeasurement, MeasInfo)> = None;
-        for driven in variants {
+        // (score, lattice lines, measurement, information) of every feasible variant.
+        let mut scored: Vec<(f64, usize, (PlanMeasurement, MeasInfo))> = Vec::new();
+        let mut try_variant = |variant: &Variant| -> Result<f64, PlanError> {
             let mut scale = 1.0;
             for _ in 0..8 {
                 let mut tones = Vec::new();
-                for &n in &driven {
+                for &(n, how) in variant {
                     if let Some((c, d, f)) = pairs[n] {
-                        tones.push((c - 0.5 * d, n, round3(f * scale)));
-                        tones.push((c + 0.5 * d, n, round3(f * scale)));
+                        let f = round3(f * scale);
+                        match how {
+                            Tones::Pair => {
+                                tones.push((c - 0.5 * d, n, f));
+                                tones.push((c + 0.5 * d, n, f));
+                            }
+                            Tones::Centre => tones.push((c, n, f)),
+                        }
                     }
                 }
                 tones.sort_by(|a, b| a.0.total_cmp(&b.0));
-                let mut pm = measurement(&name, &tones, &names);
-                match measurement_info(model, &num, values, &base, &pm, s.sigma_m, s.shots) {
-                    Ok(info) => {
-                        choose_lines(&mut pm, &info, s.max_frequencies);
-                        let info =
-                            measurement_info(model, &num, values, &base, &pm, s.sigma_m, s.shots)?;
-                        let mut all: Vec<&MeasInfo> = infos.iter().collect();
-                        all.push(&info);
-                        let ev = joint_bounds(model, &all, s.shots)?;
-                        let score = worst_of(&ev, &wanted);
-                        if best.as_ref().is_none_or(|b| score < b.0) {
-                            best = Some((score, pm, info));
-                        }
-                        break;
-                    }
-                    Err(e) if is_infeasible(&e) => scale *= 0.7,
-                    Err(e) => return Err(e),
+                if let Some((pm, info)) = candidate(measurement(&name, &tones, &names))? {
+                    let mut all: Vec<&MeasInfo> = infos.iter().collect();
+                    all.push(&info);
+                    let ev = joint_bounds(model, &all, s.shots)?;
+                    let score = worst_of(&ev, &wanted);
+                    scored.push((score, info.lattice_lines, (pm, info)));
+                    return Ok(score);
                 }
+                scale *= 0.7;
+            }
+            Ok(f64::INFINITY)
+        };
+        for set in coupled_variants(&num, modes) {
+            let mut best = f64::INFINITY;
+            for v in &set.three_tone {
+                best = best.min(try_variant(v)?);
+            }
+            // Two pairs cost a lattice several times larger: only when fewer tones fail or
+            // leave the group's unknowns poorly determined.
+            if best.is_nan() || best > GOOD_ENOUGH {
+                try_variant(&set.pairs)?;
             }
         }
-        let Some((_, pm, info)) = best else {
+        let Some((pm, info)) = cheapest_comparable(scored) else {
             return Err(PlanError::Unidentifiable {
                 parameter: wanted.join(", "),
                 reason: format!(
@@ -411,6 +412,12 @@ pub fn design_with_progress(
         infos.push(info);
         plan_ms.push(pm);
     }
+    // The bounds of the plan as `harmonid simulate --plan` will simulate it (the truncation
+    // check may raise the lattice order the search used).
+    let infos = plan_ms
+        .iter()
+        .map(|pm| measurement_info(&target, &base, pm, Fidelity::User))
+        .collect::<Result<Vec<_>, _>>()?;
     progress(DesignStep {
         done: needed,
         total: needed,

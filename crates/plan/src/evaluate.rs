@@ -1,6 +1,6 @@
 //! Scores a plan: structural identifiability and the Cramér–Rao bound of every unknown.
 
-use crate::info::{measurement_info, n_shared, MeasInfo};
+use crate::info::{measurement_info, n_shared, Fidelity, MeasInfo, Target};
 use crate::PlanError;
 use harmonid_experiment::Plan;
 use harmonid_ident::fisher::{bounds_from_information, Bounds};
@@ -203,10 +203,17 @@ pub fn evaluate(
             pm.drive_phases_rad = Some(ph);
         }
     }
+    let target = Target {
+        model,
+        num: &num,
+        values,
+        sigma_m,
+        shots,
+    };
     let infos = plan
         .measurements
         .iter()
-        .map(|pm| measurement_info(model, &num, values, &plan, pm, sigma_m, shots))
+        .map(|pm| measurement_info(&target, &plan, pm, Fidelity::User))
         .collect::<Result<Vec<_>, _>>()?;
     let refs: Vec<&MeasInfo> = infos.iter().collect();
     joint_bounds(model, &refs, shots)

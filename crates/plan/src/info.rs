@@ -1,7 +1,8 @@
 //! Fisher information of one planned measurement on the shared unknowns.
 
 use crate::PlanError;
-use harmonid_experiment::{ExperimentError, Plan, PlanMeasurement, Settings};
+use harmonid_experiment::{ExperimentError, Plan, PlanMeasurement, Settings, Truncation};
+use harmonid_ident::dataset::Measurement;
 use harmonid_ident::fisher::{information, Noise};
 use harmonid_ident::{Dataset, ForceModel, ForwardModel, ForwardSettings, Unknown};
 use harmonid_model::Model;
@@ -19,8 +20,9 @@ pub(crate) struct MeasInfo {
     pub fwd: ForwardModel,
     /// `θ` of `fwd`.
     pub theta: Vec<f64>,
-    /// The noise-free dataset (measured lines and amplitudes).
-    pub dataset: Dataset,
+    /// Lines of the harmonic-balance lattice the state was solved on: the cost of simulating
+    /// and identifying the measurement grows with it.
+    pub lattice_lines: usize,
 }
 
 /// Number of shared unknowns of `model`.
@@ -36,27 +38,69 @@ pub(crate) fn single(base: &Plan, pm: &PlanMeasurement) -> Plan {
     }
 }
 
+/// How a measurement is simulated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Fidelity {
+    /// While searching drives: the lattice at its starting order, no truncation check (the
+    /// ranking of candidates does not need the last digits, and a search simulates dozens).
+    Search,
+    /// What `harmonid simulate --plan` does (the truncation check raises the order until the
+    /// measured lines settle): the final plan's bounds are computed on this.
+    User,
+}
+
 /// Simulates `pm` noise-free (harmonic balance, Hill stability) and refuses a jump while the
-/// drive ramps up.
+/// drive ramps up; returns the dataset and the lattice size.
 pub(crate) fn simulate(
     num: &NumericModel,
     base: &Plan,
     pm: &PlanMeasurement,
-) -> Result<Dataset, PlanError> {
+    fidelity: Fidelity,
+) -> Result<(Dataset, usize), PlanError> {
     // A fold is infeasible here: stop the ramp at it rather than follow the jump.
     let settings = Settings {
         check_stability: true,
         stop_at_fold: true,
+        truncation: match fidelity {
+            Fidelity::Search => Truncation::off(),
+            Fidelity::User => Settings::default().truncation,
+        },
         ..Settings::noise_free()
     };
     let sim = single(base, pm).simulate_numeric(num, &settings)?;
-    if let Some(&s) = sim.reports.first().and_then(|r| r.drive_jumps.first()) {
+    let report = sim.reports.first();
+    if let Some(&s) = report.and_then(|r| r.drive_jumps.first()) {
         return Err(PlanError::Fold {
             measurement: pm.name.clone(),
             percent: 100.0 * s,
         });
     }
-    Ok(sim.dataset)
+    Ok((sim.dataset, report.map_or(0, |r| r.lattice_lines)))
+}
+
+/// `dataset` (one measurement) with only the lines at `keep_hz`: what simulating the
+/// measurement with `measure_hz = keep_hz` gives when every kept line is on the lattice
+/// already (the lattice, and so the state, is the same), without solving it again.
+pub(crate) fn restrict_lines(dataset: &Dataset, pm: &PlanMeasurement, keep_hz: &[f64]) -> Dataset {
+    let mut out = dataset.clone();
+    let m = &dataset.measurements[0];
+    let idx: Vec<usize> = keep_hz.iter().filter_map(|&f| m.freq_index(f)).collect();
+    let mut r = Measurement::zeros(
+        pm.spec(),
+        idx.iter().map(|&i| m.freqs_hz[i]).collect(),
+        m.points.clone(),
+        m.n_shots,
+    );
+    for s in 0..m.n_shots {
+        for (k, &i) in idx.iter().enumerate() {
+            for p in 0..m.points.len() {
+                *r.amplitude_mut(s, k, p) = m.amplitude(s, i, p);
+            }
+        }
+    }
+    out.manifest.measurements = vec![pm.spec()];
+    out.measurements = vec![r];
+    out
 }
 
 /// Whether an error means the drive configuration is not usable (fold, instability, no
@@ -74,27 +118,52 @@ pub(crate) fn is_infeasible(e: &PlanError) -> bool {
     }
 }
 
-/// The information of measurement `pm` (simulated at `values`) for `shots` shots of
-/// per-quadrature noise `sigma_m`, gains profiled out.
+/// What every measurement's information is computed for: the model at the guessed values,
+/// and the noise (`shots` shots of per-quadrature `sigma_m`, m).
+#[derive(Clone, Copy)]
+pub(crate) struct Target<'a> {
+    /// The model.
+    pub model: &'a Model,
+    /// It at the guessed values.
+    pub num: &'a NumericModel,
+    /// The guessed values.
+    pub values: &'a ModelValues,
+    /// Per-quadrature noise, m.
+    pub sigma_m: f64,
+    /// Shots per measurement.
+    pub shots: usize,
+}
+
+/// The information of measurement `pm` (simulated at the target's values with `fidelity`)
+/// for the target's noise, gains profiled out.
 pub(crate) fn measurement_info(
-    model: &Model,
-    num: &NumericModel,
-    values: &ModelValues,
+    t: &Target<'_>,
     base: &Plan,
     pm: &PlanMeasurement,
-    sigma_m: f64,
-    shots: usize,
+    fidelity: Fidelity,
 ) -> Result<MeasInfo, PlanError> {
-    let dataset = simulate(num, base, pm)?;
+    let (dataset, lattice_lines) = simulate(t.num, base, pm, fidelity)?;
+    info_of(t, pm, &dataset, lattice_lines)
+}
+
+/// The information of measurement `pm` whose noise-free data is `dataset` (its lattice of
+/// `lattice_lines` lines): see [`measurement_info`].
+pub(crate) fn info_of(
+    t: &Target<'_>,
+    pm: &PlanMeasurement,
+    dataset: &Dataset,
+    lattice_lines: usize,
+) -> Result<MeasInfo, PlanError> {
+    let (model, num, values, sigma_m, shots) = (t.model, t.num, t.values, t.sigma_m, t.shots);
     let mut fwd = ForwardModel::new(
         model,
-        &dataset,
+        dataset,
         ForceModel::Auto,
         &ForwardSettings::default(),
     )?;
     let drive = pm.excitation(num)?;
     let theta = fwd.theta_from(values, &[drive.force])?;
-    fwd.start_from_data(&dataset);
+    fwd.start_from_data(dataset);
     let (no, nk) = (fwd.n_observations(), fwd.unknowns().len());
     let mut x = vec![Complex64::new(0.0, 0.0); no];
     let mut jac = vec![Complex64::new(0.0, 0.0); no * nk];
@@ -140,6 +209,6 @@ pub(crate) fn measurement_info(
         info,
         fwd,
         theta,
-        dataset,
+        lattice_lines,
     })
 }

@@ -12,9 +12,11 @@
 
 #![warn(missing_docs)]
 
+mod coupled;
 mod design;
 mod evaluate;
 mod info;
+mod level;
 
 pub use design::{design, design_with_progress, DesignSettings, DesignStep};
 pub use evaluate::{evaluate, Evaluation, Finding};
