@@ -188,7 +188,7 @@ fn the_three_tone_coupled_measurement_matches_two_pairs_on_a_smaller_lattice() {
     assert!(2 * l3 < l4, "lattices: 3 tones {l3}, 4 tones {l4}");
 }
 
-/// The shipped five-mode plan (0.1 nm, 30 shots) is what the planner designs, determines every
+/// The shipped five-mode plan (0.1 nm, 30 shots, one point) is what the planner designs, determines every
 /// parameter to better than 10 %, and `simulate --plan` (default settings, truncation check)
 /// accepts it on lattices of at most a few hundred lines.
 #[test]
@@ -196,14 +196,31 @@ fn the_shipped_five_mode_plan_is_designed_cheap_and_determines_everything() {
     let (model, values) = model_values_of("nanostring_5mode");
     let text = std::fs::read_to_string(example_of("nanostring_5mode", "plan.toml")).expect("plan");
     let shipped = Plan::from_toml(&text, "plan.toml").expect("plan parses");
+    // Measured at a tenth of the string: shapes sin(nπ/10), as written by `--point`.
+    let shape = [
+        0.309_016_994_374_947_45,
+        0.587_785_252_292_473_1,
+        0.809_016_994_374_947_5,
+        0.951_056_516_295_153_5,
+        1.0,
+    ]
+    .iter()
+    .enumerate()
+    .map(|(n, &s)| (format!("q{}", n + 1), s))
+    .collect();
     let s = DesignSettings {
         sigma_m: 1e-10,
         shots: 30,
+        points: vec![harmonid_ident::Point {
+            name: "p0".into(),
+            shape,
+        }],
         ..DesignSettings::default()
     };
     let (plan, ev) = design(&model, &values, &s).expect("design");
     assert_eq!(plan.measurements, shipped.measurements);
     assert_eq!(plan.noise, shipped.noise);
+    assert_eq!(plan.points, shipped.points);
     assert!(ev.findings.is_empty(), "{:?}", ev.findings);
     for b in &ev.bounds.quantities {
         assert!(b.rel < 0.1, "{}: {}", b.name, b.rel);
