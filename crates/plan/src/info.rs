@@ -212,3 +212,72 @@ pub(crate) fn info_of(
         lattice_lines,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use harmonid_experiment::PlanNoise;
+
+    /// Keeping some lines of a simulation equals simulating with those lines as `measure_hz`:
+    /// the search relies on it to solve each candidate once.
+    #[test]
+    fn restricting_the_lines_equals_measuring_only_them() {
+        let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("../../examples/nanostring_2mode");
+        let model = harmonid_model::load(&dir.join("model.hb")).expect("model");
+        let values = harmonid_experiment::read_values(&dir.join("values.toml")).expect("values");
+        let num = NumericModel::from_model(&model, &values).expect("numeric");
+        let base = Plan {
+            description: "test".into(),
+            displacement_unit: "m".into(),
+            points: Vec::new(),
+            nominal_hz: Default::default(),
+            noise: PlanNoise {
+                sigma_per_quadrature: 5e-11,
+                shots: 2,
+            },
+            measurements: Vec::new(),
+        };
+        let pm = PlanMeasurement {
+            name: "couple_q1_q2".into(),
+            drives_hz: vec![207582.0, 415838.0, 415846.0],
+            force: [
+                ("q1".to_string(), vec![4.12, 0.0, 0.0]),
+                ("q2".to_string(), vec![0.0, 0.739, 0.739]),
+            ]
+            .into(),
+            phase_rad: Default::default(),
+            measure_hz: None,
+            drive_levels_v: None,
+            drive_phases_rad: None,
+            bandwidth_hz: None,
+        };
+        let (all, lines) = simulate(&num, &base, &pm, Fidelity::Search).expect("simulates");
+        let m = &all.measurements[0];
+        assert!(m.freqs_hz.len() > 8, "{:?}", m.freqs_hz);
+        // Every drive tone (a dataset measures them) and every other line.
+        let keep: Vec<f64> = m
+            .freqs_hz
+            .iter()
+            .enumerate()
+            .filter(|&(i, f)| i % 2 == 0 || pm.drives_hz.iter().any(|d| (d - f).abs() < 1e-6))
+            .map(|(_, &f)| f)
+            .collect();
+        assert!(keep.len() < m.freqs_hz.len());
+        let cut = restrict_lines(&all, &pm, &keep);
+        let only = PlanMeasurement {
+            measure_hz: Some(keep.clone()),
+            ..pm.clone()
+        };
+        let (direct, lines2) = simulate(&num, &base, &only, Fidelity::Search).expect("simulates");
+        assert_eq!(lines, lines2);
+        let (a, b) = (&cut.measurements[0], &direct.measurements[0]);
+        assert_eq!(a.freqs_hz, b.freqs_hz);
+        assert_eq!(a.freqs_hz, keep);
+        let big = b.data.iter().map(|z| z.norm()).fold(0.0, f64::max);
+        for (x, y) in a.data.iter().zip(&b.data) {
+            assert!((x - y).norm() <= 1e-12 * big, "{x} vs {y}");
+        }
+        assert_eq!(cut.manifest.measurements, direct.manifest.measurements);
+    }
+}
