@@ -314,11 +314,17 @@ pub fn design_with_progress(
                 Ok(feasible(simulate(&num, &base, &pm, Fidelity::Search))?.is_some())
             };
             let start = pair_fold_estimate(&num, n, 2.0 * half / kappa).unwrap_or(f_lin);
-            let Some((good, folds)) = strongest(start, f_lin, s.max_force, ok)? else {
+            let Some((good, folds)) = strongest(start, f_lin, s.max_force, &ok)? else {
                 continue;
             };
             // A margin below the fold: the guess is a guess.
             let force = round3(if folds { 0.8 * good } else { good });
+            // The search probed upwards from its first guess: a level reached only past a
+            // region where the ramp fails (a fold the ramp's steps happened to hop over, the
+            // state then on another branch) is not a drive a lab can ramp up to.
+            if !(ok(0.25 * force)? && ok(0.5 * force)?) {
+                continue;
+            }
             let Some((pm, info)) = candidate(measurement(&name, &tones(force), &names))? else {
                 continue;
             };
