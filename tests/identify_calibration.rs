@@ -4,12 +4,15 @@
 //! scatter must be close to harmonid's own Cramér–Rao bound.
 //!
 //! The short version runs in CI; the long one (`--ignored`, ≥ 100 realisations per case) prints
-//! the table the issue asks for.
+//! the table the issue asks for. The noise-free steady states are simulated once per design and
+//! each realisation adds its own seeded noise ([`gen::add_noise`]); every noise level has its
+//! own seeds (with shared seeds the realisations at the three levels are the same draws scaled,
+//! and a chance deviation repeats at every level).
 
 #[path = "roundtrip_support/gen.rs"]
 mod gen;
 
-use gen::{nanostring_2mode_plan, simulate, Design, Values};
+use gen::{add_noise, nanostring_2mode_plan, simulate_clean, Design, Values};
 use harmonid_ident::{identify, Estimate, Report, Settings};
 use std::path::PathBuf;
 
@@ -59,8 +62,9 @@ fn run(
         .iter()
         .map(|(n, x)| (n.clone(), *x, Vec::new(), Vec::new(), Vec::new()))
         .collect();
+    let clean = simulate_clean(model, v, d, shape, shots);
     for r in 0..realisations {
-        let ds = simulate(model, v, d, shape, sigma, shots, seed0 + r);
+        let ds = add_noise(&clean, sigma, seed0 + r);
         let rep = identify(model, &ds, &Settings::default()).expect("identify");
         assert_eq!(rep.estimator, "ml", "{:?}", rep.warnings);
         for q in out.iter_mut() {
@@ -83,8 +87,8 @@ fn run(
 fn table(samples: &Samples, label: &str) -> Vec<(String, f64, f64, f64, f64, f64)> {
     println!("\n{label}");
     println!(
-        "{:<12} {:>12} {:>9} {:>9} {:>14} {:>12}",
-        "quantity", "bias/stderr", "in ±1", "in ±2", "scatter/crlb", "rel. stderr"
+        "{:<12} {:>12} {:>9} {:>9} {:>14} {:>12} {:>14}",
+        "quantity", "bias/stderr", "in ±1", "in ±2", "scatter/crlb", "rel. stderr", "stderr spread"
     );
     let mut rows = Vec::new();
     for (name, truth, est, se, crlb) in samples {
@@ -105,8 +109,11 @@ fn table(samples: &Samples, label: &str) -> Vec<(String, f64, f64, f64, f64, f64
         let mut rel: Vec<f64> = se.iter().map(|s| s / truth.abs()).collect();
         rel.sort_by(f64::total_cmp);
         let rel = rel[rel.len() / 2];
+        // Relative spread of the stderr over the realisations (the bound is evaluated at each
+        // estimate, and the noise of each line estimated from its shots).
+        let spread = (se.iter().map(|s| (s - mse).powi(2)).sum::<f64>() / (n - 1.0)).sqrt() / mse;
         println!(
-            "{name:<12} {bias:>+12.3} {:>8.1}% {:>8.1}% {ratio:>14.3} {rel:>12.2e}",
+            "{name:<12} {bias:>+12.3} {:>8.1}% {:>8.1}% {ratio:>14.3} {rel:>12.2e} {spread:>14.3}",
             100.0 * in1,
             100.0 * in2
         );
@@ -135,29 +142,45 @@ fn two_mode_nanostring_stderrs_cover_the_truth() {
     }
 }
 
+/// Realisations per case of the long calibration: `HARMONID_CALIB_N`, default 1000 (400 for
+/// the five-mode string, 1.2 s each). The issue's tolerances (68 ± 8 %, 95 ± 4 %) are 1.7 and
+/// 1.8 binomial standard errors at its minimum of 100 realisations: an exact estimator would
+/// then miss about one cell in seven of the 75 (quantity, noise level) cells by chance. At 400
+/// they are 3.4 and 3.7 standard errors, at 1000 5.4 and 5.8, and a miss means something.
+fn long_realisations(default: u64) -> u64 {
+    std::env::var("HARMONID_CALIB_N")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(default)
+}
+
 /// Runs one case of the long calibration and adds every missed target to `failures`.
 #[allow(clippy::too_many_arguments)]
 fn long_case(
     model_path: &str,
-    (v, d): (Values, Vec<Design>),
+    (v, d): &(Values, Vec<Design>),
     shape: &[f64],
     sigma: f64,
-    shots: usize,
+    (shots, n): (usize, u64),
     seed0: u64,
     failures: &mut Vec<String>,
 ) {
     let m = model(model_path);
-    let s = run(&m, &v, &d, shape, sigma, shots, 100, seed0);
+    let t0 = std::time::Instant::now();
+    let s = run(&m, v, d, shape, sigma, shots, n, seed0);
     let label = format!(
-        "{model_path}, {:.2} nm, {shots} shots, 100 realisations",
-        sigma * 1e9
+        "{model_path}, {:.2} nm, {shots} shots, {n} realisations ({:.0} s)",
+        sigma * 1e9,
+        t0.elapsed().as_secs_f64()
     );
     for (name, bias, in1, in2, ratio, rel) in table(&s, &label) {
         // A quantity the plan does not determine (harmonid reports it NOT DETERMINED, relative
-        // stderr above 0.3) is listed but not held to the targets: near a bound its estimates
-        // are clipped and its error bar is not a Gaussian one.
+        // stderr above 0.3) would be listed but not held to the targets; the plans here
+        // determine every quantity, so it counts as a miss.
         if rel > harmonid_ident::MAX_REL_STDERR {
-            println!("  {name}: not determined by this plan (median relative stderr {rel:.2}): not held to the targets");
+            failures.push(format!(
+                "{label}: {name} not determined by the plan (median relative stderr {rel:.2})"
+            ));
             continue;
         }
         if bias.abs() >= 0.3
@@ -172,51 +195,65 @@ fn long_case(
     }
 }
 
+/// The long calibration: the four models at 0.01, 0.05 and 0.1 nm, each noise level with its
+/// own seeds. `HARMONID_CALIB_ONLY=two_mode|five_mode|three_wave|cubic` runs one model.
 #[test]
 #[ignore = "long Monte Carlo (minutes); run with --ignored --nocapture"]
 fn calibration_long() {
+    let only = std::env::var("HARMONID_CALIB_ONLY").ok();
+    let want = |k: &str| only.as_deref().is_none_or(|o| o == k);
     let mut failures = Vec::new();
-    for sigma in [1e-11, 5e-11, 1e-10] {
-        long_case(
+    type Case = (
+        &'static str,
+        &'static str,
+        (Values, Vec<Design>),
+        Vec<f64>,
+        usize,
+        u64,
+    );
+    let cases: Vec<Case> = vec![
+        (
+            "two_mode",
             "examples/nanostring_2mode/model.hb",
-            nanostring_2mode_plan(),
-            &[0.309, 0.588],
-            sigma,
+            gen::nanostring_2mode_fold_plan(),
+            vec![0.309, 0.588],
             20,
             5000,
-            &mut failures,
-        );
-    }
-    for sigma in [1e-11, 5e-11, 1e-10] {
-        long_case(
+        ),
+        (
+            "five_mode",
             "examples/nanostring_5mode/model.hb",
-            gen::nanostring_5mode_plan(),
-            &gen::NANOSTRING_SHAPE,
-            sigma,
+            gen::nanostring_5mode_fold_plan(),
+            gen::NANOSTRING_SHAPE.to_vec(),
             30,
             9000,
-            &mut failures,
-        );
-    }
-    for sigma in [1e-11, 5e-11, 1e-10] {
-        long_case(
+        ),
+        (
+            "three_wave",
             "examples/three_wave/model.hb",
             three_wave_plan(),
-            &[0.5, 0.5, 0.5],
-            sigma,
+            vec![0.5; 3],
             20,
             13000,
-            &mut failures,
-        );
-        long_case(
+        ),
+        (
+            "cubic",
             "examples/cubic_3mode/model.hb",
             cubic_3mode_plan(),
-            &[0.5, 0.5, 0.5],
-            sigma,
+            vec![0.5; 3],
             20,
             17000,
-            &mut failures,
-        );
+        ),
+    ];
+    for (key, path, plan, shape, shots, seed0) in &cases {
+        if !want(key) {
+            continue;
+        }
+        for (i, sigma) in [1e-11, 5e-11, 1e-10].into_iter().enumerate() {
+            let seed = seed0 + 100_000 * i as u64;
+            let n = long_realisations(if *key == "five_mode" { 400 } else { 1000 });
+            long_case(path, plan, shape, sigma, (*shots, n), seed, &mut failures);
+        }
     }
     assert!(
         failures.is_empty(),
@@ -306,5 +343,56 @@ fn three_mode_stderrs_cover_the_truth() {
             );
             assert!(in2 >= 0.75, "{name}: {in2:.2} within ±2 stderr");
         }
+    }
+}
+
+/// Relative Cramér–Rao bounds of every quantity of the five-mode string at its truth, 0.1 nm
+/// and 30 shots, for a plan.
+fn five_mode_bounds((v, d): &(Values, Vec<Design>)) -> Vec<(String, f64)> {
+    let m = model("examples/nanostring_5mode/model.hb");
+    let names: Vec<String> = m.modes.iter().map(|x| x.name.clone()).collect();
+    let clean = simulate_clean(&m, v, d, &gen::NANOSTRING_SHAPE, 1);
+    let mut fwd = harmonid_ident::ForwardModel::new(
+        &m,
+        &clean,
+        harmonid_ident::ForceModel::GainPerMeasurement,
+        &harmonid_ident::ForwardSettings::default(),
+    )
+    .expect("forward model");
+    let theta = fwd
+        .theta_from(
+            &gen::model_values(&m, v),
+            &gen::truth_forces(&clean, &names),
+        )
+        .expect("truth");
+    fwd.start_from_data(&clean);
+    let b = harmonid_ident::crlb(&mut fwd, &theta, &harmonid_ident::Noise::Uniform(1e-10), 30)
+        .expect("bounds");
+    assert!(b.unidentifiable.is_empty(), "{:?}", b.unidentifiable);
+    b.quantities
+        .iter()
+        .map(|q| (q.name.clone(), q.rel))
+        .collect()
+}
+
+/// The five-mode calibration needs a plan that determines every parameter at every noise
+/// level: with 3.5 N/kg on every mode, β4, β5 and the couplings among q3–q5 are known to
+/// 30 % or worse at 0.1 nm (β5 not even in sign), their estimates are clipped at `g ≥ 0` or wander
+/// into the nonlinear range of the model, and f5, which they shift, scattered 1.36× its
+/// bound at 0.1 nm (1.48× for an unbounded fit with the true noise). The fold-scaled plan
+/// determines every quantity to 15 % or better.
+#[test]
+fn five_mode_fold_plan_determines_every_parameter() {
+    let weak = five_mode_bounds(&gen::nanostring_5mode_plan());
+    let loose: Vec<&str> = weak
+        .iter()
+        .filter(|(_, r)| *r > harmonid_ident::MAX_REL_STDERR)
+        .map(|(n, _)| n.as_str())
+        .collect();
+    for p in ["beta4", "beta5", "g34", "g35", "g45"] {
+        assert!(loose.contains(&p), "{p}: {weak:?}");
+    }
+    for (name, rel) in five_mode_bounds(&gen::nanostring_5mode_fold_plan()) {
+        assert!(rel < 0.15, "{name}: relative bound {rel:.3}");
     }
 }

@@ -6,7 +6,7 @@
 use harmonid_experiment::{Plan, PlanMeasurement, PlanNoise, Settings};
 use harmonid_ident::{Dataset, Measurement, Point};
 use harmonid_model::Model;
-use harmonid_sim::{ModeValues, ModelValues};
+use harmonid_sim::{ModeValues, ModelValues, NoiseGen};
 use std::collections::BTreeMap;
 
 /// One designed measurement: tones as (frequency Hz, mode index, force N/kg).
@@ -82,6 +82,7 @@ pub fn model_values(model: &Model, v: &Values) -> ModelValues {
 /// `shots` shots of Gaussian noise `sigma` per quadrature (m). Kept per measurement: the drive
 /// tones and the default lines near the resonance of a driven or observed mode whose amplitude
 /// exceeds 1e-7 of the measurement's largest (the sideband clusters a lock-in would record).
+/// The same as [`add_noise`] on [`simulate_clean`] (the noise realisation differs).
 pub fn simulate(
     model: &Model,
     v: &Values,
@@ -91,8 +92,25 @@ pub fn simulate(
     shots: usize,
     seed: u64,
 ) -> Dataset {
-    let settings = Settings {
+    add_noise(
+        &simulate_clean(model, v, designs, shape, shots),
+        sigma,
         seed,
+    )
+}
+
+/// [`simulate`] without noise: every shot is the noise-free steady state (the truth's noise
+/// is 0). The steady state does not depend on the noise, so a Monte Carlo simulates it once
+/// and draws each realisation by [`add_noise`].
+pub fn simulate_clean(
+    model: &Model,
+    v: &Values,
+    designs: &[Design],
+    shape: &[f64],
+    shots: usize,
+) -> Dataset {
+    let settings = Settings {
+        noise: false,
         min_line_rel: 1e-7,
         ..Settings::default()
     };
@@ -110,7 +128,7 @@ pub fn simulate(
             .map(|(n, name)| (name.clone(), model.modes[n].nominal_hz.unwrap_or(v.f_hz[n])))
             .collect(),
         noise: PlanNoise {
-            sigma_per_quadrature: sigma,
+            sigma_per_quadrature: 1e-12,
             shots,
         },
         measurements: designs
@@ -147,23 +165,42 @@ pub fn simulate(
                 .chain(d.observe.iter().copied())
                 .any(|n| (f - v.f_hz[n]).abs() <= 0.005 * v.f_hz[n])
         };
-        let keep: Vec<usize> = (0..m.freqs_hz.len())
-            .filter(|&f| near(m.freqs_hz[f]))
-            .collect();
-        let mut kept = Measurement::zeros(
-            m.spec.clone(),
-            keep.iter().map(|&f| m.freqs_hz[f]).collect(),
-            m.points.clone(),
-            m.n_shots,
-        );
-        for s in 0..m.n_shots {
-            for (k, &f) in keep.iter().enumerate() {
-                for p in 0..m.points.len() {
-                    *kept.amplitude_mut(s, k, p) = m.amplitude(s, f, p);
-                }
+        keep_lines(m, near);
+    }
+    ds
+}
+
+/// Keeps the measured frequencies `keep` says yes to (every shot and point).
+pub fn keep_lines(m: &mut Measurement, keep: impl Fn(f64) -> bool) {
+    let idx: Vec<usize> = (0..m.freqs_hz.len())
+        .filter(|&f| keep(m.freqs_hz[f]))
+        .collect();
+    let mut kept = Measurement::zeros(
+        m.spec.clone(),
+        idx.iter().map(|&f| m.freqs_hz[f]).collect(),
+        m.points.clone(),
+        m.n_shots,
+    );
+    for s in 0..m.n_shots {
+        for (k, &f) in idx.iter().enumerate() {
+            for p in 0..m.points.len() {
+                *kept.amplitude_mut(s, k, p) = m.amplitude(s, f, p);
             }
         }
-        *m = kept;
+    }
+    *m = kept;
+}
+
+/// `clean` with independent Gaussian noise `sigma` (m) on the real and imaginary part of every
+/// amplitude of every shot (seeded; the truth's noise set to `sigma`).
+pub fn add_noise(clean: &Dataset, sigma: f64, seed: u64) -> Dataset {
+    let mut ds = clean.clone();
+    let mut gen = NoiseGen::new(seed);
+    for m in &mut ds.measurements {
+        harmonid_experiment::add_noise(m, sigma, &mut gen);
+    }
+    if let Some(n) = ds.truth.as_mut().and_then(|t| t.noise.as_mut()) {
+        n.sigma_per_quadrature = sigma;
     }
     ds
 }
@@ -210,9 +247,46 @@ pub fn nanostring_2mode_plan() -> (Values, Vec<Design>) {
     (v, d)
 }
 
+/// The two-mode nanostring's values with a plan that determines every parameter at 0.1 nm and
+/// 20 shots: tone pairs 5.5 linewidths either side of each resonance ([`designs`]) and the
+/// pair on q1 with one tone on q2, mode 2 driven with 0.8 N/kg (close to its fold: 1.2 N/kg
+/// is unstable). The paper's plan ([`nanostring_2mode_plan`]) drives mode 2 14 linewidths off
+/// resonance, where β2 is only known to 45 % at 0.1 nm (relative Cramér–Rao bound with 20
+/// shots; this plan: 12 %).
+pub fn nanostring_2mode_fold_plan() -> (Values, Vec<Design>) {
+    let (v, _) = nanostring_2mode_plan();
+    let names: Vec<String> = (1..=2).map(|n| format!("q{n}")).collect();
+    let d = designs(&v, &names, &[3.5, 0.8], 5.5, &[(0, 1)]);
+    (v, d)
+}
+
 /// Values and the 15-measurement drive plan (5 single, 10 pairs) for the five-mode nanostring
-/// example: Duffing terms scaling as n⁴ (tension), couplings as n²m².
+/// example: Duffing terms scaling as n⁴ (tension), couplings as n²m²; 3.5 N/kg on every
+/// mode, which determines β3–β5 and the couplings among q3–q5 poorly (the higher modes are
+/// stiffer and respond less).
 pub fn nanostring_5mode_plan() -> (Values, Vec<Design>) {
+    let v = nanostring_5mode_values();
+    let d = nanostring_5mode_designs(&v, &[3.5; 5]);
+    (v, d)
+}
+
+/// The plan of [`nanostring_5mode_plan`] with each mode's force scaled to the same fraction of
+/// its fold as mode 1's 3.5 N/kg: the fold of a Duffing resonance is reached at a force
+/// `∝ ω³/(Q^{3/2} √β)`, here `∝ n / Q_n^{3/2}`, so `F_n = 3.5 · n · (Q_1/Q_n)^{3/2}` N/kg
+/// (3.5 to 41.8). Every parameter is determined (relative Cramér–Rao bound at most 0.14 at
+/// 0.1 nm and 30 shots, g45); 30 % more force makes a steady state unstable.
+pub fn nanostring_5mode_fold_plan() -> (Values, Vec<Design>) {
+    let v = nanostring_5mode_values();
+    let force: Vec<f64> = (0..5)
+        .map(|n| 3.5 * (n as f64 + 1.0) * (v.q[0] / v.q[n]).powf(1.5))
+        .collect();
+    let d = nanostring_5mode_designs(&v, &force);
+    (v, d)
+}
+
+/// The five-mode nanostring's values: Duffing terms scaling as n⁴ (tension), couplings as
+/// n²m².
+fn nanostring_5mode_values() -> Values {
     let f1 = 207582.0;
     let f_hz: Vec<f64> = [1.0, 2.0033, 3.0075, 4.0139, 5.0226]
         .iter()
@@ -232,16 +306,45 @@ pub fn nanostring_5mode_plan() -> (Values, Vec<Design>) {
             );
         }
     }
-    let v = Values { f_hz, q, params };
+    Values { f_hz, q, params }
+}
+
+/// One two-tone measurement per mode and one three-tone measurement per pair, with `force`
+/// (N/kg) per mode ([`designs`], tones 5.5 linewidths off resonance).
+fn nanostring_5mode_designs(v: &Values, force: &[f64]) -> Vec<Design> {
     let names: Vec<String> = (1..=5).map(|n| format!("q{n}")).collect();
-    // Forces so that each mode's drive-tone response is ~ the same fraction of its fold.
-    let force: Vec<f64> = (1..=5).map(|n| 3.5 / f64::from(n).powi(0)).collect();
     let mut pairs = Vec::new();
     for n in 0..5 {
         for m in n + 1..5 {
             pairs.push((n, m));
         }
     }
-    let d = designs(&v, &names, &force, 5.5, &pairs);
-    (v, d)
+    designs(v, &names, force, 5.5, &pairs)
+}
+
+/// The true forces of a simulated dataset per measurement, mode and tone (N/kg, complex;
+/// the layout of `ForwardModel::theta_from`).
+pub fn truth_forces(ds: &Dataset, modes: &[String]) -> Vec<Vec<Vec<num_complex::Complex64>>> {
+    let truth = ds
+        .truth
+        .as_ref()
+        .expect("a simulated dataset has its truth");
+    ds.measurements
+        .iter()
+        .map(|m| {
+            let per_mode = &truth.forces[&m.spec.name];
+            modes
+                .iter()
+                .map(|n| match per_mode.get(n) {
+                    Some(f) => f
+                        .amplitude
+                        .iter()
+                        .zip(&f.phase_rad)
+                        .map(|(&a, &p)| num_complex::Complex64::from_polar(a, p))
+                        .collect(),
+                    None => vec![num_complex::Complex64::new(0.0, 0.0); m.spec.drives_hz.len()],
+                })
+                .collect()
+        })
+        .collect()
 }
