@@ -175,20 +175,7 @@ pub fn keep_lines(m: &mut Measurement, keep: impl Fn(f64) -> bool) {
     let idx: Vec<usize> = (0..m.freqs_hz.len())
         .filter(|&f| keep(m.freqs_hz[f]))
         .collect();
-    let mut kept = Measurement::zeros(
-        m.spec.clone(),
-        idx.iter().map(|&f| m.freqs_hz[f]).collect(),
-        m.points.clone(),
-        m.n_shots,
-    );
-    for s in 0..m.n_shots {
-        for (k, &f) in idx.iter().enumerate() {
-            for p in 0..m.points.len() {
-                *kept.amplitude_mut(s, k, p) = m.amplitude(s, f, p);
-            }
-        }
-    }
-    *m = kept;
+    *m = m.select_lines(m.spec.clone(), &idx);
 }
 
 /// `clean` with independent Gaussian noise `sigma` (m) on the real and imaginary part of every

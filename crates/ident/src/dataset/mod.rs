@@ -386,6 +386,25 @@ impl Measurement {
         }
     }
 
+    /// The measurement with only the measured frequencies `freq_idx` (indices into
+    /// `freqs_hz`, in the order given), every shot and point, under `spec`.
+    pub fn select_lines(&self, spec: MeasurementSpec, freq_idx: &[usize]) -> Measurement {
+        let mut out = Measurement::zeros(
+            spec,
+            freq_idx.iter().map(|&f| self.freqs_hz[f]).collect(),
+            self.points.clone(),
+            self.n_shots,
+        );
+        for s in 0..self.n_shots {
+            for (k, &f) in freq_idx.iter().enumerate() {
+                for p in 0..self.points.len() {
+                    *out.amplitude_mut(s, k, p) = self.amplitude(s, f, p);
+                }
+            }
+        }
+        out
+    }
+
     /// Index of the measured frequency matching `hz` (relative tolerance [`FREQ_REL_TOL`]).
     pub fn freq_index(&self, hz: f64) -> Option<usize> {
         self.freqs_hz

@@ -416,3 +416,28 @@ fn million_rows_stream_in_bounded_memory() {
     eprintln!("peak memory above the start: {per_row:.1} bytes per row");
     assert!(per_row <= 100.0, "{per_row} bytes per row");
 }
+
+#[test]
+fn select_lines_keeps_every_shot_and_point_of_the_chosen_lines() {
+    let spec = MeasurementSpec {
+        name: "m".into(),
+        file: None,
+        drives_hz: vec![10.0],
+        drive_levels_v: None,
+        drive_phases_rad: None,
+        bandwidth_hz: None,
+    };
+    let mut m = Measurement::zeros(spec.clone(), vec![10.0, 20.0, 30.0], vec![0, 1], 2);
+    for s in 0..2 {
+        for f in 0..3 {
+            for p in 0..2 {
+                *m.amplitude_mut(s, f, p) = Complex64::new((100 * s + 10 * f + p) as f64, 1.0);
+            }
+        }
+    }
+    let r = m.select_lines(spec, &[2, 0]);
+    assert_eq!(r.freqs_hz, vec![30.0, 10.0]);
+    assert_eq!((r.n_shots, r.points.clone()), (2, vec![0, 1]));
+    assert_eq!(r.amplitude(1, 0, 1), Complex64::new(121.0, 1.0));
+    assert_eq!(r.amplitude(0, 1, 0), Complex64::new(0.0, 1.0));
+}
