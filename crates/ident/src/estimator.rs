@@ -743,14 +743,7 @@ mod tests {
     use crate::dataset::{Manifest, Measurement, MeasurementSpec};
 
     fn measurement(name: &str, lines: usize, shots: usize) -> Measurement {
-        let spec = MeasurementSpec {
-            name: name.into(),
-            file: None,
-            drives_hz: vec![1000.0],
-            drive_levels_v: None,
-            drive_phases_rad: None,
-            bandwidth_hz: None,
-        };
+        let spec = MeasurementSpec::new(name, vec![1000.0]);
         let freqs = (0..lines).map(|k| 1000.0 + 10.0 * k as f64).collect();
         Measurement::zeros(spec, freqs, vec![], shots)
     }

@@ -226,14 +226,7 @@ mod tests {
     #[test]
     fn pooling_averages_kept_shots_and_measures_their_noise() {
         use crate::dataset::{Manifest, Measurement, MeasurementSpec};
-        let spec = MeasurementSpec {
-            name: "m".into(),
-            file: None,
-            drives_hz: vec![10.0],
-            drive_levels_v: None,
-            drive_phases_rad: None,
-            bandwidth_hz: None,
-        };
+        let spec = MeasurementSpec::new("m", vec![10.0]);
         let s = shots(400, 3, 0.2, 9);
         let mut m = Measurement::zeros(spec.clone(), vec![10.0, 11.0, 12.0], vec![], 400);
         for (k, shot) in s.iter().enumerate() {

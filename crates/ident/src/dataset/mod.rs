@@ -205,6 +205,19 @@ pub struct MeasurementSpec {
 }
 
 impl MeasurementSpec {
+    /// A measurement called `name` driven at `drives_hz` (Hz), without drive levels, phases,
+    /// file name or bandwidth (for generators and tests).
+    pub fn new(name: impl Into<String>, drives_hz: Vec<f64>) -> Self {
+        MeasurementSpec {
+            name: name.into(),
+            file: None,
+            drives_hz,
+            drive_levels_v: None,
+            drive_phases_rad: None,
+            bandwidth_hz: None,
+        }
+    }
+
     /// The CSV file name relative to the dataset folder.
     pub fn file_name(&self) -> String {
         self.file

@@ -419,14 +419,7 @@ fn million_rows_stream_in_bounded_memory() {
 
 #[test]
 fn select_lines_keeps_every_shot_and_point_of_the_chosen_lines() {
-    let spec = MeasurementSpec {
-        name: "m".into(),
-        file: None,
-        drives_hz: vec![10.0],
-        drive_levels_v: None,
-        drive_phases_rad: None,
-        bandwidth_hz: None,
-    };
+    let spec = MeasurementSpec::new("m", vec![10.0]);
     let mut m = Measurement::zeros(spec.clone(), vec![10.0, 20.0, 30.0], vec![0, 1], 2);
     for s in 0..2 {
         for f in 0..3 {
