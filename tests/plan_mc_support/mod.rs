@@ -36,23 +36,14 @@ pub struct Case {
     pub shots: usize,
     /// The plan.
     pub source: Source,
-    /// Simulate a measurement whose spectrum cannot be shown converged (the widened lattice
-    /// too large to solve) at the starting order, as `simulate --allow-truncation` does; the
-    /// planner's bounds are computed at that order too.
-    pub allow_truncation: bool,
 }
 
-impl Case {
-    /// The settings of `harmonid simulate --plan --seed seed` (with `--allow-truncation` when
-    /// the case allows it), with or without the noise.
-    pub fn settings(&self, seed: u64, noise: bool) -> Settings {
-        let mut s = Settings {
-            seed,
-            noise,
-            ..Settings::default()
-        };
-        s.truncation.required = !self.allow_truncation;
-        s
+/// The settings of `harmonid simulate --plan --seed seed`, with or without the noise.
+pub fn settings(seed: u64, noise: bool) -> Settings {
+    Settings {
+        seed,
+        noise,
+        ..Settings::default()
     }
 }
 
@@ -118,7 +109,7 @@ pub fn prepare(case: &Case) -> Prepared {
     let eval =
         evaluate(&model, &values, &plan, plan.sigma_m(), plan.noise.shots).expect("evaluate");
     let sim = plan
-        .simulate(&model, &values, &case.settings(0, false))
+        .simulate(&model, &values, &settings(0, false))
         .expect("the plan simulates");
     for r in &sim.reports {
         for note in &r.notes {
