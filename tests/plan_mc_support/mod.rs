@@ -157,6 +157,8 @@ pub struct Samples {
     pub bound: f64,
     pub values: Vec<f64>,
     pub stderrs: Vec<f64>,
+    /// The seed of each realisation.
+    pub seeds: Vec<u64>,
     /// Realisations in which identify did not determine it (not identifiable, or relative
     /// stderr above `MAX_REL_STDERR`).
     pub undetermined: usize,
@@ -205,6 +207,7 @@ pub fn run(p: &Prepared, seed0: u64, n: u64) -> Vec<Samples> {
             bound: b.std,
             values: Vec::new(),
             stderrs: Vec::new(),
+            seeds: Vec::new(),
             undetermined: 0,
         })
         .collect();
@@ -227,6 +230,7 @@ pub fn run(p: &Prepared, seed0: u64, n: u64) -> Vec<Samples> {
             }
             s.values.push(e.value);
             s.stderrs.push(e.stderr);
+            s.seeds.push(seed);
         }
     }
     out
@@ -239,8 +243,13 @@ pub struct Row {
     pub bound_rel: f64,
     /// Actual scatter (sample std of the estimates) over the planner's bound.
     pub scatter_over_bound: f64,
+    /// Robust scatter (interquartile range / 1.349, the std of a normal distribution) over the
+    /// planner's bound: near `scatter_over_bound` unless a few realisations are far out.
+    pub robust_over_bound: f64,
     /// (mean − truth) / scatter.
     pub bias_over_scatter: f64,
+    /// The largest |estimate − truth| / stderr over the realisations, and its seed.
+    pub worst: (f64, u64),
     /// Share of realisations with the truth within ±1 and ±2 reported stderr.
     pub in1: f64,
     pub in2: f64,
@@ -251,17 +260,19 @@ pub struct Row {
 pub fn table(samples: &[Samples], label: &str) -> Vec<Row> {
     println!("\n{label}");
     println!(
-        "{:<10} {:>10} {:>11} {:>11} {:>11} {:>8} {:>7} {:>6} {:>6} {:>5}",
+        "{:<10} {:>10} {:>11} {:>11} {:>11} {:>8} {:>8} {:>7} {:>6} {:>6} {:>5} {:>13}",
         "quantity",
         "bound rel",
         "bound",
         "mean stderr",
         "scatter",
         "sc/bnd",
+        "rob/bnd",
         "bias/sc",
         "in ±1",
         "in ±2",
-        "undet"
+        "undet",
+        "worst z, seed"
     );
     let mut rows = Vec::new();
     for s in samples {
@@ -277,27 +288,47 @@ pub fn table(samples: &[Samples], label: &str) -> Vec<Row> {
                 .count() as f64
                 / n
         };
+        let mut sorted = s.values.clone();
+        sorted.sort_by(f64::total_cmp);
+        let quantile = |q: f64| {
+            let x = q * (sorted.len() - 1) as f64;
+            let (i, t) = (x.floor() as usize, x.fract());
+            sorted[i] + t * (sorted[(i + 1).min(sorted.len() - 1)] - sorted[i])
+        };
+        let robust = (quantile(0.75) - quantile(0.25)) / 1.349;
+        let worst = s
+            .values
+            .iter()
+            .zip(&s.stderrs)
+            .zip(&s.seeds)
+            .map(|((x, e), &seed)| ((x - s.truth).abs() / e, seed))
+            .fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a });
         let row = Row {
             name: s.name.clone(),
             bound_rel: s.bound / s.truth.abs(),
             scatter_over_bound: scatter / s.bound,
+            robust_over_bound: robust / s.bound,
+            worst,
             bias_over_scatter: (mean - s.truth) / scatter,
             in1: within(1.0),
             in2: within(2.0),
             undetermined: s.undetermined,
         };
         println!(
-            "{:<10} {:>10.3e} {:>11.3e} {:>11.3e} {:>11.3e} {:>8.3} {:>+7.2} {:>5.0}% {:>5.0}% {:>5}",
+            "{:<10} {:>10.3e} {:>11.3e} {:>11.3e} {:>11.3e} {:>8.3} {:>8.3} {:>+7.2} {:>5.0}% {:>5.0}% {:>5} {:>5.1} {:>7}",
             row.name,
             row.bound_rel,
             s.bound,
             mse,
             scatter,
             row.scatter_over_bound,
+            row.robust_over_bound,
             row.bias_over_scatter,
             100.0 * row.in1,
             100.0 * row.in2,
-            row.undetermined
+            row.undetermined,
+            row.worst.0,
+            row.worst.1
         );
         rows.push(row);
     }
