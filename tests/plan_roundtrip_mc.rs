@@ -186,6 +186,6 @@ fn plan_roundtrip_long_cubic_3mode() {
 fn plan_roundtrip_long_five_mode() {
     // 400 seeds: 25 quantities, some with a scatter 5–10 % above the bound (Q of q4, g34),
     // where 100 seeds cannot tell 1.1 from 1.2 (seeds 40000–40099 alone put g34 at 1.25 and
-    // Q4 at 1.22; all 400 at 1.075 and 1.106, the sampling error then 3.5 %).
+    // Q4 at 1.20; all 400 at 1.071 and 1.111, the sampling error then 3.5 %).
     long_case(five_mode(), 40_000, 400);
 }
