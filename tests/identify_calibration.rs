@@ -45,14 +45,12 @@ fn get<'a>(r: &'a Report, name: &str) -> &'a Estimate {
     }
 }
 
-#[allow(clippy::too_many_arguments)]
+/// Identifies `realisations` noisy copies of `clean` (seeded noise `sigma`, m per quadrature).
 fn run(
     model: &harmonid_model::Model,
     v: &Values,
-    d: &[Design],
-    shape: &[f64],
+    clean: &harmonid_ident::Dataset,
     sigma: f64,
-    shots: usize,
     realisations: u64,
     seed0: u64,
 ) -> Samples {
@@ -62,9 +60,8 @@ fn run(
         .iter()
         .map(|(n, x)| (n.clone(), *x, Vec::new(), Vec::new(), Vec::new()))
         .collect();
-    let clean = simulate_clean(model, v, d, shape, shots);
     for r in 0..realisations {
-        let ds = add_noise(&clean, sigma, seed0 + r);
+        let ds = add_noise(clean, sigma, seed0 + r);
         let rep = identify(model, &ds, &Settings::default()).expect("identify");
         assert_eq!(rep.estimator, "ml", "{:?}", rep.warnings);
         for q in out.iter_mut() {
@@ -126,7 +123,8 @@ fn table(samples: &Samples, label: &str) -> Vec<(String, f64, f64, f64, f64, f64
 fn two_mode_nanostring_stderrs_cover_the_truth() {
     let m = model("examples/nanostring_2mode/model.hb");
     let (v, d) = nanostring_2mode_plan();
-    let s = run(&m, &v, &d, &[0.309, 0.588], 5e-11, 10, 24, 1000);
+    let clean = simulate_clean(&m, &v, &d, &[0.309, 0.588], 10);
+    let s = run(&m, &v, &clean, 5e-11, 24, 1000);
     let rows = table(
         &s,
         "two-mode nanostring, 0.05 nm, 10 shots, 24 realisations",
@@ -155,22 +153,21 @@ fn long_realisations(default: u64) -> u64 {
 }
 
 /// Runs one case of the long calibration and adds every missed target to `failures`.
-#[allow(clippy::too_many_arguments)]
 fn long_case(
     model_path: &str,
-    (v, d): &(Values, Vec<Design>),
-    shape: &[f64],
+    (v, clean): &(Values, harmonid_ident::Dataset),
     sigma: f64,
-    (shots, n): (usize, u64),
+    n: u64,
     seed0: u64,
     failures: &mut Vec<String>,
 ) {
     let m = model(model_path);
     let t0 = std::time::Instant::now();
-    let s = run(&m, v, d, shape, sigma, shots, n, seed0);
+    let s = run(&m, v, clean, sigma, n, seed0);
     let label = format!(
-        "{model_path}, {:.2} nm, {shots} shots, {n} realisations ({:.0} s)",
+        "{model_path}, {:.2} nm, {} shots, {n} realisations ({:.0} s)",
         sigma * 1e9,
+        clean.measurements[0].n_shots,
         t0.elapsed().as_secs_f64()
     );
     for (name, bias, in1, in2, ratio, rel) in table(&s, &label) {
@@ -203,56 +200,69 @@ fn calibration_long() {
     let only = std::env::var("HARMONID_CALIB_ONLY").ok();
     let want = |k: &str| only.as_deref().is_none_or(|o| o == k);
     let mut failures = Vec::new();
-    type Case = (
-        &'static str,
-        &'static str,
-        (Values, Vec<Design>),
-        Vec<f64>,
-        usize,
-        u64,
-    );
-    let cases: Vec<Case> = vec![
+    let hand = |path: &str, (v, d): (Values, Vec<Design>), shape: &[f64], shots| {
+        let clean = simulate_clean(&model(path), &v, &d, shape, shots);
+        (v, clean)
+    };
+    // The five-mode string: the hand-made fold-scaled plan (30 shots), or with
+    // `HARMONID_CALIB_FIVE=designed` the designed `examples/nanostring_5mode/plan.toml`. The
+    // designed plan drives closer to the folds: at the pooled linear estimate the harmonic
+    // balance of "couple_q1_q2" often has no steady state, and the fit from the fall-back
+    // start can end in another minimum (f1 off by 0.4 Hz on noise-free data); not yet
+    // calibrated (docs/identification.md).
+    let five = |path: &str| {
+        if std::env::var("HARMONID_CALIB_FIVE").is_ok_and(|x| x == "designed") {
+            let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples/nanostring_5mode");
+            gen::simulate_plan_file(&model(path), &dir, 30)
+        } else {
+            hand(
+                path,
+                gen::nanostring_5mode_fold_plan(),
+                &gen::NANOSTRING_SHAPE,
+                30,
+            )
+        }
+    };
+    type Prepare<'a> = Box<dyn Fn(&str) -> (Values, harmonid_ident::Dataset) + 'a>;
+    let cases: Vec<(&str, &str, Prepare, u64, u64)> = vec![
         (
             "two_mode",
             "examples/nanostring_2mode/model.hb",
-            gen::nanostring_2mode_fold_plan(),
-            vec![0.309, 0.588],
-            20,
+            Box::new(|p: &str| hand(p, gen::nanostring_2mode_fold_plan(), &[0.309, 0.588], 20)),
+            1000,
             5000,
         ),
         (
             "five_mode",
             "examples/nanostring_5mode/model.hb",
-            gen::nanostring_5mode_fold_plan(),
-            gen::NANOSTRING_SHAPE.to_vec(),
-            30,
+            Box::new(five),
+            400,
             9000,
         ),
         (
             "three_wave",
             "examples/three_wave/model.hb",
-            three_wave_plan(),
-            vec![0.5; 3],
-            20,
+            Box::new(|p: &str| hand(p, three_wave_plan(), &[0.5; 3], 20)),
+            1000,
             13000,
         ),
         (
             "cubic",
             "examples/cubic_3mode/model.hb",
-            cubic_3mode_plan(),
-            vec![0.5; 3],
-            20,
+            Box::new(|p: &str| hand(p, cubic_3mode_plan(), &[0.5; 3], 20)),
+            1000,
             17000,
         ),
     ];
-    for (key, path, plan, shape, shots, seed0) in &cases {
+    for (key, path, prepare, n, seed0) in &cases {
         if !want(key) {
             continue;
         }
+        let case = prepare(path);
         for (i, sigma) in [1e-11, 5e-11, 1e-10].into_iter().enumerate() {
             let seed = seed0 + 100_000 * i as u64;
-            let n = long_realisations(if *key == "five_mode" { 400 } else { 1000 });
-            long_case(path, plan, shape, sigma, (*shots, n), seed, &mut failures);
+            let n = long_realisations(*n);
+            long_case(path, &case, sigma, n, seed, &mut failures);
         }
     }
     assert!(
@@ -328,7 +338,8 @@ fn three_mode_stderrs_cover_the_truth() {
         ("examples/cubic_3mode/model.hb", cubic_3mode_plan(), 400),
     ] {
         let m = model(path);
-        let s = run(&m, &v, &d, &[0.5, 0.5, 0.5], 5e-11, 20, 16, seed0);
+        let clean = simulate_clean(&m, &v, &d, &[0.5, 0.5, 0.5], 20);
+        let s = run(&m, &v, &clean, 5e-11, 16, seed0);
         for (name, bias, in1, in2, _, rel) in
             table(&s, &format!("{path}, 0.05 nm, 20 shots, 16 realisations"))
         {

@@ -335,3 +335,37 @@ pub fn truth_forces(ds: &Dataset, modes: &[String]) -> Vec<Vec<Vec<num_complex::
         })
         .collect()
 }
+
+/// A committed plan and its values (`plan.toml` and `values.toml` in `dir`), simulated by
+/// the experiment layer without noise, `shots` identical shots per measurement (the plan's
+/// own lines, `measure_hz`); the values as [`Values`] in the model's mode order.
+pub fn simulate_plan_file(model: &Model, dir: &std::path::Path, shots: usize) -> (Values, Dataset) {
+    let text = std::fs::read_to_string(dir.join("plan.toml")).expect("plan.toml");
+    let mut plan = Plan::from_toml(&text, "plan.toml").unwrap_or_else(|e| panic!("{e}"));
+    plan.noise.shots = shots;
+    let mv = harmonid_experiment::read_values(&dir.join("values.toml"))
+        .unwrap_or_else(|e| panic!("{e}"));
+    let settings = Settings {
+        noise: false,
+        ..Settings::default()
+    };
+    let ds = plan
+        .simulate(model, &mv, &settings)
+        .unwrap_or_else(|e| panic!("{e}"))
+        .dataset;
+    let mode = |name: &str| mv.modes.get(name).copied().unwrap_or_default();
+    let v = Values {
+        f_hz: model
+            .modes
+            .iter()
+            .map(|m| mode(&m.name).f_hz.expect("f_hz in values.toml"))
+            .collect(),
+        q: model
+            .modes
+            .iter()
+            .map(|m| mode(&m.name).q.expect("Q in values.toml"))
+            .collect(),
+        params: mv.parameters.clone(),
+    };
+    (v, ds)
+}
