@@ -42,6 +42,10 @@ const RAMP_MAX_TONES: usize = 8;
 /// A ramp step this small (fraction of the full drive) that still fails marks a fold in the
 /// drive: the branch ends and the state jumps (see [`HbSolver::land`]).
 const FOLD_STEP: f64 = 1e-4;
+/// A converged ramp step continues the branch only if Newton moved the state at most this many
+/// times as far from the tangent predictor as the predictor moved it from the last state, and
+/// the tangent changed its size by at most this factor (see [`HbSolver::continues_branch`]).
+const BRANCH_CORRECTION: f64 = 2.0;
 /// Most pseudo-time steps of a landing.
 const LAND_MAX_STEPS: usize = 400;
 
@@ -131,7 +135,10 @@ pub struct SteadyState {
     /// Drive levels solved along the ramp.
     pub ramp_steps: usize,
     /// Drive fractions where the ramp met a fold (its branch ended) and the state jumped to
-    /// the one the slow-flow dynamics reach, as a drive-up experiment would.
+    /// the one the slow-flow dynamics reach, as a drive-up experiment would. With the status
+    /// [`HbStatus::NotConverged`] at the last one, the ramp stopped there instead: asked to
+    /// ([`HbSettings::stop_at_fold`]), or the slow flow after the jump settled on no steady
+    /// state of the lattice.
     pub drive_jumps: Vec<f64>,
 }
 
@@ -746,56 +753,84 @@ impl HbSolver {
     }
 
     /// The drive ramp on this solver's own lattice (see [`HbSolver::solve`]).
+    ///
+    /// A step is kept only when the state it converged to continues the branch of the last
+    /// one ([`HbSolver::continues_branch`]): Newton converges from a large step past a fold
+    /// onto another branch as readily as onto the same one, and the ramp would then miss the
+    /// jump an experiment driving up sees. A step that does not continue the branch is halved
+    /// like one that fails; one of at most [`FOLD_STEP`] that still fails or leaves the branch
+    /// is a fold.
     fn solve_ramp(&mut self, settings: &HbSettings) -> SteadyState {
         let nm = self.model.n_modes();
         let nr = self.lattice.len();
-        let s0 = if settings.ramp {
+        let mut s0 = if settings.ramp {
             settings.ramp_start.clamp(1e-6, 1.0)
         } else {
             1.0
         };
-        for i in 0..nm * nr {
-            self.x[i] = self.force[i] * s0 / self.lin[i];
-        }
-        self.have_lu = false;
-        let tol0 = if s0 < 1.0 {
-            settings.tol.max(RAMP_TOL)
-        } else {
-            settings.tol
+        let mut steps = 0;
+        let (mut iters, mut sign) = loop {
+            for i in 0..nm * nr {
+                self.x[i] = self.force[i] * s0 / self.lin[i];
+            }
+            self.have_lu = false;
+            let tol0 = if s0 < 1.0 {
+                settings.tol.max(RAMP_TOL)
+            } else {
+                settings.tol
+            };
+            let (ok, iters, res) = self.newton(s0, tol0, settings.max_iter * 2);
+            steps += 1;
+            if !ok {
+                return self.finish(
+                    HbStatus::NotConverged {
+                        drive_fraction: 0.0,
+                    },
+                    res,
+                    steps,
+                    true,
+                    Vec::new(),
+                );
+            }
+            if s0 >= 1.0 {
+                break (iters, 0.0);
+            }
+            // The branch of the linear response has det J > 0 (each line's 2×2 block
+            // [[p, −q], [q, p]] has det p² + q²); a start on another sign is past a fold
+            // already: start lower.
+            let sign = self.branch_sign();
+            if sign > 0.0 || s0 <= 1e-6 {
+                break (iters, sign);
+            }
+            s0 = (0.1 * s0).max(1e-6);
         };
-        let (ok, mut iters, mut res) = self.newton(s0, tol0, settings.max_iter * 2);
-        let mut steps = 1;
-        if !ok {
-            return self.finish(
-                HbStatus::NotConverged {
-                    drive_fraction: 0.0,
-                },
-                res,
-                steps,
-                true,
-                Vec::new(),
-            );
-        }
         let mut jumps = Vec::new();
         let mut s = s0;
         let mut ds = settings.ramp_step;
         let mut prev = self.x.clone();
         let mut prev_s = s;
         let mut good = self.x.clone();
+        // The branch's tangent dx/ds at `good` (from the factorisation at hand).
+        let mut tangent = self.x.clone();
+        let mut tangent_new = self.x.clone();
+        if s < 1.0 {
+            self.tangent(&mut tangent);
+        }
         while s < 1.0 {
             if steps >= settings.max_ramp_steps || ds < 1e-7 {
                 return self.stop_ramp(&good, s, steps, jumps);
             }
             let s_new = (s + ds).min(1.0);
             // Secant predictor.
-            let slope = if s > prev_s {
+            let secant = s > prev_s;
+            let slope = if secant {
                 (s_new - s) / (s - prev_s)
             } else {
                 s_new / s - 1.0
             };
             for i in 0..nm * nr {
                 let base = good[i];
-                let d = if s > prev_s { base - prev[i] } else { base };
+                let d = if secant { base - prev[i] } else { base };
                 self.x[i] = base + d * slope;
             }
             // Intermediate levels only feed the predictor: a loose tolerance there.
@@ -804,41 +839,49 @@ impl HbSolver {
             } else {
                 settings.tol
             };
-            let (ok, it, r) = self.newton(s_new, tol, settings.max_iter);
+            let (ok, it, _) = self.newton(s_new, tol, settings.max_iter);
             steps += 1;
+            let (ok, sign_new) = if ok {
+                self.continues_branch(&good, (&tangent, &mut tangent_new), s_new - s, sign)
+            } else {
+                (false, sign)
+            };
             if ok {
                 prev.copy_from_slice(&good);
                 good.copy_from_slice(&self.x);
                 prev_s = s;
                 s = s_new;
                 iters = it;
-                res = r;
+                sign = sign_new;
+                std::mem::swap(&mut tangent, &mut tangent_new);
                 if it <= 3 {
                     ds = (ds * 1.6).min(settings.ramp_step_max);
                 }
-            } else if ds <= FOLD_STEP && settings.stop_at_fold {
-                // The branch ends between s and s + ds: a fold; the caller only wanted to know.
-                jumps.push(s);
-                return self.stop_ramp(&good, s, steps, jumps);
             } else if ds <= FOLD_STEP {
-                // The branch ends between s and s + ds: a fold in the drive. An experiment
-                // jumps there; follow the slow flow from the last state at the next level.
-                self.x.copy_from_slice(&good);
-                if self.land(s_new, tol) {
-                    jumps.push(s);
-                    good.copy_from_slice(&self.x);
-                    prev.copy_from_slice(&self.x);
-                    s = s_new;
-                    prev_s = s;
-                    ds = settings.ramp_step;
-                } else {
-                    ds *= 0.5;
+                // The branch ends between s and s + ds: a fold in the drive.
+                jumps.push(s);
+                if settings.stop_at_fold {
+                    // The caller only wanted to know.
+                    return self.stop_ramp(&good, s, steps, jumps);
                 }
+                // An experiment jumps there; follow the slow flow from the last state at the
+                // next level.
+                self.x.copy_from_slice(&good);
+                if !self.land(s_new, tol) {
+                    // The slow flow settles on no steady state of the lattice: stop at the fold.
+                    return self.stop_ramp(&good, s, steps, jumps);
+                }
+                good.copy_from_slice(&self.x);
+                prev.copy_from_slice(&self.x);
+                s = s_new;
+                prev_s = s;
+                ds = settings.ramp_step;
+                sign = self.branch_sign();
+                self.tangent(&mut tangent);
             } else {
                 ds *= 0.5;
             }
         }
-        let _ = res;
         let r = self.residual(false, 1.0);
         self.finish(
             HbStatus::Converged { iterations: iters },
@@ -847,6 +890,94 @@ impl HbSolver {
             false,
             jumps,
         )
+    }
+
+    /// Whether the state Newton converged to at the next ramp level (`self.x`, `ds` above
+    /// the last one) continues the branch of the last one (`good`, with tangent `tangent.0` =
+    /// dx/ds and det J of sign `sign`; `0.0`: unknown), and the sign of det J at it; the
+    /// tangent there into `tangent.1`. Newton converges from a step past a fold onto another
+    /// branch as readily as onto the same one; the tests, none needing a factorisation
+    /// unless the sign seems to change:
+    /// - det J keeps its sign: along a branch parametrised by the drive it changes sign
+    ///   exactly where the branch passes a fold (or a branch point), so a state of the other
+    ///   sign lies past an odd number of them (the unstable middle branch of a hardening
+    ///   resonance, typically). The sign is that of the last factorisation Newton used (near
+    ///   the state: a chord step with a Jacobian of the other sign would not contract); a
+    ///   change is confirmed on a factorisation at the state itself.
+    /// - A step past two folds (from the low branch of a hardening resonance straight onto
+    ///   the high one) keeps the sign, so steps larger than [`FOLD_STEP`] must also be
+    ///   resolved: Newton moved the state at most [`BRANCH_CORRECTION`] times as far from the
+    ///   tangent predictor `good + ds·tangent` as that predictor is from `good` (along a
+    ///   branch the ratio is `O(ds·|x''|/|x'|)`), and the tangent's size changed by at most
+    ///   that factor (it grows as `1/√δ` at a distance `δ` from a fold, and is far smaller on
+    ///   the high branch than at the end of the low one).
+    fn continues_branch(
+        &mut self,
+        good: &[Complex64],
+        tangent: (&[Complex64], &mut [Complex64]),
+        ds: f64,
+        sign: f64,
+    ) -> (bool, f64) {
+        let (t0, t1) = tangent;
+        let resolved = ds <= FOLD_STEP;
+        if !resolved {
+            let (mut moved, mut predicted) = (0.0f64, 0.0f64);
+            for ((x, g), t) in self.x.iter().zip(good).zip(t0.iter()) {
+                moved = moved.max((x - g - t * ds).norm());
+                predicted = predicted.max((t * ds).norm());
+            }
+            if !(moved <= BRANCH_CORRECTION * predicted) {
+                return (false, sign);
+            }
+        }
+        let mut sign_new = self.branch_sign();
+        if sign_new != sign && !self.fresh {
+            self.have_lu = false;
+            sign_new = self.branch_sign();
+        }
+        if sign_new == 0.0 || (sign != 0.0 && sign_new != sign) {
+            return (false, sign_new);
+        }
+        self.tangent(t1);
+        if !resolved {
+            let size = |t: &[Complex64]| t.iter().map(|z| z.norm()).fold(0.0, f64::max);
+            let ratio = size(t1) / size(t0);
+            if !(ratio <= BRANCH_CORRECTION && ratio * BRANCH_CORRECTION >= 1.0) {
+                return (false, sign_new);
+            }
+        }
+        (true, sign_new)
+    }
+
+    /// The tangent `dx/ds = J⁻¹ F` of the branch through the current state (`R = … − s F`),
+    /// with the factorisation held (made at the state when none is; zero when singular).
+    fn tangent(&mut self, out: &mut [Complex64]) {
+        if self.branch_sign() == 0.0 {
+            out.fill(Z);
+            return;
+        }
+        for (i, f) in self.force.iter().enumerate() {
+            self.step[2 * i] = f.re;
+            self.step[2 * i + 1] = f.im;
+        }
+        self.lu.solve(&mut self.step);
+        for (i, t) in out.iter_mut().enumerate() {
+            *t = Complex64::new(self.step[2 * i], self.step[2 * i + 1]);
+        }
+    }
+
+    /// Sign of det J: that of the factorisation held (the last one Newton used), or of one at
+    /// the current state when none is held; `0.0` when singular.
+    fn branch_sign(&mut self) -> f64 {
+        if !self.have_lu {
+            let regular = self.jacobian();
+            self.have_lu = regular;
+            self.fresh = regular;
+            if !regular {
+                return 0.0;
+            }
+        }
+        self.lu.det_sign()
     }
 
     /// Ends a ramp that cannot go on: the last converged state `good`, at drive fraction `s`.
