@@ -241,9 +241,10 @@ mod tests {
         let pm = PlanMeasurement {
             name: "couple_q1_q2".into(),
             drives_hz: vec![207582.0, 415838.0, 415846.0],
+            // 40 % of the levels the design chose before the ramp saw the fold at 42 % of them.
             force: [
-                ("q1".to_string(), vec![4.12, 0.0, 0.0]),
-                ("q2".to_string(), vec![0.0, 0.739, 0.739]),
+                ("q1".to_string(), vec![1.65, 0.0, 0.0]),
+                ("q2".to_string(), vec![0.0, 0.296, 0.296]),
             ]
             .into(),
             phase_rad: Default::default(),
