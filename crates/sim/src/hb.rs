@@ -926,7 +926,9 @@ impl HbSolver {
                 moved = moved.max((x - g - t * ds).norm());
                 predicted = predicted.max((t * ds).norm());
             }
-            if !(moved <= BRANCH_CORRECTION * predicted) {
+            // Written so that NaN fails.
+            let near = moved <= BRANCH_CORRECTION * predicted;
+            if !near {
                 return (false, sign);
             }
         }
@@ -942,7 +944,8 @@ impl HbSolver {
         if !resolved {
             let size = |t: &[Complex64]| t.iter().map(|z| z.norm()).fold(0.0, f64::max);
             let ratio = size(t1) / size(t0);
-            if !(ratio <= BRANCH_CORRECTION && ratio * BRANCH_CORRECTION >= 1.0) {
+            let similar = ratio <= BRANCH_CORRECTION && ratio * BRANCH_CORRECTION >= 1.0;
+            if !similar {
                 return (false, sign_new);
             }
         }
