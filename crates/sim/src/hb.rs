@@ -816,8 +816,11 @@ impl HbSolver {
         if s < 1.0 {
             self.tangent(&mut tangent);
         }
+        // A fold whose landing failed: named if the ramp stops there.
+        let mut unlanded = None;
         while s < 1.0 {
             if steps >= settings.max_ramp_steps || ds < 1e-7 {
+                jumps.extend(unlanded);
                 return self.stop_ramp(&good, s, steps, jumps);
             }
             let s_new = (s + ds).min(1.0);
@@ -857,27 +860,30 @@ impl HbSolver {
                 if it <= 3 {
                     ds = (ds * 1.6).min(settings.ramp_step_max);
                 }
-            } else if ds <= FOLD_STEP {
-                // The branch ends between s and s + ds: a fold in the drive.
+            } else if ds <= FOLD_STEP && settings.stop_at_fold {
+                // The branch ends between s and s + ds: a fold; the caller only wanted to know.
                 jumps.push(s);
-                if settings.stop_at_fold {
-                    // The caller only wanted to know.
-                    return self.stop_ramp(&good, s, steps, jumps);
-                }
-                // An experiment jumps there; follow the slow flow from the last state at the
-                // next level.
+                return self.stop_ramp(&good, s, steps, jumps);
+            } else if ds <= FOLD_STEP {
+                // The branch ends between s and s + ds: a fold in the drive. An experiment
+                // jumps there; follow the slow flow from the last state at the next level.
                 self.x.copy_from_slice(&good);
-                if !self.land(s_new, tol) {
-                    // The slow flow settles on no steady state of the lattice: stop at the fold.
-                    return self.stop_ramp(&good, s, steps, jumps);
+                if self.land(s_new, tol) {
+                    jumps.push(s);
+                    unlanded = None;
+                    good.copy_from_slice(&self.x);
+                    prev.copy_from_slice(&self.x);
+                    s = s_new;
+                    prev_s = s;
+                    ds = settings.ramp_step;
+                    sign = self.branch_sign();
+                    self.tangent(&mut tangent);
+                } else {
+                    // Closer to the fold the landing may succeed; if the ramp ends here, it
+                    // ends at this fold.
+                    unlanded = Some(s);
+                    ds *= 0.5;
                 }
-                good.copy_from_slice(&self.x);
-                prev.copy_from_slice(&self.x);
-                s = s_new;
-                prev_s = s;
-                ds = settings.ramp_step;
-                sign = self.branch_sign();
-                self.tangent(&mut tangent);
             } else {
                 ds *= 0.5;
             }
