@@ -9,6 +9,7 @@ const EXAMPLES: &[&str] = &[
     "nanostring_5mode",
     "three_wave",
     "cubic_3mode",
+    "membrane_4mode",
 ];
 
 fn check(args: &[&str]) -> (bool, String, String) {
