@@ -294,7 +294,10 @@ fn run_ml(
         zero_params(&|u| prob.index_of(u).is_none_or(|i| poor.contains(&i))),
         Some("the model parameters of poorly fitting equation-error stages at zero"),
     ));
-    starts.push((zero_params(&|_| true), Some("every model parameter at zero")));
+    starts.push((
+        zero_params(&|_| true),
+        Some("every model parameter at zero"),
+    ));
     starts.dedup_by(|b, a| a.0 == b.0);
     // Each start in turn until a fit is as good as a correct model's (χ²/dof within GOOD_FIT
     // of its expectation, judged when the noise comes from the shot scatter); of the fits
@@ -311,7 +314,10 @@ fn run_ml(
     let mut last_run = 0;
     let n_starts = starts.len();
     for (i, (theta_s, _)) in starts.iter().enumerate() {
-        if best.as_ref().is_some_and(|(f, _)| reduced(f) <= GOOD_FIT * e0) {
+        if best
+            .as_ref()
+            .is_some_and(|(f, _)| reduced(f) <= GOOD_FIT * e0)
+        {
             break;
         }
         // Newton from the data at each start; the drive ramp from rest only at the last.
