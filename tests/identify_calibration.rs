@@ -276,20 +276,8 @@ fn calibration_long() {
 /// resonance (forces for about 7.5 nm, a quarter of a linewidth of Duffing shift; three times that makes single_q1 of the three-wave set parametrically unstable: f3 − f2 = f1), and q1 and q2
 /// driven together with q3 observed (it responds at f1 + f2 through κ).
 fn three_wave_plan() -> (Values, Vec<Design>) {
-    let v = Values {
-        f_hz: vec![1.0e6, 1.6e6, 2.6e6],
-        q: vec![2.0e4, 2.5e4, 3.0e4],
-        params: [
-            ("kappa", 2.0e17),
-            ("beta1", 2.6e25),
-            ("beta2", 5.4e25),
-            ("beta3", 1.2e26),
-        ]
-        .into_iter()
-        .map(|(k, x)| (k.to_string(), x))
-        .collect(),
-    };
     let names: Vec<String> = (1..=3).map(|n| format!("q{n}")).collect();
+    let v = gen::example_values("three_wave", &names);
     let mut d = gen::designs(&v, &names, &[165.0, 333.0, 735.0], 5.5, &[(0, 1)]);
     d[3].observe = vec![2];
     (v, d)
@@ -299,23 +287,8 @@ fn three_wave_plan() -> (Values, Vec<Design>) {
 /// [`three_wave_plan`], and each pair driven together with the third mode observed (μ makes it
 /// respond at 2f1 − f2 = f3, 2f1 − f3 = f2, f2 + f3 − f1 = f1).
 fn cubic_3mode_plan() -> (Values, Vec<Design>) {
-    let v = Values {
-        f_hz: vec![1.0e6, 0.8e6, 1.2e6],
-        q: vec![2.0e4, 1.5e4, 2.5e4],
-        params: [
-            ("beta1", 2.6e25),
-            ("beta2", 2.2e25),
-            ("beta3", 3.0e25),
-            ("g12", 1.5e25),
-            ("g13", 2.0e25),
-            ("g23", 1.8e25),
-            ("mu", 1.0e25),
-        ]
-        .into_iter()
-        .map(|(k, x)| (k.to_string(), x))
-        .collect(),
-    };
     let names: Vec<String> = (1..=3).map(|n| format!("q{n}")).collect();
+    let v = gen::example_values("cubic_3mode", &names);
     let mut d = gen::designs(
         &v,
         &names,

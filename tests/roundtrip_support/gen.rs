@@ -77,6 +77,22 @@ pub fn model_values(model: &Model, v: &Values) -> ModelValues {
     mv
 }
 
+/// The values of `examples/{example}/values.toml` (the inverse of [`model_values`]): the one
+/// statement of an example's values, for tests that design their own plans around them.
+pub fn example_values(example: &str, names: &[String]) -> Values {
+    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("examples")
+        .join(example)
+        .join("values.toml");
+    let mv = harmonid_experiment::read_values(&path).unwrap_or_else(|e| panic!("{e}"));
+    let mode = |n: &String| &mv.modes[n];
+    Values {
+        f_hz: names.iter().map(|n| mode(n).f_hz.expect("f_hz")).collect(),
+        q: names.iter().map(|n| mode(n).q.expect("Q")).collect(),
+        params: mv.parameters.clone(),
+    }
+}
+
 /// Simulates every design as one measurement plan and returns the dataset: one point with
 /// `shape`, the model's nominal frequencies, every tone's force as its drive level (phase 0),
 /// `shots` shots of Gaussian noise `sigma` per quadrature (m). Kept per measurement: the drive
