@@ -2,7 +2,6 @@
 
 use crate::PlanError;
 use harmonid_experiment::{ExperimentError, Plan, PlanMeasurement, Settings, Truncation};
-use harmonid_ident::dataset::Measurement;
 use harmonid_ident::fisher::{information, Noise};
 use harmonid_ident::{Dataset, ForceModel, ForwardModel, ForwardSettings, Unknown};
 use harmonid_model::Model;
@@ -85,19 +84,7 @@ pub(crate) fn restrict_lines(dataset: &Dataset, pm: &PlanMeasurement, keep_hz: &
     let mut out = dataset.clone();
     let m = &dataset.measurements[0];
     let idx: Vec<usize> = keep_hz.iter().filter_map(|&f| m.freq_index(f)).collect();
-    let mut r = Measurement::zeros(
-        pm.spec(),
-        idx.iter().map(|&i| m.freqs_hz[i]).collect(),
-        m.points.clone(),
-        m.n_shots,
-    );
-    for s in 0..m.n_shots {
-        for (k, &i) in idx.iter().enumerate() {
-            for p in 0..m.points.len() {
-                *r.amplitude_mut(s, k, p) = m.amplitude(s, i, p);
-            }
-        }
-    }
+    let r = m.select_lines(pm.spec(), &idx);
     out.manifest.measurements = vec![pm.spec()];
     out.measurements = vec![r];
     out
