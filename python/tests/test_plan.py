@@ -1,7 +1,7 @@
 """plan and evaluate_plan: the plan file, the bounds and the table equal `harmonid plan`'s.
 
 Design is compared on a one-mode Duffing resonator (0.2 s) and on the two-mode nanostring (about
-2 s each side); the two-mode model's shipped plan is scored (`--evaluate`, 0.1 s)."""
+0.1 s each side); the two-mode model's shipped plan is scored (`--evaluate`, 0.1 s)."""
 
 import pytest
 from conftest import MODEL_2, assert_close, load_json
