@@ -325,3 +325,116 @@ fn simulate_refuses_zero_steps_per_period_at_once() {
     assert!(text.contains("steps") && text.contains('0'), "{text}");
     assert!(!out.exists());
 }
+
+/// Copies of the example's model and values in a fresh folder, with their bytes.
+fn copied_inputs(dir: &Path) -> [(PathBuf, Vec<u8>); 2] {
+    let m = copied_model(dir);
+    let v = dir.join("values.toml");
+    std::fs::copy(example("values.toml"), &v).expect("copy values");
+    [m, v].map(|p| {
+        let bytes = std::fs::read(&p).expect("read");
+        (p, bytes)
+    })
+}
+
+/// Runs `args` once with `option` naming each input in turn: each run must be refused, and leave
+/// every input as it was. (`--plot` is refused for the inputs' extensions before the check of
+/// inputs, which `identify`'s tests cover; the files must survive either way.)
+fn refuses_every_input_as(option: &str, args: &[&str], inputs: &[(PathBuf, Vec<u8>)]) {
+    for (target, _) in inputs {
+        let mut all = args.to_vec();
+        all.extend([option, s(target)]);
+        let (ok, text) = run(&all);
+        assert!(!ok, "{option} {}: {text}", target.display());
+        let why = if option == "--plot" {
+            "unknown figure format"
+        } else {
+            "is an input of this run"
+        };
+        assert!(text.contains(why), "{option}: {text}");
+        for (p, bytes) in inputs {
+            assert_eq!(
+                &std::fs::read(p).expect("read"),
+                bytes,
+                "{option} changed {}",
+                p.display()
+            );
+        }
+    }
+}
+
+#[test]
+fn plan_never_replaces_its_inputs() {
+    // `plan M --values V --out M` used to replace the model with the plan and exit 0.
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let inputs = copied_inputs(tmp.path());
+    let plan = tmp.path().join("plan.toml");
+    std::fs::copy(example("plan.toml"), &plan).expect("copy plan");
+    let common = [
+        "plan",
+        s(&inputs[0].0),
+        "--values",
+        s(&inputs[1].0),
+        "--noise",
+        "0.05nm",
+        "--shots",
+        "20",
+    ];
+    refuses_every_input_as("--out", &common, &inputs);
+    // Scoring a plan: the plan is an input too.
+    let mut evaluate = common.to_vec();
+    evaluate.extend(["--evaluate", s(&plan)]);
+    let mut with_plan = inputs.to_vec();
+    with_plan.push((plan.clone(), std::fs::read(&plan).expect("read")));
+    for option in ["--bounds", "--plot"] {
+        refuses_every_input_as(option, &evaluate, &with_plan);
+    }
+}
+
+#[test]
+fn sweep_never_replaces_its_inputs() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let inputs = copied_inputs(tmp.path());
+    let args = [
+        "sweep",
+        s(&inputs[0].0),
+        "--values",
+        s(&inputs[1].0),
+        "--from",
+        "207500",
+        "--to",
+        "207700",
+        "--force",
+        "q1=0.5",
+    ];
+    for option in ["--out", "--plot"] {
+        refuses_every_input_as(option, &args, &inputs);
+    }
+    let mut two_tone = args.to_vec();
+    two_tone.extend(["--two-tone", "20"]);
+    refuses_every_input_as("--out", &two_tone, &inputs);
+}
+
+#[test]
+fn mix_never_replaces_its_inputs() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let inputs = copied_inputs(tmp.path());
+    let args = ["mix", s(&inputs[0].0), "--drives", "q1:207572,207592"];
+    refuses_every_input_as("--output", &args, &inputs[..1]);
+    // With the tones from a dataset, its manifest is an input as well.
+    let data = example("data");
+    let manifest = data.join("dataset.toml");
+    let before = std::fs::read(&manifest).expect("read");
+    let (ok, text) = run(&[
+        "mix",
+        s(&inputs[0].0),
+        "--dataset",
+        s(&data),
+        "--measurement",
+        "single_q1",
+        "--output",
+        s(&manifest),
+    ]);
+    assert!(!ok && text.contains("is an input of this run"), "{text}");
+    assert_eq!(std::fs::read(&manifest).expect("read"), before);
+}

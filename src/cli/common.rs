@@ -19,12 +19,8 @@ pub fn print_out(args: std::fmt::Arguments<'_>) {
 }
 
 /// Writes `bytes` to `path` atomically (a staging file renamed into place), only over a regular
-/// file, with the umask's permissions. Use [`write_output`] when the run has input files.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> miette::Result<()> {
-    write_output(path, bytes, &[])
-}
-
-/// [`write_atomic`] that also refuses to overwrite any of the run's `inputs`.
+/// file, with the umask's permissions, and never over one of the run's `inputs` (every command
+/// passes all the files it read: an output named like an input is refused, not written).
 pub fn write_output(path: &Path, bytes: &[u8], inputs: &[&Path]) -> miette::Result<()> {
     harmonid_files::write_file(path, bytes, inputs).map_err(miette::Report::new)
 }

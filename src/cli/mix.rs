@@ -129,6 +129,15 @@ fn parse_nominal(s: &str) -> miette::Result<(String, f64)> {
 
 /// Runs the subcommand.
 pub fn run(args: Args) -> miette::Result<()> {
+    let manifest = args.dataset.as_ref().map(|dir| dir.join("dataset.toml"));
+    let inputs: Vec<&std::path::Path> = [Some(&args.model), manifest.as_ref()]
+        .into_iter()
+        .flatten()
+        .map(|p| p.as_path())
+        .collect();
+    if let Some(path) = &args.output {
+        super::common::check_outputs(&[path.as_path()], &inputs)?;
+    }
     let model = harmonid_model::load(&args.model).map_err(miette::Report::new)?;
     let report = build(&args, &model)?;
     let text = if args.json {
@@ -141,7 +150,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         to_text(&report)
     };
     match &args.output {
-        Some(path) => super::common::write_atomic(path, text.as_bytes()),
+        Some(path) => super::common::write_output(path, text.as_bytes(), &inputs),
         None => {
             let mut out = std::io::stdout().lock();
             let _ = out.write_all(text.as_bytes()).and_then(|()| out.flush());

@@ -2,7 +2,7 @@
 //! plan.toml)`: design a drive-tone plan, or score one, by the Cramér–Rao bounds of the
 //! model's unknowns (`harmonid_plan`).
 
-use crate::cli::common::{print_out, write_atomic};
+use crate::cli::common::{check_outputs, print_out, write_output};
 use harmonid_experiment::{read_values, Plan};
 use harmonid_ident::Point;
 use harmonid_plan::{design_with_progress, evaluate, DesignSettings};
@@ -127,6 +127,12 @@ pub fn run(args: Args) -> miette::Result<()> {
     .flatten()
     .map(|p| p.as_path())
     .collect();
+    let outputs: Vec<&std::path::Path> = [args.out.as_ref(), args.bounds.as_ref()]
+        .into_iter()
+        .flatten()
+        .map(|p| p.as_path())
+        .collect();
+    check_outputs(&outputs, &inputs)?;
     if let Some(p) = &args.plot {
         super::figure::check(p, &inputs)?;
     }
@@ -165,7 +171,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         pb.finish_and_clear();
         let (plan, ev) = designed.map_err(|e| miette!("{e}"))?;
         if let Some(out) = &args.out {
-            write_atomic(out, plan.to_toml().as_bytes())?;
+            write_output(out, plan.to_toml().as_bytes(), &inputs)?;
             eprintln!(
                 "wrote {} ({} measurements)",
                 out.display(),
@@ -177,7 +183,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     print_out(format_args!("{}", ev.table()));
     if let Some(b) = &args.bounds {
         let text = serde_json::to_string_pretty(&ev.to_json()).into_diagnostic()?;
-        write_atomic(b, text.as_bytes())?;
+        write_output(b, text.as_bytes(), &inputs)?;
     }
     if let Some(path) = &args.plot {
         let fig = figure(&model, &values, &plan, sigma, args.shots)?;

@@ -55,6 +55,9 @@ pub struct Args {
 /// Runs the subcommand.
 pub fn run(args: Args) -> miette::Result<()> {
     let inputs = [args.model.as_path(), args.values.as_path()];
+    if let Some(out) = &args.out {
+        super::common::check_outputs(&[out.as_path()], &inputs)?;
+    }
     if let Some(p) = &args.plot {
         super::figure::check(p, &inputs)?;
     }
@@ -154,7 +157,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         }
     );
     match &args.out {
-        Some(p) => super::common::write_atomic(p, csv.as_bytes()),
+        Some(p) => super::common::write_output(p, csv.as_bytes(), &inputs),
         None => {
             use std::io::Write;
             let _ = std::io::stdout().lock().write_all(csv.as_bytes());
@@ -236,7 +239,7 @@ fn two_tone(
         );
     }
     match &args.out {
-        Some(p) => super::common::write_atomic(p, csv.as_bytes()),
+        Some(p) => super::common::write_output(p, csv.as_bytes(), inputs),
         None => {
             use std::io::Write;
             let _ = std::io::stdout().lock().write_all(csv.as_bytes());
