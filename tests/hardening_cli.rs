@@ -438,3 +438,57 @@ fn mix_never_replaces_its_inputs() {
     assert!(!ok && text.contains("is an input of this run"), "{text}");
     assert_eq!(std::fs::read(&manifest).expect("read"), before);
 }
+
+#[test]
+fn a_message_quotes_a_window_of_a_long_line() {
+    // An unknown key after 2,000 tones on one line printed the whole 50 kB line.
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let tones: Vec<String> = (0..2000).map(|i| format!("{}.5", 207000 + i)).collect();
+    let mut plan = std::fs::read_to_string(example("plan.toml")).expect("plan");
+    plan.push_str(&format!(
+        "\n[[measurement]]\nname = \"long\"\ndrives_hz = [207572.5]\nforce = {{ q1 = [1.0] }}\nmeasure_hz = [{}], bogus = 3\n",
+        tones.join(", ")
+    ));
+    let path = tmp.path().join("long.toml");
+    std::fs::write(&path, &plan).expect("write");
+    let model = example("model.hb");
+    let values = example("values.toml");
+    let out = tmp.path().join("ds");
+    let (ok, text) = run(&[
+        "simulate",
+        s(&model),
+        "--values",
+        s(&values),
+        "--plan",
+        s(&path),
+        "--out",
+        s(&out),
+    ]);
+    assert!(!ok, "{text}");
+    assert!(text.len() < 1500, "{} bytes: {text}", text.len());
+    assert!(
+        text.contains("bogus = 3") && text.contains("long.toml:"),
+        "{text}"
+    );
+    // A values file that is not TOML, past its long line's 2,000 numbers.
+    let bad = tmp.path().join("values.toml");
+    std::fs::write(&bad, format!("x = [{}] ]\n", tones.join(", "))).expect("write");
+    let plan = example("plan.toml");
+    let (ok, text) = run(&[
+        "simulate",
+        s(&model),
+        "--values",
+        s(&bad),
+        "--plan",
+        s(&plan),
+        "--out",
+        s(&out),
+    ]);
+    assert!(!ok, "{text}");
+    assert!(text.len() < 1000, "{} bytes: {text}", text.len());
+    assert!(
+        text.contains("line 1, column") && text.contains("] ]"),
+        "{text}"
+    );
+    assert!(!out.exists());
+}

@@ -192,8 +192,13 @@ fn build(args: &Args, model: &Model) -> miette::Result<Report> {
         let text = std::fs::read_to_string(&path)
             .into_diagnostic()
             .wrap_err_with(|| format!("cannot read {}", path.display()))?;
-        let manifest: Manifest =
-            toml::from_str(&text).map_err(|e| miette!("{}: {e}", path.display()))?;
+        let manifest: Manifest = toml::from_str(&text).map_err(|e| {
+            let at = e
+                .span()
+                .map(|s| harmonid_files::quote_line(&text, s))
+                .unwrap_or_default();
+            miette!("{}: {} ({at})", path.display(), e.message().trim_end())
+        })?;
         for (m, &hz) in &manifest.nominal_hz {
             set_nominal(&mut nominal, m, hz, &path.display().to_string())?;
         }

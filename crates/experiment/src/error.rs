@@ -2,7 +2,8 @@
 //! that cannot be read, and steady states that must not be written (unstable, unconverged, or
 //! truncated too coarsely).
 
-use miette::{Diagnostic, NamedSource, SourceSpan};
+use harmonid_files::QuotedSource;
+use miette::{Diagnostic, SourceSpan};
 
 /// A plan that breaks a rule: where (file, the key's path and, when read from text, its span)
 /// and what was expected.
@@ -19,9 +20,9 @@ pub struct PlanError {
     /// What to try.
     #[help]
     pub help: Option<String>,
-    /// The plan's text, when it was read from text.
+    /// The plan's text, when it was read from text (a long line is quoted as a window of it).
     #[source_code]
-    pub src: Option<NamedSource<String>>,
+    pub src: Option<QuotedSource>,
     /// The offending key or value in `src`.
     #[label("here")]
     pub span: Option<SourceSpan>,

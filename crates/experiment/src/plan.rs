@@ -2,9 +2,9 @@
 //! `harmonid simulate --plan` reads (docs/simulation.md), checked once when read.
 
 use crate::PlanError;
+use harmonid_files::QuotedSource;
 use harmonid_ident::dataset::{unit_scale, Point};
 use harmonid_spectral::FREQ_TOLERANCE_HZ;
-use miette::NamedSource;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -199,14 +199,15 @@ fn span_of(text: &str, path: &[Seg]) -> Option<std::ops::Range<usize>> {
 
 impl Issue {
     pub(crate) fn locate(self, origin: &str, text: Option<&str>) -> PlanError {
+        let src = text.map(|t| QuotedSource::new(origin, t));
         let span = text.and_then(|t| span_of(t, &self.path));
         PlanError {
             origin: origin.to_string(),
             path: path_text(&self.path),
             message: self.message,
             help: self.help,
-            src: text.map(|t| NamedSource::new(origin, t.to_string())),
-            span: span.map(Into::into),
+            span: src.as_ref().zip(span).map(|(s, span)| s.label(span)),
+            src,
         }
     }
 }
@@ -396,13 +397,16 @@ impl Plan {
     /// Reads a plan from TOML `text` (`origin` names it in errors) and checks it
     /// ([`Plan::check`]). Errors point at the offending key.
     pub fn from_toml(text: &str, origin: &str) -> Result<Plan, PlanError> {
-        let plan: Plan = toml::from_str(text).map_err(|e| PlanError {
-            origin: origin.to_string(),
-            path: "plan".into(),
-            message: e.message().to_string(),
-            help: Some("see the plan format in docs/simulation.md".into()),
-            src: Some(NamedSource::new(origin, text.to_string())),
-            span: e.span().map(Into::into),
+        let plan: Plan = toml::from_str(text).map_err(|e| {
+            let src = QuotedSource::new(origin, text);
+            PlanError {
+                origin: origin.to_string(),
+                path: "plan".into(),
+                message: e.message().to_string(),
+                help: Some("see the plan format in docs/simulation.md".into()),
+                span: e.span().map(|s| src.label(s)),
+                src: Some(src),
+            }
         })?;
         plan.issues().map_err(|i| i.locate(origin, Some(text)))?;
         Ok(plan)

@@ -28,7 +28,13 @@ pub fn values_from_toml(text: &str, origin: &str) -> Result<ModelValues, Experim
         origin: origin.to_string(),
         message,
     };
-    let v: toml::Table = toml::from_str(text).map_err(|e| err(format!("not valid TOML: {e}")))?;
+    let v: toml::Table = toml::from_str(text).map_err(|e| {
+        let at = e
+            .span()
+            .map(|s| format!(" ({})", harmonid_files::quote_line(text, s)))
+            .unwrap_or_default();
+        err(format!("not valid TOML: {}{at}", e.message().trim_end()))
+    })?;
     if let Some(k) = v
         .keys()
         .find(|k| !["modes", "parameters", "eom", "forces", "noise"].contains(&k.as_str()))
