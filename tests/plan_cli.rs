@@ -74,3 +74,35 @@ fn plot_format_and_path_are_checked_first() {
     let (ok, _, stderr) = plan(&["--evaluate", ex, "--plot", missing.to_str().expect("utf8")]);
     assert!(!ok && stderr.contains("does not exist"), "{stderr}");
 }
+
+/// `plan --values truth.toml` (only `[eom]` coefficients) scores a plan exactly as the values
+/// file with the same parameters does: the parameters are solved from the coefficients.
+#[test]
+fn a_truth_file_is_a_guess() {
+    let ex = root().join("examples/nanostring_2mode");
+    let truth = root().join("tests/data/nanostring_ls50_2mode/truth.toml");
+    let example = ex.join("plan.toml");
+    let score = |values: &PathBuf| {
+        let st = Command::new(env!("CARGO_BIN_EXE_harmonid"))
+            .arg("plan")
+            .arg(ex.join("model.hb"))
+            .arg("--values")
+            .arg(values)
+            .args(["--noise", "0.05nm", "--shots", "20", "--evaluate"])
+            .arg(&example)
+            .output()
+            .expect("runs");
+        let err = String::from_utf8_lossy(&st.stderr).into_owned();
+        assert!(st.status.success(), "{err}");
+        (String::from_utf8_lossy(&st.stdout).into_owned(), err)
+    };
+    let (from_truth, note) = score(&truth);
+    let (from_values, _) = score(&ex.join("values.toml"));
+    assert_eq!(from_truth, from_values);
+    assert!(
+        note.contains("parameters from its 4 [eom] coefficients")
+            && note.contains("beta1 = 2.680000e22")
+            && !note.contains("warning"),
+        "{note}"
+    );
+}

@@ -5,7 +5,7 @@
 use crate::convert::json_to_py;
 use crate::errors::{render, PlanError};
 use crate::model::Model;
-use crate::values::model_values;
+use crate::values::guess_values;
 use harmonid_experiment::Plan;
 use harmonid_ident::Point;
 use harmonid_plan::{DesignSettings, Evaluation};
@@ -99,7 +99,7 @@ pub fn plan(
     max_force: Option<f64>,
     points: Option<Vec<BTreeMap<String, f64>>>,
 ) -> PyResult<PlanResult> {
-    let values = model_values(py, values)?;
+    let values = guess_values(py, &model.inner, values)?;
     check_noise(noise_m, shots)?;
     let settings = DesignSettings {
         sigma_m: noise_m,
@@ -144,7 +144,7 @@ pub fn evaluate_plan(
     noise_m: f64,
     shots: usize,
 ) -> PyResult<PlanResult> {
-    let values = model_values(py, values)?;
+    let values = guess_values(py, &model.inner, values)?;
     let plan = plan_from(py, plan, plan_error)?;
     check_noise(noise_m, shots)?;
     let m = std::sync::Arc::clone(&model.inner);

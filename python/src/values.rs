@@ -37,3 +37,19 @@ pub fn model_values(py: Python<'_>, values: &Bound<'_, PyAny>) -> PyResult<Model
     py.detach(|| harmonid_experiment::read_values(&path).map_err(|e| render(&e)))
         .map_err(SimulationError::new_err)
 }
+
+/// [`model_values`] for planning, which needs the parameters themselves: those a `truth.toml`
+/// (or a per-equation result) gives only as `[eom]` coefficients are solved from them, as
+/// `harmonid plan --values` does.
+pub fn guess_values(
+    py: Python<'_>,
+    model: &harmonid_model::Model,
+    values: &Bound<'_, PyAny>,
+) -> PyResult<ModelValues> {
+    let given = model_values(py, values)?;
+    match harmonid_experiment::parameters_from_eom(model, &given, "values") {
+        Ok(Some(d)) => Ok(d.values),
+        Ok(None) => Ok(given),
+        Err(e) => Err(SimulationError::new_err(render(&e))),
+    }
+}

@@ -103,3 +103,13 @@ def test_errors_are_located(tmp_path):
         harmonid.evaluate_plan(model, "nope.toml", PLAN_2, 5e-11)
     with pytest.raises(TypeError):
         harmonid.evaluate_plan(model, VALUES_2, 3.0, 5e-11)
+
+
+def test_truth_file_is_a_guess():
+    """A truth.toml gives [eom] coefficients only: the parameters are solved from them, and the
+    score equals the values file's with the same parameters (as `harmonid plan --values`)."""
+    model = harmonid.Model.from_file(MODEL_2)
+    truth = "tests/data/nanostring_ls50_2mode/truth.toml"
+    from_truth = harmonid.evaluate_plan(model, truth, PLAN_2, 0.05e-9, 20)
+    from_values = harmonid.evaluate_plan(model, VALUES_2, PLAN_2, 0.05e-9, 20)
+    assert from_truth.table() == from_values.table()

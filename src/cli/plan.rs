@@ -113,7 +113,7 @@ fn parse_point(i: usize, s: &str) -> miette::Result<Point> {
 /// Runs the subcommand.
 pub fn run(args: Args) -> miette::Result<()> {
     let model = harmonid_model::load(&args.model).map_err(miette::Report::new)?;
-    let values = read_values(&args.values)?;
+    let values = values_with_parameters(&model, read_values(&args.values)?, &args.values)?;
     let sigma = parse_sigma(&args.noise)?;
     if args.shots == 0 {
         return Err(miette!("--shots must be at least 1"));
@@ -191,6 +191,38 @@ pub fn run(args: Args) -> miette::Result<()> {
         eprintln!("wrote {}", path.display());
     }
     Ok(())
+}
+
+/// The guess with every parameter: a `truth.toml` or a result of a per-equation model gives
+/// `[eom]` coefficients only, and planning needs the parameters (`harmonid_experiment::
+/// parameters_from_eom`); says on standard error what it derived and how well the model's form
+/// reproduces the coefficients.
+fn values_with_parameters(
+    model: &harmonid_model::Model,
+    values: harmonid_sim::ModelValues,
+    path: &std::path::Path,
+) -> miette::Result<harmonid_sim::ModelValues> {
+    let origin = path.display().to_string();
+    let Some(d) = harmonid_experiment::parameters_from_eom(model, &values, &origin)? else {
+        return Ok(values);
+    };
+    let list: Vec<String> = d
+        .derived
+        .iter()
+        .map(|(n, v)| format!("{n} = {v:.6e}"))
+        .collect();
+    eprintln!(
+        "{origin}: parameters from its {} [eom] coefficients by least squares: {}",
+        d.coefficients,
+        list.join(", ")
+    );
+    if let Some((label, misfit)) = d.worst.filter(|(_, m)| *m > 1e-9) {
+        eprintln!(
+            "warning: the model's form misses the given coefficients by up to {misfit:.2e} of \
+             their equation's largest ({label}): the guess is the model's nearest"
+        );
+    }
+    Ok(d.values)
 }
 
 /// The plan's figure: its measurements simulated without noise, the noise σ of one shot.

@@ -44,12 +44,14 @@
 
 mod error;
 mod noise;
+mod params_from_eom;
 mod plan;
 mod run;
 mod values;
 
 pub use error::{ExperimentError, PlanError};
 pub use noise::{sigma_from_asd, sigma_from_time_rms, NoiseLevel};
+pub use params_from_eom::{parameters_from_eom, DerivedParameters};
 pub use plan::{Plan, PlanMeasurement, PlanNoise, MAX_MEASURED, MAX_SHOTS, MAX_TONES};
 pub use run::{
     add_noise, Engine, MeasurementReport, Settings, Simulation, TimeDomain, Truncation, MAX_ORDER,
