@@ -29,15 +29,8 @@ fn force_model(name: &str) -> PyResult<ForceModel> {
 }
 
 fn estimator(name: &str) -> PyResult<Estimator> {
-    Ok(match name {
-        "ml" => Estimator::Ml,
-        "linear" => Estimator::Linear,
-        other => {
-            return Err(HarmonidError::new_err(format!(
-                "estimator={other:?}: expected \"ml\" (output-error maximum likelihood) or \"linear\" (equation-error fit)"
-            )))
-        }
-    })
+    name.parse::<Estimator>()
+        .map_err(|e| HarmonidError::new_err(format!("estimator={name:?}: {e}")))
 }
 
 /// Identifies `model`'s unknowns from `dataset` (sequential stages unless `joint`), exactly as

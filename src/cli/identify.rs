@@ -42,24 +42,24 @@ pub struct Args {
     /// pooled equation-error fits).
     #[arg(long)]
     pub unweighted: bool,
-    /// The estimator of the reported values: `ml`, output-error maximum likelihood by harmonic
-    /// balance on the pooled shots (default; falls back to `linear` with a warning when the
-    /// model cannot be simulated); `linear`, the equation-error fit of the pooled shots.
-    #[arg(long, value_enum, default_value_t = EstimatorArg::Ml)]
-    pub estimator: EstimatorArg,
+    /// The estimator of the reported values (`ml` falls back to `linear` with a warning when the
+    /// model cannot be simulated).
+    #[arg(long, default_value_t, value_parser = estimator_parser())]
+    pub estimator: Estimator,
     /// Also print and write the Cramér–Rao bound of every quantity at the estimate (`crlb`
     /// in the result), for the force model in use and the noise from the shot scatter.
     #[arg(long)]
     pub crlb: bool,
 }
 
-/// `--estimator` values.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum EstimatorArg {
-    /// Output-error maximum likelihood (harmonic balance).
-    Ml,
-    /// Equation-error fit of the pooled shots.
-    Linear,
+/// `--estimator`: the library's names, with its descriptions as the help of each value.
+fn estimator_parser() -> impl clap::builder::TypedValueParser<Value = Estimator> {
+    use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
+    PossibleValuesParser::new(
+        Estimator::ALL.map(|e| PossibleValue::new(e.name()).help(e.description())),
+    )
+    // Only the names above pass the parser, and each reads back.
+    .map(|name| name.parse::<Estimator>().unwrap_or_default())
 }
 
 /// Runs the subcommand.
@@ -114,10 +114,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         nominal_hz,
         near_rel: args.near_rel,
         min_shots_for_weights: if args.unweighted { 0 } else { 5 },
-        estimator: match args.estimator {
-            EstimatorArg::Ml => Estimator::Ml,
-            EstimatorArg::Linear => Estimator::Linear,
-        },
+        estimator: args.estimator,
         crlb: args.crlb,
         ..Settings::default()
     };

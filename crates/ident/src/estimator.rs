@@ -9,24 +9,12 @@ use crate::fisher::{self, Noise};
 use crate::forward::{ForwardModel, ForwardSettings};
 use crate::ml::{self, MlFit, MlSettings};
 use crate::pool::{pool, Pooled};
-use crate::problem::{Fit, IdentError, Problem, Settings, Unknown};
+use crate::problem::{Estimator, Fit, IdentError, Problem, Settings, Unknown};
 use crate::report::{Estimate, Report};
 use harmonid_model::Model;
 use nalgebra::DMatrix;
 use num_complex::Complex64;
 use std::f64::consts::TAU;
-
-/// Which estimate to report as `value`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Estimator {
-    /// Output-error maximum likelihood by harmonic balance, started from the pooled
-    /// equation-error fit (default; falls back to `Linear` with a warning when the model
-    /// cannot be simulated at the start).
-    #[default]
-    Ml,
-    /// The equation-error fit of the pooled shots.
-    Linear,
-}
 
 /// Relative standard error above which a quantity is reported as not determined.
 pub const MAX_REL_STDERR: f64 = 0.3;
@@ -50,7 +38,7 @@ pub fn identify(model: &Model, ds: &Dataset, settings: &Settings) -> Result<Repo
             report.warnings.push(format!(
                 "measurement \"{}\": shot(s) {} rejected as disturbed (far from the median spectrum); the estimate uses the other {}",
                 ds.measurements[mi].spec.name,
-                crate::report::index_list(bad),
+                crate::dataset::index_list(bad),
                 pooled.used[mi]
             ));
         }
@@ -676,10 +664,7 @@ fn merge(
     fo: Option<&FisherOut>,
     settings: &Settings,
 ) {
-    report.estimator = match estimator {
-        Estimator::Ml => "ml".into(),
-        Estimator::Linear => "linear".into(),
-    };
+    report.estimator = estimator.to_string();
     report.eom = values.eom.clone();
     report.forces = values.forces.clone();
     report.gains = values.gains.clone();

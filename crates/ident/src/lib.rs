@@ -40,8 +40,10 @@ pub use dataset::{
     Dataset, DatasetError, Manifest, Measurement, MeasurementSpec, Point, Truth, TruthForce,
     TruthMode, TruthNoise,
 };
-pub use estimator::{identify, Estimator, MAX_REL_STDERR};
+pub use estimator::{identify, MAX_REL_STDERR};
 pub use fisher::{crlb, Bounds, FisherError, Noise};
 pub use forward::{ForwardError, ForwardModel, ForwardSettings};
-pub use problem::{ForceModel, IdentError, Problem, Settings, Unknown};
+pub use problem::{
+    Estimator, ForceModel, IdentError, Problem, Settings, Unknown, UnknownEstimator,
+};
 pub use report::{Estimate, Report};

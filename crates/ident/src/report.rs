@@ -1,8 +1,8 @@
 //! Statistics over shots and the result of an identification (`DATA_FORMAT.md`, "Result of an
 //! identification"), with a readable summary table and a per-shot CSV.
 
-use crate::dataset::Dataset;
-use crate::problem::{Fit, ForceModel, Problem, Unknown};
+use crate::dataset::{index_list, Dataset};
+use crate::problem::{Estimator, Fit, ForceModel, Problem, Unknown};
 use serde::{Deserialize, Deserializer, Serialize};
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
@@ -115,14 +115,6 @@ pub struct Estimate {
     /// Per-shot estimates.
     #[serde(skip)]
     pub per_shot: Vec<f64>,
-}
-
-/// Shot indices for a message: `3, 7, 12`.
-pub(crate) fn index_list(xs: &[usize]) -> String {
-    xs.iter()
-        .map(usize::to_string)
-        .collect::<Vec<_>>()
-        .join(", ")
 }
 
 fn is_true(b: &bool) -> bool {
@@ -618,12 +610,11 @@ impl Report {
         let _ = writeln!(
             s,
             "  estimator: {}; value ± stderr{}; std = spread of per-shot estimates (diagnostic){}",
-            match self.estimator.as_str() {
-                "ml" => "output-error maximum likelihood (harmonic balance) on the pooled shots",
-                "linear" => "equation-error fit of the pooled shots",
-                other => other,
+            match self.estimator.parse::<Estimator>() {
+                Ok(e) => e.description(),
+                Err(_) => self.estimator.as_str(),
             },
-            if self.estimator == "ml" {
+            if self.estimator == Estimator::Ml.name() {
                 " (Fisher information at the estimate)"
             } else {
                 ""

@@ -626,6 +626,14 @@ impl Dataset {
     }
 }
 
+/// Shot or point indices for a message: `3, 7, 12`.
+pub(crate) fn index_list(xs: &[usize]) -> String {
+    xs.iter()
+        .map(usize::to_string)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 mod csv_read;
 mod parts;
 #[cfg(test)]

@@ -49,7 +49,7 @@ mod weighting;
 pub(crate) use attribution::{nearest_mode, nominal_frequencies};
 pub use error::IdentError;
 pub use fit::{Fit, GroupDiagnostics};
-pub use settings::{ForceModel, Settings};
+pub use settings::{Estimator, ForceModel, Settings, UnknownEstimator};
 pub use stages::{FitGroup, NotIdentifiable};
 pub use unknowns::Unknown;
 

@@ -2,8 +2,72 @@
 
 use super::IdentError;
 use crate::dataset::Dataset;
-use crate::estimator::Estimator;
 use std::collections::BTreeMap;
+
+/// Which estimate to report as `value`. [`Estimator::name`] is its one spelling: the command
+/// line's `--estimator`, Python's `estimator=` and the result file's `estimator` (serde), read
+/// back by [`FromStr`](std::str::FromStr).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Estimator {
+    /// Output-error maximum likelihood by harmonic balance, started from the pooled
+    /// equation-error fit (default; falls back to `Linear` with a warning when the model
+    /// cannot be simulated at the start).
+    #[default]
+    Ml,
+    /// The equation-error fit of the pooled shots.
+    Linear,
+}
+
+impl Estimator {
+    /// Every estimator, the default first.
+    pub const ALL: [Estimator; 2] = [Estimator::Ml, Estimator::Linear];
+
+    /// The estimator's name: `ml`, `linear`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Estimator::Ml => "ml",
+            Estimator::Linear => "linear",
+        }
+    }
+
+    /// What the estimator is, for the summary and the command line's help.
+    pub fn description(self) -> &'static str {
+        match self {
+            Estimator::Ml => {
+                "output-error maximum likelihood (harmonic balance) on the pooled shots"
+            }
+            Estimator::Linear => "equation-error fit of the pooled shots",
+        }
+    }
+}
+
+impl std::fmt::Display for Estimator {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Estimator {
+    type Err = UnknownEstimator;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Estimator::ALL
+            .into_iter()
+            .find(|e| e.name() == s)
+            .ok_or_else(|| UnknownEstimator {
+                found: s.to_string(),
+            })
+    }
+}
+
+/// A name that is no [`Estimator`]'s.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("expected {}, found {found:?}", Estimator::ALL.map(|e| format!("{:?} ({})", e.name(), e.description())).join(" or "))]
+pub struct UnknownEstimator {
+    /// The name given.
+    pub found: String,
+}
 
 /// Which force model to use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -140,5 +204,20 @@ mod tests {
             "{e}"
         );
         assert_eq!(ForceModel::Free.to_string(), "free forces");
+    }
+
+    #[test]
+    fn estimator_names_read_back_in_every_spelling() {
+        for e in Estimator::ALL {
+            assert_eq!(e.name().parse::<Estimator>(), Ok(e));
+            assert_eq!(e.to_string(), e.name());
+            let json = serde_json::to_string(&e).expect("json");
+            assert_eq!(json, format!("\"{}\"", e.name()));
+            assert_eq!(serde_json::from_str::<Estimator>(&json).expect("back"), e);
+        }
+        assert_eq!(Estimator::default(), Estimator::ALL[0]);
+        let err = "mle".parse::<Estimator>().expect_err("unknown");
+        assert_eq!(err.found, "mle");
+        assert!(err.to_string().starts_with("expected \"ml\" ("), "{err}");
     }
 }
