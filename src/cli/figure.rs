@@ -6,14 +6,14 @@ use std::path::Path;
 
 /// Checks before any work that `path` names a figure format (`.svg`, `.png`) and can be written.
 pub fn check(path: &Path, inputs: &[&Path]) -> miette::Result<()> {
-    Format::of_path(path).map_err(|e| miette::miette!("--plot: {e}"))?;
+    Format::of_path(path)?;
     super::common::check_outputs(&[path], inputs)
 }
 
 /// Draws `fig` to `path` (`.svg` or `.png`, by the extension).
 pub fn save(fig: &impl Figure, path: &Path, inputs: &[&Path]) -> miette::Result<()> {
     harmonid_plot::save(fig, path, inputs).map_err(|e| match e {
-        PlotError::File(f) => miette::Report::new(f),
-        other => miette::miette!("--plot {}: {other}", path.display()),
+        PlotError::File(_) => miette::Report::new(e),
+        other => miette::Report::new(other).wrap_err(format!("--plot {}", path.display())),
     })
 }

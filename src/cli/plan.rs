@@ -144,7 +144,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         let pb = super::progress::spinner("scoring the plan");
         let ev = evaluate(&model, &values, &plan, sigma, args.shots);
         pb.finish_and_clear();
-        let ev = ev.map_err(|e| miette!("{e}"))?;
+        let ev = ev?;
         (plan, ev)
     } else {
         let points = args
@@ -169,7 +169,7 @@ pub fn run(args: Args) -> miette::Result<()> {
             pb.set_message(step.name.to_string());
         });
         pb.finish_and_clear();
-        let (plan, ev) = designed.map_err(|e| miette!("{e}"))?;
+        let (plan, ev) = designed?;
         if let Some(out) = &args.out {
             write_output(out, plan.to_toml().as_bytes(), &inputs)?;
             eprintln!(

@@ -2,7 +2,7 @@
 //! with every figure of the identification (the work is in `harmonid_report`).
 
 use harmonid_ident::{Dataset, Settings};
-use harmonid_report::{ReportError, Source};
+use harmonid_report::Source;
 use miette::{miette, IntoDiagnostic, WrapErr};
 use std::path::PathBuf;
 
@@ -44,15 +44,12 @@ pub fn run(args: Args) -> miette::Result<()> {
     let pb = super::progress::spinner("identifying, reconstructing and drawing");
     let page = harmonid_report::build(&args.model, &model, &ds, source);
     pb.finish_and_clear();
-    let page = page.map_err(|e| miette!("{e}"))?;
+    let page = page?;
     let dataset_files = ds.input_files();
     let mut inputs: Vec<&std::path::Path> = vec![args.model.as_path(), args.dataset.as_path()];
     inputs.extend(args.result.as_deref());
     inputs.extend(dataset_files.iter().map(|p| p.as_path()));
-    page.write(&args.out, &inputs).map_err(|e| match e {
-        ReportError::File(f) => miette::Report::new(f),
-        other => miette!("{other}"),
-    })?;
+    page.write(&args.out, &inputs)?;
     for w in &page.warnings {
         eprintln!("warning: {w}");
     }

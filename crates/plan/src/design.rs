@@ -190,17 +190,27 @@ pub fn design_with_progress(
     progress: &mut dyn FnMut(DesignStep<'_>),
 ) -> Result<(Plan, Evaluation), PlanError> {
     let s = settings;
-    if !(s.sigma_m.is_finite() && s.sigma_m > 0.0) || s.shots == 0 {
-        return Err(PlanError::Input(format!(
-            "the noise must be a positive σ (got {:e} m) and shots ≥ 1 (got {})",
-            s.sigma_m, s.shots
-        )));
+    let setting = |what, found: String, expected| PlanError::Setting {
+        what,
+        found,
+        expected,
+    };
+    if !(s.sigma_m.is_finite() && s.sigma_m > 0.0) {
+        return Err(setting(
+            "the noise σ",
+            format!("{:e} m", s.sigma_m),
+            "positive",
+        ));
     }
-    if !(s.grid_hz.is_finite() && s.grid_hz > 0.0) || s.max_frequencies < 2 {
-        return Err(PlanError::Input(format!(
-            "the grid must be positive (got {} Hz) and at least 2 lines per measurement allowed (got {})",
-            s.grid_hz, s.max_frequencies
-        )));
+    if s.shots == 0 {
+        return Err(setting("shots", "0".into(), "at least 1"));
+    }
+    if !(s.grid_hz.is_finite() && s.grid_hz > 0.0) {
+        return Err(setting("the grid", format!("{} Hz", s.grid_hz), "positive"));
+    }
+    if s.max_frequencies < 2 {
+        let found = s.max_frequencies.to_string();
+        return Err(setting("the lines per measurement", found, "at least 2"));
     }
     let num = NumericModel::from_model(model, values)?;
     let names = num.mode_names.clone();

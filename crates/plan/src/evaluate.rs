@@ -138,9 +138,7 @@ pub(crate) fn joint_bounds(
     infos: &[&MeasInfo],
     shots: usize,
 ) -> Result<Evaluation, PlanError> {
-    let first = infos
-        .first()
-        .ok_or_else(|| PlanError::Input("the plan has no measurement".into()))?;
+    let first = infos.first().ok_or(PlanError::EmptyPlan)?;
     let s = n_shared(model);
     let mut info = vec![0.0; s * s];
     for m in infos {

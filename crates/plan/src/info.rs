@@ -178,9 +178,9 @@ pub(crate) fn info_of(
         let ds = DMatrix::from_fn(nuis.len(), nuis.len(), |i, j| {
             d[(i, j)] * scale[i] * scale[j]
         });
-        let pinv = ds
-            .pseudo_inverse(1e-13)
-            .map_err(|e| PlanError::Input(format!("profiling the gains out: {e}")))?;
+        let pinv = ds.pseudo_inverse(1e-13).map_err(|e| PlanError::Profile {
+            reason: e.to_string(),
+        })?;
         let dinv = DMatrix::from_fn(nuis.len(), nuis.len(), |i, j| {
             pinv[(i, j)] * scale[i] * scale[j]
         });

@@ -24,24 +24,36 @@ pub use evaluate::{evaluate, Evaluation, Finding};
 use harmonid_experiment::ExperimentError;
 use harmonid_ident::{FisherError, ForwardError};
 
-/// What can go wrong while planning.
-#[derive(Debug, thiserror::Error)]
+/// What can go wrong while planning. Every variant is a diagnostic with a stable code and,
+/// where there is one thing to try, a help line.
+#[derive(Debug, thiserror::Error, miette::Diagnostic)]
 #[non_exhaustive]
 pub enum PlanError {
     /// The plan or the simulation of a measurement failed (boxed: it is large and rare).
     #[error(transparent)]
+    #[diagnostic(transparent)]
     Experiment(Box<ExperimentError>),
     /// The forward model failed (names the measurement or the unknown).
     #[error(transparent)]
+    #[diagnostic(
+        code(harmonid::plan::forward),
+        help("the guess could not be simulated as planned: check the --values and the plan's drive levels")
+    )]
     Forward(#[from] ForwardError),
     /// The Fisher information could not be formed (noise, shots).
     #[error(transparent)]
+    #[diagnostic(code(harmonid::plan::fisher))]
     Fisher(#[from] FisherError),
     /// The simulation crate refused the values.
     #[error(transparent)]
+    #[diagnostic(
+        code(harmonid::plan::values),
+        help("the --values must give every mode's f_hz and Q and every parameter of the model")
+    )]
     Sim(#[from] harmonid_sim::SimError),
     /// A measurement's drive passes a fold: the steady state jumps while the drive ramps up.
     #[error("measurement \"{measurement}\": the drive passes a fold at {percent:.1} % of its level (the response jumps while the drive ramps up); lower its forces below that level or move its tones")]
+    #[diagnostic(code(harmonid::plan::fold))]
     Fold {
         /// Measurement name.
         measurement: String,
@@ -50,6 +62,10 @@ pub enum PlanError {
     },
     /// A parameter no drive within the limits reveals.
     #[error("{parameter} cannot be identified with drives within the limits ({limits}): {reason}")]
+    #[diagnostic(
+        code(harmonid::plan::unidentifiable),
+        help("relax the limits (--max-force, --max-frequencies, --bandwidth), or fix the parameter in the model")
+    )]
     Unidentifiable {
         /// The unknown.
         parameter: String,
@@ -60,6 +76,7 @@ pub enum PlanError {
     },
     /// More measurements are needed than allowed.
     #[error("{needed} measurements are needed ({list}), but --max-measurements is {limit}; raise it or fix some parameters in the model")]
+    #[diagnostic(code(harmonid::plan::budget))]
     Budget {
         /// Measurements the design needs.
         needed: usize,
@@ -68,13 +85,91 @@ pub enum PlanError {
         /// Their names and purposes.
         list: String,
     },
-    /// Bad settings or values.
-    #[error("{0}")]
-    Input(String),
+    /// A design setting out of its range.
+    #[error("{what} must be {expected} (got {found})")]
+    #[diagnostic(code(harmonid::plan::setting))]
+    Setting {
+        /// The setting (`the noise σ`, `shots`, ...).
+        what: &'static str,
+        /// The value given, as written in the message (with its unit).
+        found: String,
+        /// What it must be.
+        expected: &'static str,
+    },
+    /// A plan with no measurement to score.
+    #[error("the plan has no measurement")]
+    #[diagnostic(
+        code(harmonid::plan::empty),
+        help("a plan needs at least one [[measurement]] with drives_hz and force")
+    )]
+    EmptyPlan,
+    /// The gains could not be profiled out of the information (a numeric failure).
+    #[error("profiling the gains out: {reason}")]
+    #[diagnostic(code(harmonid::plan::profile))]
+    Profile {
+        /// What the linear algebra said.
+        reason: String,
+    },
 }
 
 impl From<ExperimentError> for PlanError {
     fn from(e: ExperimentError) -> Self {
         PlanError::Experiment(Box::new(e))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use miette::Diagnostic;
+
+    #[test]
+    fn every_error_reaches_the_user_as_a_coded_diagnostic() {
+        let cases = [
+            (PlanError::EmptyPlan, "harmonid::plan::empty"),
+            (
+                PlanError::Setting {
+                    what: "shots",
+                    found: "0".into(),
+                    expected: "at least 1",
+                },
+                "harmonid::plan::setting",
+            ),
+            (
+                PlanError::Fold {
+                    measurement: "single_q1".into(),
+                    percent: 42.0,
+                },
+                "harmonid::plan::fold",
+            ),
+            (
+                PlanError::Budget {
+                    needed: 4,
+                    limit: 3,
+                    list: "a, b, c, d".into(),
+                },
+                "harmonid::plan::budget",
+            ),
+        ];
+        for (e, code) in cases {
+            assert_eq!(
+                e.code().map(|c| c.to_string()).as_deref(),
+                Some(code),
+                "{e}"
+            );
+        }
+        let e = PlanError::Setting {
+            what: "shots",
+            found: "0".into(),
+            expected: "at least 1",
+        };
+        assert_eq!(e.to_string(), "shots must be at least 1 (got 0)");
+        assert!(PlanError::Unidentifiable {
+            parameter: "g12".into(),
+            reason: "no coupled drive".into(),
+            limits: "--max-force 1".into(),
+        }
+        .help()
+        .is_some());
     }
 }

@@ -59,27 +59,37 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::{Path, PathBuf};
 
-/// Errors of rendering a figure.
-#[derive(Debug, thiserror::Error)]
+/// Errors of rendering a figure, each a diagnostic with a stable code.
+#[derive(Debug, thiserror::Error, miette::Diagnostic)]
 #[non_exhaustive]
 pub enum PlotError {
     /// The drawing backend failed.
-    #[error("cannot draw the figure: {0}")]
-    Draw(String),
+    #[error("cannot draw the figure: {reason}")]
+    #[diagnostic(code(harmonid::plot::draw))]
+    Draw {
+        /// What the backend said.
+        reason: String,
+    },
     /// The file extension is neither `.svg` nor `.png`.
     #[error("{}: unknown figure format (use a .svg or .png file name)", path.display())]
+    #[diagnostic(
+        code(harmonid::plot::format),
+        help("name the figure file with .svg (vector) or .png (bitmap)")
+    )]
     Format {
         /// The path given.
         path: PathBuf,
     },
     /// The figure has nothing to draw.
     #[error("the figure \"{what}\" has no data to draw")]
+    #[diagnostic(code(harmonid::plot::empty))]
     Empty {
         /// Which figure.
         what: String,
     },
     /// Writing the file failed (or it may not be written there).
     #[error(transparent)]
+    #[diagnostic(transparent)]
     File(#[from] harmonid_files::FileError),
 }
 
@@ -90,7 +100,9 @@ pub(crate) trait Drawn<T> {
 
 impl<T, E: std::fmt::Display> Drawn<T> for Result<T, E> {
     fn drawn(self) -> Result<T, PlotError> {
-        self.map_err(|e| PlotError::Draw(e.to_string()))
+        self.map_err(|e| PlotError::Draw {
+            reason: e.to_string(),
+        })
     }
 }
 
@@ -220,4 +232,29 @@ pub fn save(fig: &impl Figure, path: &Path, inputs: &[&Path]) -> Result<(), Plot
     let bytes = render(fig, Format::of_path(path)?)?;
     harmonid_files::write_file(path, &bytes, inputs)?;
     Ok(())
+}
+
+#[cfg(test)]
+mod error_tests {
+    use super::*;
+    use miette::Diagnostic;
+
+    #[test]
+    fn errors_are_coded_diagnostics() {
+        let e = PlotError::Format {
+            path: "fig.jpg".into(),
+        };
+        assert_eq!(
+            e.code().map(|c| c.to_string()).as_deref(),
+            Some("harmonid::plot::format")
+        );
+        assert!(e.help().is_some());
+        let e: Result<(), &str> = Err("backend broke");
+        let e = e.drawn().expect_err("draw");
+        assert_eq!(e.to_string(), "cannot draw the figure: backend broke");
+        assert_eq!(
+            e.code().map(|c| c.to_string()).as_deref(),
+            Some("harmonid::plot::draw")
+        );
+    }
 }

@@ -29,27 +29,32 @@ use harmonid_sim::NumericModel;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
-/// Errors of building or writing a report.
-#[derive(Debug, thiserror::Error)]
+/// Errors of building or writing a report, each a diagnostic with a stable code.
+#[derive(Debug, thiserror::Error, miette::Diagnostic)]
 #[non_exhaustive]
 pub enum ReportError {
     /// The identification could not be set up.
     #[error(transparent)]
+    #[diagnostic(transparent)]
     Ident(#[from] harmonid_ident::IdentError),
     /// Writing the report (or refusing to write it there) failed.
     #[error(transparent)]
+    #[diagnostic(transparent)]
     File(#[from] harmonid_files::FileError),
     /// A figure could not be drawn.
     #[error(transparent)]
+    #[diagnostic(transparent)]
     Plot(#[from] PlotError),
     /// The output folder exists and is not a harmonid report.
     #[error("{} exists and is not a harmonid report (no {MARKER} in it); choose another --out or remove it yourself", path.display())]
+    #[diagnostic(code(harmonid::report::clobber))]
     Clobber {
         /// The folder.
         path: PathBuf,
     },
     /// Reading or writing a file failed.
     #[error("{}: {source}", path.display())]
+    #[diagnostic(code(harmonid::report::io))]
     Io {
         /// The file or folder.
         path: PathBuf,
