@@ -247,3 +247,24 @@ fn every_link_of_the_readme_and_the_docs_resolves() {
     println!("{checked} links in {} pages", pages.len());
     assert!(checked >= 10, "{checked}");
 }
+
+/// The README's layout table names every crate of the workspace (it once left out `crates/plan`).
+#[test]
+fn readme_layout_lists_every_crate() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let readme = std::fs::read_to_string(root.join("README.md")).expect("README");
+    let mut crates: Vec<String> = std::fs::read_dir(root.join("crates"))
+        .expect("crates/")
+        .filter_map(Result::ok)
+        .filter(|e| e.path().join("Cargo.toml").is_file())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    crates.sort();
+    assert!(crates.len() >= 10, "{crates:?}");
+    for c in &crates {
+        assert!(
+            readme.contains(&format!("| `crates/{c}` |")),
+            "README.md's layout table has no row for crates/{c}"
+        );
+    }
+}

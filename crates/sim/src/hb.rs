@@ -1016,7 +1016,7 @@ impl HbSolver {
     }
 
     /// As [`HbSolver::solve_from`], but the first steps reuse the Jacobian factorised at the
-    /// previous solve (or [`HbSolver::factor_at`]) as chord steps while they contract the
+    /// previous solve (or at the chosen start, `factor_at`) as chord steps while they contract the
     /// residual by at least a factor 4 each; a fresh factorisation follows only when they do
     /// not. For a problem whose values moved a little since ([`HbSolver::set_values`]: the next
     /// step of a fit) from that solve's state, this saves the factorisation, the dominant cost.

@@ -43,7 +43,7 @@ pub const EVEN_DIRECT_ORDER: i64 = 2;
 /// For a model whose terms all have odd degree, only odd-order combinations can respond and
 /// even ones are left out. A model with an even-degree term (quadratic forces, `q1*q2`, …)
 /// responds at even orders too: it gets the static offset (a 0 Hz line, first in the list) and
-/// every combination of order ≤ [`EVEN_DIRECT_ORDER`] wherever it falls, and the slow lines
+/// every combination of order ≤ `EVEN_DIRECT_ORDER` (2) wherever it falls, and the slow lines
 /// within `2 · window_rel · max f_n` of 0 Hz (beats of the lines kept near resonances: their
 /// response is quasi-static, as large as the offset's), besides those near a resonance. An odd model gets the 0 Hz line only when an allowed combination of commensurate
 /// tones lands on 0 Hz (e.g. `2f_1 − f_2` with `f_2 = 2f_1`).

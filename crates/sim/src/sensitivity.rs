@@ -18,7 +18,7 @@
 //! | model parameter `p` | `Σ_t (∂b_t/∂p) [m_t(q)]_r` over the terms of equation `n` |
 //! | `Re F` / `Im F` of tone `d` on mode `m` (N/kg) | `−1` / `−i` at the tone's line, rows of `m` |
 //!
-//! with `∂b_t/∂p` from [`NumericModel::term_param_grad`] (the model's coefficients are
+//! with `∂b_t/∂p` from [`NumericModel::term_param_grad`](crate::NumericModel::term_param_grad) (the model's coefficients are
 //! polynomials, usually affine, in its parameters) and `[m_t(q)]_r` the exact amplitude of the
 //! monomial on the lattice. The outputs are the complex amplitudes of the measured signal
 //! `x = Σ_n shape_n q_n` at chosen lattice lines, so a line two modes contribute to is exact.

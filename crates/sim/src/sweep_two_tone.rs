@@ -153,7 +153,7 @@ impl ModeLine {
 pub struct TwoToneSweep {
     /// The reported lines of the modes near the pair, offsets from the centre, Hz.
     pub lines_offset_hz: Vec<f64>,
-    /// `mode_lines[n]`: the lines mode `n` is reported at, those of [`TwoToneSweep::points`]'
+    /// `mode_lines[n]`: the lines mode `n` is reported at, those of [`TwoToneCurve::points`]'
     /// `amplitudes[n]`. A mode whose resonance the pair sweeps past gets `lines_offset_hz`; any
     /// other mode gets the lattice lines that come near its own resonance in the range (the
     /// mixing products that reach it), lowest intermodulation orders first.

@@ -46,7 +46,7 @@ pub enum IdentError {
         nominal_hz: f64,
         /// Relative distance.
         rel: f64,
-        /// The limit ([`Settings::near_rel`]).
+        /// The limit ([`Settings::near_rel`](super::Settings::near_rel)).
         limit: f64,
     },
     /// A measured mode has zero shape at every measured point.
