@@ -14,8 +14,7 @@ use harmonid_ident::{identify, Problem, Settings};
 use std::hint::black_box;
 use std::path::PathBuf;
 
-#[path = "../tests/roundtrip_support/gen.rs"]
-mod gen;
+use harmonid_testgen as gen;
 
 fn bench_identify(c: &mut Criterion) {
     let model = harmonid_model::load(

@@ -11,8 +11,7 @@ use harmonid_report::{build, Source};
 use std::hint::black_box;
 use std::path::PathBuf;
 
-#[path = "../tests/roundtrip_support/gen.rs"]
-mod gen;
+use harmonid_testgen as gen;
 
 fn bench_report(c: &mut Criterion) {
     let model_path =

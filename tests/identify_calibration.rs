@@ -9,8 +9,7 @@
 //! own seeds (with shared seeds the realisations at the three levels are the same draws scaled,
 //! and a chance deviation repeats at every level).
 
-#[path = "roundtrip_support/gen.rs"]
-mod gen;
+use harmonid_testgen as gen;
 
 use gen::{add_noise, nanostring_2mode_plan, simulate_clean, Design, Values};
 use harmonid_ident::{identify, Estimate, Report, Settings};

@@ -2,8 +2,7 @@
 //! per-shot CSV; bad inputs give clear errors naming the file (and row) and never leave a
 //! result file behind.
 
-#[path = "roundtrip_support/gen.rs"]
-mod gen;
+use harmonid_testgen as gen;
 
 use gen::{nanostring_2mode_plan, simulate};
 use std::path::{Path, PathBuf};

@@ -6,8 +6,7 @@
 //! The long Monte Carlo (`--ignored --nocapture`) prints the distribution of `z` over many
 //! seeds; the short one runs in CI.
 
-#[path = "roundtrip_support/gen.rs"]
-mod gen;
+use harmonid_testgen as gen;
 
 use gen::{nanostring_2mode_plan, simulate, Design, Values};
 use harmonid_ident::consistency::{threshold, Comparison, Quantity, FAMILY_ALPHA};

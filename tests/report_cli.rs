@@ -236,8 +236,7 @@ fn report_from_a_result_file() {
     assert!(dataset().join("dataset.toml").is_file());
 }
 
-#[path = "roundtrip_support/gen.rs"]
-mod gen;
+use harmonid_testgen as gen;
 
 /// Not a timed test: the time of the report of a five-mode dataset (15 measurements, 30 shots),
 /// printed for the docs. Run with `cargo test --release --test report_cli -- --ignored

@@ -1,8 +1,7 @@
 //! Round trips on the example models: simulate measurements with known parameters (harmonic
 //! balance, harmonid-sim), identify them, and recover the parameters.
 
-#[path = "roundtrip_support/gen.rs"]
-mod gen;
+use harmonid_testgen as gen;
 
 use gen::{designs, nanostring_2mode_plan, simulate, Design, Values};
 use harmonid_ident::{identify, Report, Settings};

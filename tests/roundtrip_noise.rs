@@ -2,8 +2,7 @@
 //! (from the fit's residuals) against the actual scatter of estimates over independent noise
 //! realisations, and the multi-shot report against the truth.
 
-#[path = "roundtrip_support/gen.rs"]
-mod gen;
+use harmonid_testgen as gen;
 
 use gen::{nanostring_2mode_plan, simulate, Design, Values};
 use harmonid_ident::problem::Unknown;

@@ -7,7 +7,7 @@ Run from the repository root after `cargo build --release` (the command line) an
 extension importable (`pip install ./python`, or PYTHONPATH=python after `.ci/run`'s build).
 The dataset is made once by `harmonid simulate` in a temporary folder: the five-mode nanostring
 (examples/nanostring_5mode/model.hb) with the values and drive plan of the round-trip tests
-(tests/roundtrip_support/gen.rs `nanostring_5mode_plan`: a tone pair 5.5 linewidths either side
+(crates/testgen/src/lib.rs `nanostring_5mode_plan`: a tone pair 5.5 linewidths either side
 of each resonance, then every pair of modes together with a third tone; 15 measurements), 20
 shots of 0.05 nm per quadrature. Times are medians over `--repeat` runs of CPU time (user +
 system, all threads; the machine is shared, so wall-clock times wander) and wall-clock time;

@@ -1,7 +1,9 @@
 //! Designed drive plans for round-trip tests and benches, simulated by the experiment layer
 //! (`harmonid_experiment::Plan::simulate`: harmonic balance, truncation and stability checks,
 //! seeded noise) into an in-memory [`Dataset`].
-#![allow(dead_code)]
+//!
+//! A dev-only crate (`publish = false`): the root package's tests and benches use it as
+//! `use harmonid_testgen as gen;`, one compiled copy instead of a `#[path]` module in each.
 
 use harmonid_experiment::{Plan, PlanMeasurement, PlanNoise, Settings};
 use harmonid_ident::{Dataset, Measurement, Point};
@@ -12,7 +14,9 @@ use std::collections::BTreeMap;
 /// One designed measurement: tones as (frequency Hz, mode index, force N/kg).
 #[derive(Debug, Clone)]
 pub struct Design {
+    /// The measurement's name.
     pub name: String,
+    /// The drive tones.
     pub tones: Vec<(f64, usize, f64)>,
     /// Modes observed besides the driven ones (their resonance region is measured too).
     pub observe: Vec<usize>,
@@ -21,8 +25,11 @@ pub struct Design {
 /// True values: f (Hz), Q per mode; parameters by name.
 #[derive(Debug, Clone)]
 pub struct Values {
+    /// Resonance frequency per mode, Hz.
     pub f_hz: Vec<f64>,
+    /// Quality factor per mode.
     pub q: Vec<f64>,
+    /// Parameter values by name.
     pub params: BTreeMap<String, f64>,
 }
 
@@ -80,8 +87,9 @@ pub fn model_values(model: &Model, v: &Values) -> ModelValues {
 /// The values of `examples/{example}/values.toml` (the inverse of [`model_values`]): the one
 /// statement of an example's values, for tests that design their own plans around them.
 pub fn example_values(example: &str, names: &[String]) -> Values {
+    // The workspace root, two levels above this crate.
     let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("examples")
+        .join("../../examples")
         .join(example)
         .join("values.toml");
     let mv = harmonid_experiment::read_values(&path).unwrap_or_else(|e| panic!("{e}"));
