@@ -336,9 +336,20 @@ impl fmt::Display for Combination {
 
 /// The mode whose nominal resonance `nominal_hz[n]` (Hz; `None` = unknown, skipped) is
 /// spectrally closest to `hz`, with the signed distance `hz − nominal_hz[n]` in Hz.
+/// The first of equally close modes wins. The one implementation of the attribution rule: the
+/// identification's attribution of lines to modes uses it too ([`nearest_of`]).
 pub fn nearest_mode(hz: f64, nominal_hz: &[Option<f64>]) -> Option<(usize, f64)> {
+    nearest_of(hz, nominal_hz.iter().copied())
+}
+
+/// [`nearest_mode`] over any sequence of nominal resonances (Hz; `None` = unknown, skipped),
+/// for callers that hold them in another form than a slice of options.
+pub fn nearest_of(
+    hz: f64,
+    nominal_hz: impl IntoIterator<Item = Option<f64>>,
+) -> Option<(usize, f64)> {
     nominal_hz
-        .iter()
+        .into_iter()
         .enumerate()
         .filter_map(|(n, f)| f.map(|f| (n, hz - f)))
         .min_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))

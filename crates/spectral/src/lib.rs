@@ -54,7 +54,7 @@ mod test_rng;
 
 pub use error::SpectralError;
 pub use lattice::{
-    nearest_mode, Combination, LatticePoint, ToneSet, MAX_LATTICE_POINTS, MAX_TONES,
+    nearest_mode, nearest_of, Combination, LatticePoint, ToneSet, MAX_LATTICE_POINTS, MAX_TONES,
 };
 pub use mixing::{
     mixing_table, Component, ComponentKind, Line, MixingTable, ToneAssignment, Window,

@@ -123,15 +123,11 @@ pub(crate) fn nominal_frequencies(
     Ok(nominal_hz)
 }
 
-/// The mode whose nominal resonance is spectrally closest to `f` (Hz).
+/// The mode whose nominal resonance is spectrally closest to `f` (Hz): the spectral crate's
+/// rule ([`harmonid_spectral::nearest_of`]) on resolved nominal frequencies (0 when there is no
+/// mode, which a checked model never has).
 pub(crate) fn nearest_mode(nominal_hz: &[f64], f: f64) -> usize {
-    (0..nominal_hz.len())
-        .min_by(|&a, &b| {
-            (nominal_hz[a] - f)
-                .abs()
-                .total_cmp(&(nominal_hz[b] - f).abs())
-        })
-        .unwrap_or(0)
+    harmonid_spectral::nearest_of(f, nominal_hz.iter().copied().map(Some)).map_or(0, |(n, _)| n)
 }
 
 /// Attribution, drive tones, modal conversion weights and the products plan of measurement `mi`.
