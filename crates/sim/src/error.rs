@@ -40,9 +40,77 @@ pub enum SimError {
         /// What makes it unbounded.
         why: String,
     },
-    /// Shapes or sizes of the inputs disagree.
-    #[error("{0}")]
-    Shape(String),
+    /// An input has the wrong number of entries.
+    #[error("{what}: {found} given, {expected} expected ({per})")]
+    Length {
+        /// The input (`the sweep's forces`, `a point's mode shape`).
+        what: &'static str,
+        /// Entries given.
+        found: usize,
+        /// Entries expected.
+        expected: usize,
+        /// What one entry stands for (`one per mode`, `modes × tones`).
+        per: String,
+    },
+    /// The values name a mode the model does not declare.
+    #[error("the values name a mode `{name}` the model does not declare (modes: {declared})")]
+    UnknownMode {
+        /// The name as written.
+        name: String,
+        /// The model's modes, for the message.
+        declared: String,
+    },
+    /// The values give a parameter the model does not declare.
+    #[error("the values give parameter `{name}`, which the model does not declare (parameters: {declared})")]
+    UnknownParameter {
+        /// The name as written.
+        name: String,
+        /// The model's parameters, for the message.
+        declared: String,
+    },
+    /// A term of a hand-built model refers to a mode it does not have.
+    #[error("a term refers to a mode beyond the {modes} declared")]
+    TermBeyondModes {
+        /// How many modes the model has.
+        modes: usize,
+    },
+    /// No drive tone at all.
+    #[error("no drive tone given")]
+    NoTone,
+    /// A coefficient's derivative with respect to a parameter overflows its exact arithmetic.
+    #[error("the derivative of the coefficient of {monomial} in the equation of {mode} overflows")]
+    DerivativeOverflow {
+        /// The term's monomial.
+        monomial: String,
+        /// The equation's mode.
+        mode: String,
+    },
+    /// A frequency a sensitivity needs is not on the harmonic-balance lattice.
+    #[error("{what} {hz} Hz is not a line of the harmonic-balance lattice (add it to the lattice's extra_hz)")]
+    NotALine {
+        /// `drive tone` or `observed frequency`.
+        what: &'static str,
+        /// The frequency, Hz.
+        hz: f64,
+    },
+    /// A sensitivity parameter indexes beyond the model.
+    #[error("sensitivity parameter {param} is out of range ({modes} modes, {tones} tones, {params} parameters in the terms)")]
+    ParamOutOfRange {
+        /// The parameter, as its debug form.
+        param: String,
+        /// Modes of the model.
+        modes: usize,
+        /// Drive tones.
+        tones: usize,
+        /// Parameters the terms depend on.
+        params: usize,
+    },
+    /// A solver, or a set-up made for one, is used with another model or lattice.
+    #[error("{what}: the model's modes, terms or lattice differ from the ones it was set up for")]
+    SetUpFor {
+        /// Which call (`set_values`, `sensitivity`).
+        what: &'static str,
+    },
     /// The time integration left any reasonable amplitude (or produced a non-finite value).
     #[error("the time integration blew up at t = {t_s:.6e} s (|q| = {amplitude:.3e}, {scale:.3e} expected from the linear response): the drive is beyond what the model can hold (softening or unbounded terms) or the step is too coarse; try a smaller drive or more steps per period (--steps-per-period)")]
     BlowUp {

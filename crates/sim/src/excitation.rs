@@ -18,14 +18,16 @@ impl Excitation {
     /// Checks the shapes against `n_modes` and the values (finite, positive distinct tones).
     pub fn check(&self, n_modes: usize) -> Result<(), SimError> {
         if self.tones_hz.is_empty() {
-            return Err(SimError::Shape("no drive tone given".into()));
+            return Err(SimError::NoTone);
         }
         if self.force.len() != n_modes || self.force.iter().any(|f| f.len() != self.tones_hz.len())
         {
-            return Err(SimError::Shape(format!(
-                "the forces must be given for {n_modes} modes × {} tones",
-                self.tones_hz.len()
-            )));
+            return Err(SimError::Length {
+                what: "the drive's forces",
+                found: self.force.iter().map(Vec::len).sum(),
+                expected: n_modes * self.tones_hz.len(),
+                per: format!("{n_modes} modes × {} tones", self.tones_hz.len()),
+            });
         }
         for (i, &f) in self.tones_hz.iter().enumerate() {
             if !(f.is_finite() && f > 0.0) {
@@ -123,5 +125,33 @@ mod tests {
         let g = common_grid(&[1000.1, 1000.3], 1e-6, 1e-3).map(|g| (g * 1e6).round() / 1e6);
         assert_eq!(g, Some(0.1));
         assert_eq!(common_grid(&[1.0, std::f64::consts::PI], 1e-9, 1e-3), None);
+    }
+
+    #[test]
+    fn shape_errors_carry_their_numbers() {
+        let z = Complex64::new(1.0, 0.0);
+        let drive = Excitation {
+            tones_hz: vec![1000.0, 1001.0],
+            force: vec![vec![z, z], vec![z]],
+        };
+        let e = drive.check(2).expect_err("one force short");
+        assert_eq!(
+            e,
+            SimError::Length {
+                what: "the drive's forces",
+                found: 3,
+                expected: 4,
+                per: "2 modes × 2 tones".into(),
+            }
+        );
+        assert_eq!(
+            e.to_string(),
+            "the drive's forces: 3 given, 4 expected (2 modes × 2 tones)"
+        );
+        let none = Excitation {
+            tones_hz: vec![],
+            force: vec![vec![]],
+        };
+        assert_eq!(none.check(1), Err(SimError::NoTone));
     }
 }

@@ -342,9 +342,7 @@ impl HbSolver {
                 .zip(self.model.terms())
                 .all(|(a, b)| a.eq == b.eq && a.factors == b.factors);
         if !same_terms {
-            return Err(SimError::Shape(
-                "set_values: the model's modes or terms differ from the solver's".into(),
-            ));
+            return Err(SimError::SetUpFor { what: "set_values" });
         }
         drive.check(nm)?;
         let ops = Operators::new(model, drive, &self.lattice, self.system.plan().clone())?;

@@ -162,11 +162,12 @@ impl NumericModel {
     ) -> Result<Self, SimError> {
         let n = mode_names.len();
         if f_hz.len() != n || q_factor.len() != n {
-            return Err(SimError::Shape(format!(
-                "{n} modes but {} frequencies and {} quality factors",
-                f_hz.len(),
-                q_factor.len()
-            )));
+            return Err(SimError::Length {
+                what: "frequencies and quality factors",
+                found: f_hz.len().min(q_factor.len()),
+                expected: n,
+                per: "one of each per mode".into(),
+            });
         }
         for (i, name) in mode_names.iter().enumerate() {
             check_positive(&format!("f_hz of {name}"), f_hz[i], 0.0)?;
@@ -178,9 +179,7 @@ impl NumericModel {
             .collect();
         for (t, _) in &terms {
             if t.eq >= n || t.factors.iter().any(|&(m, k)| m >= n || k == 0) {
-                return Err(SimError::Shape(format!(
-                    "a term refers to a mode beyond the {n} declared"
-                )));
+                return Err(SimError::TermBeyondModes { modes: n });
             }
             if !t.coef.is_finite() {
                 return Err(SimError::BadValue {
@@ -241,10 +240,10 @@ impl NumericModel {
         let names: Vec<String> = model.modes.iter().map(|m| m.name.clone()).collect();
         for k in values.modes.keys().chain(values.eom.keys()) {
             if !names.contains(k) {
-                return Err(SimError::Shape(format!(
-                    "the values name a mode `{k}` the model does not declare (modes: {})",
-                    names.join(", ")
-                )));
+                return Err(SimError::UnknownMode {
+                    name: k.clone(),
+                    declared: names.join(", "),
+                });
             }
         }
         let mut f_hz = Vec::with_capacity(names.len());
@@ -272,10 +271,10 @@ impl NumericModel {
         }
         for k in values.parameters.keys() {
             if model.param_index(k).is_none() {
-                return Err(SimError::Shape(format!(
-                    "the values give parameter `{k}`, which the model does not declare (parameters: {})",
-                    model.param_names().join(", ")
-                )));
+                return Err(SimError::UnknownParameter {
+                    name: k.clone(),
+                    declared: model.param_names().join(", "),
+                });
             }
         }
         let needs_params = names.iter().any(|n| !values.eom.contains_key(n));
@@ -302,12 +301,9 @@ impl NumericModel {
             for (m, c) in eq.terms() {
                 let mut grad = Vec::new();
                 for p in c.variables() {
-                    let d = c.derivative(p).map_err(|_| {
-                        SimError::Shape(format!(
-                            "the derivative of the coefficient of {} in the equation of {} overflows",
-                            model.monomial_name(m),
-                            names[n]
-                        ))
+                    let d = c.derivative(p).map_err(|_| SimError::DerivativeOverflow {
+                        monomial: model.monomial_name(m),
+                        mode: names[n].clone(),
                     })?;
                     grad.push((p.index(), d.eval(&pvals)));
                 }
@@ -338,10 +334,14 @@ impl NumericModel {
         }
         let mut terms = Vec::new();
         for (mode, map) in &values.eom {
-            let eq = mode_names
-                .iter()
-                .position(|n| n == mode)
-                .ok_or_else(|| SimError::Shape(format!("[eom.{mode}] names an unknown mode")))?;
+            let eq =
+                mode_names
+                    .iter()
+                    .position(|n| n == mode)
+                    .ok_or_else(|| SimError::UnknownMode {
+                        name: mode.clone(),
+                        declared: mode_names.join(", "),
+                    })?;
             for (mono, &coef) in map {
                 terms.push(Term {
                     eq,

@@ -110,13 +110,11 @@ impl Sensitivity {
         let nm = model.n_modes();
         let lattice = solver.lattice();
         let nr = lattice.len();
-        let line = |f: f64, what: &str| -> Result<usize, SimError> {
+        let line = |f: f64, what: &'static str| -> Result<usize, SimError> {
             let i = lattice.partition_point(|&x| x < f - LINE_TOL_HZ);
             match lattice.get(i) {
                 Some(&x) if (x - f).abs() <= LINE_TOL_HZ => Ok(i),
-                _ => Err(SimError::Shape(format!(
-                    "{what} {f} Hz is not a line of the harmonic-balance lattice (add it to the lattice's extra_hz)"
-                ))),
+                _ => Err(SimError::NotALine { what, hz: f }),
             }
         };
         let tone_line = tones_hz
@@ -128,10 +126,12 @@ impl Sensitivity {
         for o in observations {
             obs_line.push(line(o.f_hz, "observed frequency")?);
             if o.shape.len() > nm {
-                return Err(SimError::Shape(format!(
-                    "an observation gives {} mode shapes for a model of {nm} modes",
-                    o.shape.len()
-                )));
+                return Err(SimError::Length {
+                    what: "an observation's mode shape",
+                    found: o.shape.len(),
+                    expected: nm,
+                    per: "at most one per mode".into(),
+                });
             }
             obs_shape.extend((0..nm).map(|n| o.shape.get(n).copied().unwrap_or(0.0)));
         }
@@ -152,10 +152,12 @@ impl Sensitivity {
                 }
             };
             if !ok {
-                return Err(SimError::Shape(format!(
-                    "sensitivity parameter {p:?} is out of range ({nm} modes, {} tones, {n_params} parameters in the terms)",
-                    tones_hz.len()
-                )));
+                return Err(SimError::ParamOutOfRange {
+                    param: format!("{p:?}"),
+                    modes: nm,
+                    tones: tones_hz.len(),
+                    params: n_params,
+                });
             }
         }
         // Distinct monomials, one output each.
@@ -232,11 +234,12 @@ impl Sensitivity {
         let (nm, nr) = (self.n_modes, self.n_lines);
         let n_obs = self.obs_line.len();
         if out.len() != self.params.len() * n_obs {
-            return Err(SimError::Shape(format!(
-                "the sensitivity output holds {} entries, {} parameters × {n_obs} observations expected",
-                out.len(),
-                self.params.len()
-            )));
+            return Err(SimError::Length {
+                what: "the sensitivity output",
+                found: out.len(),
+                expected: self.params.len() * n_obs,
+                per: format!("{} parameters × {n_obs} observations", self.params.len()),
+            });
         }
         if solver.model().n_modes() != nm
             || solver.lattice().len() != nr
@@ -247,9 +250,9 @@ impl Sensitivity {
                 .any(|(&f, &w)| (TAU * f - w).abs() > TAU * LINE_TOL_HZ)
             || solver.model().terms().len() != self.n_terms
         {
-            return Err(SimError::Shape(
-                "the solver's model or lattice differs from the sensitivity set-up".into(),
-            ));
+            return Err(SimError::SetUpFor {
+                what: "the sensitivity",
+            });
         }
         solver.factor_at(state)?;
         let needs_monomials = self.params.iter().any(|p| matches!(p, SensParam::Param(_)));

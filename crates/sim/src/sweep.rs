@@ -392,9 +392,12 @@ pub fn sweep(
 ) -> Result<SweepResult, SimError> {
     let nm = model.n_modes();
     if force.len() != nm {
-        return Err(SimError::Shape(format!(
-            "the sweep force needs {nm} entries, one per mode"
-        )));
+        return Err(SimError::Length {
+            what: "the sweep's forces",
+            found: force.len(),
+            expected: nm,
+            per: "one per mode".into(),
+        });
     }
     let (f0, f1) = (settings.f_start_hz, settings.f_stop_hz);
     check_settings(model, force, settings)?;

@@ -696,9 +696,12 @@ pub fn sweep_two_tone(
         ));
     }
     if settings.force_low.len() != nm || settings.force_high.len() != nm {
-        return Err(SimError::Shape(format!(
-            "the pair's forces must be given for each of the {nm} modes"
-        )));
+        return Err(SimError::Length {
+            what: "the pair's forces",
+            found: settings.force_low.len().min(settings.force_high.len()),
+            expected: nm,
+            per: "one per mode".into(),
+        });
     }
     if !settings.extra_tones_hz.is_empty()
         && (settings.extra_force.len() != nm
@@ -707,10 +710,12 @@ pub fn sweep_two_tone(
                 .iter()
                 .any(|r| r.len() != settings.extra_tones_hz.len()))
     {
-        return Err(SimError::Shape(format!(
-            "the extra tones' forces must be given for {nm} modes × {} tones",
-            settings.extra_tones_hz.len()
-        )));
+        return Err(SimError::Length {
+            what: "the extra tones' forces",
+            found: settings.extra_force.iter().map(Vec::len).sum(),
+            expected: nm * settings.extra_tones_hz.len(),
+            per: format!("{nm} modes × {} tones", settings.extra_tones_hz.len()),
+        });
     }
     let offsets: Vec<f64> = if settings.lines_offset_hz.is_empty() {
         let d = settings.spacing_hz;

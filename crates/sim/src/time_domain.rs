@@ -268,21 +268,36 @@ fn run(
 ) -> Result<Run, SimError> {
     let nm = model.n_modes();
     drive.check(nm)?;
-    if shapes.iter().any(|s| s.len() != nm) {
-        return Err(SimError::Shape(format!(
-            "every point shape needs {nm} entries"
-        )));
+    if let Some(s) = shapes.iter().find(|s| s.len() != nm) {
+        return Err(SimError::Length {
+            what: "a point's mode shape",
+            found: s.len(),
+            expected: nm,
+            per: "one per mode".into(),
+        });
     }
-    if measure_hz.iter().any(|f| !(f.is_finite() && *f >= 0.0)) {
-        return Err(SimError::Shape(
-            "measured frequencies must be finite and ≥ 0".into(),
-        ));
+    if let Some(&f) = measure_hz.iter().find(|f| !(f.is_finite() && **f >= 0.0)) {
+        return Err(SimError::BadValue {
+            what: "a measured frequency (Hz)".into(),
+            value: f,
+            why: "measured frequencies must be finite and ≥ 0".into(),
+        });
     }
     if let Start::State { q, v } = start {
-        if q.len() != nm || v.len() != nm || q.iter().chain(v).any(|x| !x.is_finite()) {
-            return Err(SimError::Shape(format!(
-                "the start state needs {nm} finite q and v"
-            )));
+        if q.len() != nm || v.len() != nm {
+            return Err(SimError::Length {
+                what: "the start state's q and v",
+                found: q.len().min(v.len()),
+                expected: nm,
+                per: "one each per mode".into(),
+            });
+        }
+        if let Some(&x) = q.iter().chain(v).find(|x| !x.is_finite()) {
+            return Err(SimError::BadValue {
+                what: "the start state".into(),
+                value: x,
+                why: "its q and v must be finite".into(),
+            });
         }
     }
     let nd = drive.tones_hz.len();
