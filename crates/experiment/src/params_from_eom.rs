@@ -60,71 +60,9 @@ pub fn parameters_from_eom(
     if missing.is_empty() || values.eom.is_empty() {
         return Ok(None);
     }
-    let known: Vec<f64> = model
-        .params
-        .iter()
-        .map(|p| match p.kind {
-            ParamKind::Fixed(v) => v,
-            ParamKind::Unknown => values.parameters.get(&p.name).copied().unwrap_or(0.0),
-        })
-        .collect();
-    let col_of: BTreeMap<usize, usize> = missing.iter().enumerate().map(|(c, &p)| (p, c)).collect();
-    let names: Vec<String> = model.modes.iter().map(|m| m.name.clone()).collect();
-    let mut rows: Vec<(String, Vec<f64>, f64, f64)> = Vec::new(); // label, a, rhs, scale
-    for (n, eq) in model.eom.iter().enumerate() {
-        let Some(given) = values.eom.get(&names[n]) else {
-            continue;
-        };
-        let mut given_by_factors = BTreeMap::new();
-        for (mono, &b) in given {
-            let mut f = parse_monomial(mono, &names)
-                .map_err(|e| err(format!("[eom.{}] \"{mono}\": {e}", names[n])))?;
-            f.sort_unstable();
-            given_by_factors.insert(f, (mono.clone(), b));
-        }
-        let scale = given.values().fold(0.0f64, |s, b| s.max(b.abs()));
-        let mut seen = Vec::new();
-        for (m, c) in eq.terms() {
-            let mut f: Vec<(usize, u32)> =
-                m.factors().iter().map(|&(v, k)| (v.index(), k)).collect();
-            f.sort_unstable();
-            let label = model.monomial_name(m);
-            let form = c.affine().ok_or_else(|| {
-                err(format!(
-                    "the coefficient of {label} in the equation of {} is not linear in the parameters; give [parameters] instead of [eom.{}]",
-                    names[n], names[n]
-                ))
-            })?;
-            let (label, b) = match given_by_factors.get(&f) {
-                Some((mono, b)) => (mono.clone(), *b),
-                None => (label, 0.0),
-            };
-            seen.push(f);
-            let mut a = vec![0.0; missing.len()];
-            let mut rhs = b - to_f64(&form.constant);
-            for (p, factor) in &form.terms {
-                let factor = to_f64(factor);
-                match col_of.get(&p.index()) {
-                    Some(&col) => a[col] += factor,
-                    None => rhs -= factor * known[p.index()],
-                }
-            }
-            rows.push((format!("[eom.{}] \"{label}\"", names[n]), a, rhs, scale));
-        }
-        // Given terms the model's equation does not have: the model reproduces them as zero.
-        for (f, (mono, b)) in &given_by_factors {
-            if !seen.contains(f) {
-                rows.push((
-                    format!("[eom.{}] \"{mono}\"", names[n]),
-                    vec![0.0; missing.len()],
-                    *b,
-                    scale,
-                ));
-            }
-        }
-    }
-    let a = DMatrix::from_fn(rows.len(), missing.len(), |i, j| rows[i].1[j]);
-    let rhs = DVector::from_fn(rows.len(), |i, _| rows[i].2);
+    let rows = coefficient_rows(model, values, &missing).map_err(err)?;
+    let a = DMatrix::from_fn(rows.len(), missing.len(), |i, j| rows[i].a[j]);
+    let rhs = DVector::from_fn(rows.len(), |i, _| rows[i].rhs);
     let name = |col: usize| model.params[missing[col]].name.clone();
     // Equilibrate: each column to unit norm; a column of zeros is a parameter nothing involves.
     let norms: Vec<f64> = (0..missing.len()).map(|j| a.column(j).norm()).collect();
@@ -140,39 +78,26 @@ pub fn parameters_from_eom(
         )));
     }
     let scaled = DMatrix::from_fn(a.nrows(), a.ncols(), |i, j| a[(i, j)] / norms[j]);
-    // The null space from the Gram matrix's eigenvectors (a thin SVD of a wide system has no
-    // row for it); with unit columns its eigenvalues are O(1) unless columns are tied.
-    let gram = scaled.tr_mul(&scaled).symmetric_eigen();
-    let lmax = gram.eigenvalues.max();
-    let mut tied: Vec<String> = Vec::new();
-    for (k, &l) in gram.eigenvalues.iter().enumerate() {
-        if l <= RANK_TOL * lmax {
-            for j in 0..missing.len() {
-                if gram.eigenvectors[(j, k)].abs() > 1e-6 && !tied.contains(&name(j)) {
-                    tied.push(name(j));
-                }
-            }
-        }
-    }
+    let tied: Vec<String> = tied_columns(&scaled).into_iter().map(name).collect();
     if !tied.is_empty() {
         return Err(err(format!(
             "the given [eom] coefficients determine {} only in combination (the model's map from parameters to coefficients is not invertible); give them in [parameters]",
             tied.join(", ")
         )));
     }
-    let svd = scaled.svd(true, true);
-    let y = svd
+    let y = scaled
+        .svd(true, true)
         .solve(&rhs, 0.0)
         .map_err(|e| err(format!("least squares failed: {e}")))?;
     let x: Vec<f64> = (0..missing.len()).map(|j| y[j] / norms[j]).collect();
     let fitted = &a * DVector::from_column_slice(&x);
     let worst = rows
         .iter()
-        .enumerate()
-        .map(|(i, (label, _, rhs, scale))| {
+        .zip(fitted.iter())
+        .map(|(r, f)| {
             (
-                label.clone(),
-                (fitted[i] - rhs).abs() / scale.max(f64::MIN_POSITIVE),
+                r.label.clone(),
+                (f - r.rhs).abs() / r.scale.max(f64::MIN_POSITIVE),
             )
         })
         .max_by(|a, b| a.1.total_cmp(&b.1));
@@ -194,6 +119,119 @@ pub fn parameters_from_eom(
         coefficients: rows.len(),
         worst,
     }))
+}
+
+/// One given coefficient as a linear equation in the missing parameters:
+/// `Σ_j a[j]·p_j = rhs`, with `rhs` the given value less the known part of the coefficient.
+struct Row {
+    /// `[eom.MODE] "MONOMIAL"`, for the misfit's message.
+    label: String,
+    /// Factors of the missing parameters, in the order of `missing`.
+    a: Vec<f64>,
+    /// Given value less the constant and the known parameters' part.
+    rhs: f64,
+    /// The largest given coefficient of its equation, the misfit's unit.
+    scale: f64,
+}
+
+/// The rows of every term of each equation `values.eom` gives (a model term it omits counts as
+/// given zero, a given term the model lacks as a row of zeros); a message for a coefficient that
+/// is not affine in the parameters or a monomial that does not read.
+fn coefficient_rows(
+    model: &Model,
+    values: &ModelValues,
+    missing: &[usize],
+) -> Result<Vec<Row>, String> {
+    let known: Vec<f64> = model
+        .params
+        .iter()
+        .map(|p| match p.kind {
+            ParamKind::Fixed(v) => v,
+            ParamKind::Unknown => values.parameters.get(&p.name).copied().unwrap_or(0.0),
+        })
+        .collect();
+    let col_of: BTreeMap<usize, usize> = missing.iter().enumerate().map(|(c, &p)| (p, c)).collect();
+    let names: Vec<String> = model.modes.iter().map(|m| m.name.clone()).collect();
+    let mut rows = Vec::new();
+    for (n, eq) in model.eom.iter().enumerate() {
+        let Some(given) = values.eom.get(&names[n]) else {
+            continue;
+        };
+        let mut given_by_factors = BTreeMap::new();
+        for (mono, &b) in given {
+            let mut f = parse_monomial(mono, &names)
+                .map_err(|e| format!("[eom.{}] \"{mono}\": {e}", names[n]))?;
+            f.sort_unstable();
+            given_by_factors.insert(f, (mono.clone(), b));
+        }
+        let scale = given.values().fold(0.0f64, |s, b| s.max(b.abs()));
+        let mut seen = Vec::new();
+        for (m, c) in eq.terms() {
+            let mut f: Vec<(usize, u32)> =
+                m.factors().iter().map(|&(v, k)| (v.index(), k)).collect();
+            f.sort_unstable();
+            let label = model.monomial_name(m);
+            let form = c.affine().ok_or_else(|| {
+                format!(
+                    "the coefficient of {label} in the equation of {} is not linear in the parameters; give [parameters] instead of [eom.{}]",
+                    names[n], names[n]
+                )
+            })?;
+            let (label, b) = match given_by_factors.get(&f) {
+                Some((mono, b)) => (mono.clone(), *b),
+                None => (label, 0.0),
+            };
+            seen.push(f);
+            let mut a = vec![0.0; missing.len()];
+            let mut rhs = b - to_f64(&form.constant);
+            for (p, factor) in &form.terms {
+                let factor = to_f64(factor);
+                match col_of.get(&p.index()) {
+                    Some(&col) => a[col] += factor,
+                    None => rhs -= factor * known[p.index()],
+                }
+            }
+            let label = format!("[eom.{}] \"{label}\"", names[n]);
+            rows.push(Row {
+                label,
+                a,
+                rhs,
+                scale,
+            });
+        }
+        // Given terms the model's equation does not have: the model reproduces them as zero.
+        for (f, (mono, b)) in &given_by_factors {
+            if !seen.contains(f) {
+                rows.push(Row {
+                    label: format!("[eom.{}] \"{mono}\"", names[n]),
+                    a: vec![0.0; missing.len()],
+                    rhs: *b,
+                    scale,
+                });
+            }
+        }
+    }
+    Ok(rows)
+}
+
+/// The columns of `scaled` (unit columns) in the null space of the system: the eigenvectors of
+/// its normal matrix with eigenvalues below [`RANK_TOL`] of the largest (a thin SVD of a wide
+/// system has no row for them).
+fn tied_columns(scaled: &DMatrix<f64>) -> Vec<usize> {
+    let gram = scaled.tr_mul(scaled).symmetric_eigen();
+    let lmax = gram.eigenvalues.max();
+    let mut tied = Vec::new();
+    for (k, &l) in gram.eigenvalues.iter().enumerate() {
+        if l <= RANK_TOL * lmax {
+            for j in 0..scaled.ncols() {
+                if gram.eigenvectors[(j, k)].abs() > 1e-6 && !tied.contains(&j) {
+                    tied.push(j);
+                }
+            }
+        }
+    }
+    tied.sort_unstable();
+    tied
 }
 
 fn to_f64(r: &Rational) -> f64 {
