@@ -55,10 +55,10 @@ pub fn identify(model: &Model, ds: &Dataset, settings: &Settings) -> Result<Repo
     let mut estimator = settings.estimator;
     let mut fisher_out: Option<FisherOut> = None;
     if settings.estimator == Estimator::Ml || settings.crlb {
-        match ForwardModel::new(
+        match ForwardModel::with_table(
             model,
             &pooled.mean,
-            prob.force_model,
+            prob.table.clone(),
             &ForwardSettings {
                 nominal_hz: settings.nominal_hz.clone(),
                 ..ForwardSettings::default()
@@ -84,7 +84,7 @@ pub fn identify(model: &Model, ds: &Dataset, settings: &Settings) -> Result<Repo
                 ) {
                     Ok(out) => {
                         if settings.estimator == Estimator::Ml {
-                            final_theta = to_problem(&prob, &fwd, &out.fit.theta, &theta_lin);
+                            final_theta = ml_values(&prob, &out.fit.theta, &theta_lin);
                         }
                         fisher_out = Some(out);
                     }
@@ -144,36 +144,14 @@ struct FisherOut {
     notes: Vec<String>,
 }
 
-/// Maps values of `prob`'s unknowns onto `fwd`'s layout (same [`Unknown`]s); unknowns the
-/// linear fit left undetermined start at 0 (parameters, forces) or at the nominal resonance.
-fn to_forward(prob: &Problem, fwd: &ForwardModel, theta: &[f64]) -> Vec<f64> {
-    fwd.unknowns()
-        .iter()
-        .enumerate()
-        .map(|(k, u)| {
-            if let Some(v) = fwd.fixed()[k] {
-                return v;
-            }
-            let v = prob.index_of(u).map_or(f64::NAN, |i| theta[i]);
-            if v.is_finite() {
-                return v;
-            }
-            match *u {
-                Unknown::OmegaSq(n) => (TAU * prob.nominal_hz[n]).powi(2),
-                Unknown::Gamma(n) => TAU * prob.nominal_hz[n] / 1e3,
-                _ => 0.0,
-            }
-        })
-        .collect()
-}
-
-fn to_problem(prob: &Problem, fwd: &ForwardModel, theta: &[f64], fallback: &[f64]) -> Vec<f64> {
-    let mut out = fallback.to_vec();
-    for (k, u) in fwd.unknowns().iter().enumerate() {
-        if let Some(i) = prob.index_of(u) {
-            if prob.fixed[i].is_nan() && !prob.not_identifiable.iter().any(|x| x.unknown == i) {
-                out[i] = theta[k];
-            }
+/// The reported values: the output-error estimate `ml` where it is identified, the
+/// equation-error `linear` elsewhere (fixed values, and `γ` of a mode whose `Q` is fixed,
+/// which the linear fit derived from its `ω²`). Both are in the layout of `prob.table`.
+fn ml_values(prob: &Problem, ml: &[f64], linear: &[f64]) -> Vec<f64> {
+    let mut out = linear.to_vec();
+    for (k, v) in out.iter_mut().enumerate() {
+        if prob.table.is_free(k) && !prob.not_identifiable.iter().any(|x| x.unknown == k) {
+            *v = ml[k];
         }
     }
     out
@@ -231,20 +209,13 @@ fn run_ml(
     } else {
         vec![1.0; meas.len()]
     };
-    let theta0 = to_forward(prob, fwd, theta_lin);
+    let theta0 = prob.table.start_from(theta_lin);
     let cols: Vec<usize> = fwd
         .free()
         .into_iter()
-        .filter(|&k| {
-            prob.index_of(&fwd.unknowns()[k])
-                .is_none_or(|i| !prob.not_identifiable.iter().any(|x| x.unknown == i))
-        })
+        .filter(|&k| !prob.not_identifiable.iter().any(|x| x.unknown == k))
         .collect();
-    let bounds: Vec<(Option<f64>, Option<f64>)> = fwd
-        .unknowns()
-        .iter()
-        .map(|u| prob.index_of(u).map_or((None, None), |i| prob.bounds[i]))
-        .collect();
+    let bounds = prob.table.bounds();
     let mut notes = Vec::new();
     // Starts, in order: the pooled linear estimate; the same with the model parameters it
     // does not determine (relative standard error above 1) at zero (or their bound); the same
@@ -254,11 +225,11 @@ fn run_ml(
     // nonlinearity always has a steady state near the data, and the fit moves the parameters
     // from there.
     let mut starts = vec![(theta0.clone(), None)];
-    let zero_params = |which: &dyn Fn(&Unknown) -> bool| -> Vec<f64> {
+    let zero_params = |which: &dyn Fn(usize) -> bool| -> Vec<f64> {
         let mut t = theta0.clone();
         for (k, u) in fwd.unknowns().iter().enumerate() {
             let Unknown::Param(_) = u else { continue };
-            if fwd.fixed()[k].is_some() || !which(u) {
+            if fwd.fixed()[k].is_some() || !which(k) {
                 continue;
             }
             let (lo, hi) = bounds[k];
@@ -269,17 +240,15 @@ fn run_ml(
         t
     };
     starts.push((
-        zero_params(&|u| {
-            prob.index_of(u).is_none_or(|i| {
-                // Loose: a relative standard error above 1, or none at all (NaN).
-                let se = start_cov.get(i).copied().unwrap_or(f64::NAN).sqrt();
-                se.is_nan() || se > theta_lin[i].abs()
-            })
+        zero_params(&|k| {
+            // Loose: a relative standard error above 1, or none at all (NaN).
+            let se = start_cov.get(k).copied().unwrap_or(f64::NAN).sqrt();
+            se.is_nan() || se > theta_lin[k].abs()
         }),
         Some("the model parameters the pooled linear fit does not determine at zero"),
     ));
     starts.push((
-        zero_params(&|u| prob.index_of(u).is_none_or(|i| poor.contains(&i))),
+        zero_params(&|k| poor.contains(&k)),
         Some("the model parameters of poorly fitting equation-error stages at zero"),
     ));
     starts.push((
@@ -317,7 +286,7 @@ fn run_ml(
             ramp_at_start: i + 1 == n_starts,
             ..MlSettings::default()
         };
-        match ml::refine(fwd, &meas, &sigma, theta_s, &cols, &bounds, &ml_settings) {
+        match ml::refine(fwd, &meas, &sigma, theta_s, &cols, bounds, &ml_settings) {
             Ok(f) => {
                 if i == 0 {
                     first_fit_chi2 = Some(reduced(&f));
@@ -678,7 +647,7 @@ fn merge(
         .not_identifiable
         .iter()
         .filter_map(|ni| {
-            let name = match prob.unknowns[ni.unknown] {
+            let name = match prob.table.unknowns()[ni.unknown] {
                 Unknown::OmegaSq(n) => format!("f_hz:{}", prob.mode_names[n]),
                 Unknown::Gamma(n) => format!("Q:{}", prob.mode_names[n]),
                 Unknown::Param(p) => prob.param_names[p].clone(),

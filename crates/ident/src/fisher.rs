@@ -89,16 +89,7 @@ impl Noise {
     }
 }
 
-/// What a bound is of.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Quantity {
-    /// Linear resonance frequency `f_n` of mode `n`, Hz.
-    Frequency(usize),
-    /// Quality factor `Q_n` of mode `n`.
-    Q(usize),
-    /// Model parameter `p`.
-    Param(usize),
-}
+pub use crate::layout::Quantity;
 
 /// The Cramér–Rao bound of one reported quantity.
 #[derive(Debug, Clone, PartialEq)]

@@ -29,7 +29,8 @@
 //! set by [`ForwardModel::start_from_data`]); the drive ramp from rest is the fall-back.
 
 use crate::dataset::Dataset;
-use crate::problem::{nearest_mode, nominal_frequencies, ForceModel, IdentError, Unknown};
+use crate::layout::{Unknown, UnknownTable};
+use crate::problem::{nearest_mode, nominal_frequencies, ForceModel, IdentError};
 use harmonid_model::{Linear, Model, ParamKind};
 use harmonid_sim::{
     choose_lattice, Excitation, HbSettings, HbSolver, ModeValues, ModelValues, NumericModel,
@@ -139,15 +140,11 @@ struct MeasFwd {
 pub struct ForwardModel {
     model: Model,
     mode_names: Vec<String>,
-    /// Nominal resonance of each mode, Hz (attributes tones and modal data to modes).
-    nominal: Vec<f64>,
-    unknowns: Vec<Unknown>,
-    fixed: Vec<Option<f64>>,
-    /// Fixed `Q` of modes whose `f` is unknown.
-    fixed_q: Vec<Option<f64>>,
+    /// The unknowns' layout, nominal resonances (they attribute tones and modal data to
+    /// modes) and the force model.
+    table: UnknownTable,
     meas: Vec<MeasFwd>,
     n_obs: usize,
-    force_model: ForceModel,
     settings: ForwardSettings,
     /// `θ` of the last successful evaluation (the steady states kept are at it).
     at: Option<Vec<f64>>,
@@ -157,15 +154,13 @@ impl ForwardModel {
     /// Sets the forward model up for `model` and the shape of `ds` (its measurements, drive
     /// tones, levels, measured frequencies and points; the amplitudes are not used).
     /// `ForceModel::Auto` becomes drive levels when every measurement gives them, free forces
-    /// otherwise.
+    /// otherwise; each drive tone pushes the mode whose nominal resonance is closest.
     pub fn new(
         model: &Model,
         ds: &Dataset,
         force_model: ForceModel,
         settings: &ForwardSettings,
     ) -> Result<Self, ForwardError> {
-        let nm = model.modes.len();
-        let mode_names: Vec<String> = model.modes.iter().map(|m| m.name.clone()).collect();
         let overrides = crate::Settings {
             nominal_hz: settings.nominal_hz.clone(),
             ..crate::Settings::default()
@@ -174,7 +169,6 @@ impl ForwardModel {
             IdentError::NoNominal { mode } => ForwardError::NoNominal { mode },
             e => ForwardError::Shape(e.to_string()),
         })?;
-        let nearest = |f: f64| nearest_mode(&nominal, f);
         let all_levels = ds
             .measurements
             .iter()
@@ -184,48 +178,41 @@ impl ForwardModel {
             ForceModel::Auto => ForceModel::Free,
             f => f,
         };
+        let tone_modes = ds
+            .measurements
+            .iter()
+            .map(|m| {
+                m.spec
+                    .drives_hz
+                    .iter()
+                    .map(|&f| nearest_mode(&nominal, f))
+                    .collect()
+            })
+            .collect();
+        let table = UnknownTable::new(model, nominal, force_model, tone_modes);
+        Self::with_table(model, ds, table, settings)
+    }
+
+    /// The forward model on a given layout of the unknowns (the linear fit's,
+    /// [`crate::Problem::table`]), for `model` and the shape of `ds`.
+    pub fn with_table(
+        model: &Model,
+        ds: &Dataset,
+        table: UnknownTable,
+        settings: &ForwardSettings,
+    ) -> Result<Self, ForwardError> {
+        let nm = model.modes.len();
+        let mode_names: Vec<String> = model.modes.iter().map(|m| m.name.clone()).collect();
+        let force_model = table.force_model();
         let gains = matches!(
             force_model,
             ForceModel::GainPerMeasurement | ForceModel::GainPerMode
         );
-        let mut unknowns = Vec::new();
-        let mut fixed = Vec::new();
-        let mut fixed_q = vec![None; nm];
-        for (n, m) in model.modes.iter().enumerate() {
-            unknowns.push(Unknown::OmegaSq(n));
-            unknowns.push(Unknown::Gamma(n));
-            match (m.f_hz, m.q_factor) {
-                (Linear::Fixed(f), Linear::Fixed(q)) => {
-                    fixed.push(Some((TAU * f).powi(2)));
-                    fixed.push(Some(TAU * f / q));
-                }
-                (Linear::Fixed(f), Linear::Unknown) => {
-                    fixed.push(Some((TAU * f).powi(2)));
-                    fixed.push(None);
-                }
-                (Linear::Unknown, Linear::Fixed(q)) => {
-                    fixed_q[n] = Some(q);
-                    fixed.push(None);
-                    // Derived from ω²: not an unknown of its own.
-                    fixed.push(Some(TAU * nominal[n] / q));
-                }
-                (Linear::Unknown, Linear::Unknown) => {
-                    fixed.push(None);
-                    fixed.push(None);
-                }
-            }
-        }
-        for (p, par) in model.params.iter().enumerate() {
-            unknowns.push(Unknown::Param(p));
-            fixed.push(match par.kind {
-                ParamKind::Fixed(v) => Some(v),
-                ParamKind::Unknown => None,
-            });
-        }
+        let nearest = |f: f64| nearest_mode(table.nominal_hz(), f);
         let mut meas = Vec::with_capacity(ds.measurements.len());
         let mut n_obs = 0;
         for (mi, m) in ds.measurements.iter().enumerate() {
-            let tone_mode: Vec<usize> = m.spec.drives_hz.iter().map(|&f| nearest(f)).collect();
+            let tone_mode = table.tone_modes(mi).to_vec();
             let drive_c: Option<Vec<Complex64>> = m.spec.drive_levels_and_phases().map(|(l, p)| {
                 l.iter()
                     .zip(p)
@@ -237,28 +224,6 @@ impl ForwardModel {
                     measurement: m.spec.name.clone(),
                     force_model,
                 });
-            }
-            // Force unknowns.
-            for (tone, &n) in tone_mode.iter().enumerate() {
-                for quad in 0..2u8 {
-                    let u = if gains {
-                        Unknown::Gain {
-                            meas: (force_model == ForceModel::GainPerMeasurement).then_some(mi),
-                            mode: n,
-                            quad,
-                        }
-                    } else {
-                        Unknown::Force {
-                            meas: mi,
-                            tone,
-                            quad,
-                        }
-                    };
-                    if !unknowns.contains(&u) {
-                        unknowns.push(u);
-                        fixed.push(None);
-                    }
-                }
             }
             // Observations.
             let np = m.points.len();
@@ -298,13 +263,9 @@ impl ForwardModel {
         let mut fwd = ForwardModel {
             model: model.clone(),
             mode_names,
-            nominal,
-            unknowns,
-            fixed,
-            fixed_q,
+            table,
             meas,
             n_obs,
-            force_model,
             settings: settings.clone(),
             at: None,
         };
@@ -315,7 +276,7 @@ impl ForwardModel {
     /// Per measurement: the harmonic-balance parameters and how they enter the columns.
     fn plan_chains(&mut self) {
         let nm = self.mode_names.len();
-        let col = |u: &Unknown| self.unknowns.iter().position(|x| x == u);
+        let col = |u: &Unknown| self.table.index_of(u);
         let mut all = Vec::new();
         for (mi, m) in self.meas.iter().enumerate() {
             let mut params = Vec::new();
@@ -328,7 +289,7 @@ impl ForwardModel {
                         .unwrap_or_default(),
                 ));
                 params.push(SensParam::Gamma(n));
-                chains.push(match (self.fixed_q[n], col(&Unknown::OmegaSq(n))) {
+                chains.push(match (self.table.fixed_q(n), col(&Unknown::OmegaSq(n))) {
                     (Some(q), Some(c)) => Chain::FixedQ { col: c, q, mode: n },
                     _ => Chain::Linear(
                         col(&Unknown::Gamma(n))
@@ -348,10 +309,10 @@ impl ForwardModel {
             for (tone, &mode) in m.tone_mode.iter().enumerate() {
                 for quad in 0..2u8 {
                     params.push(SensParam::Force { tone, mode, quad });
-                    let cols = match (&m.drive_c, self.force_model) {
+                    let cols = match (&m.drive_c, self.table.force_model()) {
                         (Some(d), ForceModel::GainPerMeasurement | ForceModel::GainPerMode) => {
-                            let meas =
-                                (self.force_model == ForceModel::GainPerMeasurement).then_some(mi);
+                            let meas = (self.table.force_model() == ForceModel::GainPerMeasurement)
+                                .then_some(mi);
                             let g = |quad| Unknown::Gain { meas, mode, quad };
                             let d = d[tone];
                             // F = (a + ib) D: ∂F/∂a = D, ∂F/∂b = iD.
@@ -393,7 +354,7 @@ impl ForwardModel {
     /// `γ_n = ω_n/Q_n` at `θ` (rad/s): `θ`'s own entry, or `√ω²/Q` for a mode whose `Q` is
     /// fixed while its `f` is identified.
     pub fn gamma(&self, theta: &[f64], n: usize) -> f64 {
-        match self.fixed_q[n] {
+        match self.table.fixed_q(n) {
             Some(q) => theta[2 * n].sqrt() / q,
             None => theta[2 * n + 1],
         }
@@ -401,25 +362,23 @@ impl ForwardModel {
 
     /// The unknowns, in the order of `θ` and of the Jacobian's columns.
     pub fn unknowns(&self) -> &[Unknown] {
-        &self.unknowns
+        self.table.unknowns()
     }
 
     /// Values the model fixes (`None`: to be identified). A mode with fixed `Q` and unknown
     /// `f` has its `γ` marked fixed (it is derived from `ω²`).
     pub fn fixed(&self) -> &[Option<f64>] {
-        &self.fixed
+        self.table.fixed()
     }
 
     /// Indices of the unknowns not fixed by the model.
     pub fn free(&self) -> Vec<usize> {
-        (0..self.unknowns.len())
-            .filter(|&k| self.fixed[k].is_none())
-            .collect()
+        self.table.free()
     }
 
     /// The force model in use (`Auto` resolved).
     pub fn force_model(&self) -> ForceModel {
-        self.force_model
+        self.table.force_model()
     }
 
     /// Number of observations (complex amplitudes predicted).
@@ -451,7 +410,7 @@ impl ForwardModel {
     /// Readable name of unknown `k` (`f`-style names are for reports; these name the
     /// parametrisation: `omega^2 of q1`, `gain of q2 in "single_q2" (re)`).
     pub fn label(&self, k: usize) -> String {
-        match &self.unknowns[k] {
+        match &self.table.unknowns()[k] {
             Unknown::OmegaSq(n) => format!("omega^2 of {}", self.mode_names[*n]),
             Unknown::Gamma(n) => format!("omega/Q of {}", self.mode_names[*n]),
             Unknown::Param(p) => self.model.params[*p].name.clone(),
@@ -481,7 +440,7 @@ impl ForwardModel {
         values: &ModelValues,
         forces: &[Vec<Vec<Complex64>>],
     ) -> Result<Vec<f64>, ForwardError> {
-        let mut theta = vec![f64::NAN; self.unknowns.len()];
+        let mut theta = vec![f64::NAN; self.table.len()];
         let missing = |what: String| ForwardError::BadValue {
             unknown: what,
             value: f64::NAN,
@@ -532,13 +491,13 @@ impl ForwardModel {
                             m.name, self.mode_names[n]
                         ))
                     })?;
-                let (u, z) = match (&m.drive_c, self.force_model) {
+                let (u, z) = match (&m.drive_c, self.table.force_model()) {
                     (Some(d), ForceModel::GainPerMeasurement | ForceModel::GainPerMode) => {
                         if d[tone].norm() == 0.0 {
                             continue;
                         }
-                        let meas =
-                            (self.force_model == ForceModel::GainPerMeasurement).then_some(mi);
+                        let meas = (self.table.force_model() == ForceModel::GainPerMeasurement)
+                            .then_some(mi);
                         (
                             [0u8, 1].map(|quad| Unknown::Gain {
                                 meas,
@@ -558,7 +517,7 @@ impl ForwardModel {
                     ),
                 };
                 for (q, v) in u.iter().zip([z.re, z.im]) {
-                    if let Some(k) = self.unknowns.iter().position(|x| x == q) {
+                    if let Some(k) = self.table.index_of(q) {
                         if theta[k].is_nan() {
                             theta[k] = v;
                         }
@@ -584,7 +543,7 @@ impl ForwardModel {
             let mut start = Vec::with_capacity(dm.freqs_hz.len());
             for (r, &f) in dm.freqs_hz.iter().enumerate() {
                 let obs = &m.obs[r * np..(r + 1) * np];
-                let n = nearest_mode(&self.nominal, f);
+                let n = nearest_mode(self.table.nominal_hz(), f);
                 let s2: f64 = obs.iter().map(|o| o.shape[n].powi(2)).sum();
                 let mut q = Z;
                 if s2 > 0.0 {
@@ -659,16 +618,12 @@ impl ForwardModel {
         let m = &self.meas[mi];
         let nm = self.mode_names.len();
         let mut force = vec![vec![Z; m.tones_hz.len()]; nm];
-        let get = |u: Unknown| {
-            self.unknowns
-                .iter()
-                .position(|x| *x == u)
-                .map_or(0.0, |k| theta[k])
-        };
+        let get = |u: Unknown| self.table.index_of(&u).map_or(0.0, |k| theta[k]);
         for (tone, &n) in m.tone_mode.iter().enumerate() {
-            force[n][tone] = match (&m.drive_c, self.force_model) {
+            force[n][tone] = match (&m.drive_c, self.table.force_model()) {
                 (Some(d), ForceModel::GainPerMeasurement | ForceModel::GainPerMode) => {
-                    let meas = (self.force_model == ForceModel::GainPerMeasurement).then_some(mi);
+                    let meas =
+                        (self.table.force_model() == ForceModel::GainPerMeasurement).then_some(mi);
                     let g = |quad| {
                         get(Unknown::Gain {
                             meas,
@@ -738,7 +693,7 @@ impl ForwardModel {
         out_x: &mut [Complex64],
         ramp: bool,
     ) -> Result<(), ForwardError> {
-        let nk = self.unknowns.len();
+        let nk = self.table.len();
         if theta.len() != nk || out_x.len() != self.n_obs {
             return Err(ForwardError::Shape(format!(
                 "evaluate: θ has {} entries ({nk} unknowns), out_x {} ({} observations)",
@@ -771,7 +726,7 @@ impl ForwardModel {
             let mut x = vec![Z; self.n_obs];
             return self.evaluate(theta, &mut x, Some(out_jac));
         }
-        let nk = self.unknowns.len();
+        let nk = self.table.len();
         for m in &mut self.meas {
             let hb_err = |why: String| ForwardError::Hb {
                 measurement: m.name.clone(),
@@ -816,7 +771,7 @@ impl ForwardModel {
     }
 
     fn check_jacobian_len(&self, jac: Option<&[Complex64]>) -> Result<(), ForwardError> {
-        let nk = self.unknowns.len();
+        let nk = self.table.len();
         match jac {
             Some(j) if j.len() != self.n_obs * nk => Err(ForwardError::Shape(format!(
                 "evaluate: the Jacobian holds {} entries, {} × {nk} expected",

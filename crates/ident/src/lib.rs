@@ -30,6 +30,7 @@ pub mod drift;
 pub mod estimator;
 pub mod fisher;
 pub mod forward;
+pub mod layout;
 pub mod ml;
 pub mod pool;
 pub mod problem;
@@ -43,6 +44,7 @@ pub use dataset::{
 pub use estimator::{identify, MAX_REL_STDERR};
 pub use fisher::{crlb, Bounds, FisherError, Noise};
 pub use forward::{ForwardError, ForwardModel, ForwardSettings};
+pub use layout::{Quantity, UnknownTable};
 pub use problem::{
     Estimator, ForceModel, IdentError, Problem, Settings, Unknown, UnknownEstimator,
 };

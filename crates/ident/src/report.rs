@@ -336,13 +336,13 @@ impl Report {
                     ge.std / ge.value.abs()
                 ));
             }
-            if prob.fixed[iw].is_finite() {
+            if prob.table.fixed()[iw].is_some() {
                 fe.std = 0.0;
                 fe.stderr = 0.0;
                 fe.identifiable = true;
                 fe.reason = Some("fixed by the model".into());
             }
-            if prob.fixed[ig].is_finite() {
+            if prob.table.fixed()[ig].is_some() {
                 qe.std = 0.0;
                 qe.stderr = 0.0;
                 qe.identifiable = true;
@@ -379,7 +379,7 @@ impl Report {
                 theta_per_shot[s][p] = *x;
             }
             let mut e = estimate(v, fit.cov_diag[0][i]);
-            if prob.fixed[i].is_finite() {
+            if prob.table.fixed()[i].is_some() {
                 e.std = 0.0;
                 e.stderr = 0.0;
                 e.identifiable = true;
@@ -438,7 +438,7 @@ impl Report {
             }
         }
         let mut gains: BTreeMap<String, BTreeMap<String, GainResult>> = BTreeMap::new();
-        for (i, u) in prob.unknowns.iter().enumerate() {
+        for (i, u) in prob.table.unknowns().iter().enumerate() {
             if let Unknown::Gain {
                 meas,
                 mode,
@@ -505,7 +505,7 @@ impl Report {
         }
         for ni in &prob.not_identifiable {
             if matches!(
-                prob.unknowns[ni.unknown],
+                prob.table.unknowns()[ni.unknown],
                 Unknown::Force { .. } | Unknown::Gain { .. }
             ) {
                 warnings.push(format!("{}: {}", prob.label(ni.unknown), ni.reason));
@@ -526,7 +526,7 @@ impl Report {
             estimator: "per-shot".into(),
             rejected_shots: BTreeMap::new(),
             notes: Vec::new(),
-            force_model: match prob.force_model {
+            force_model: match prob.table.force_model() {
                 ForceModel::Free | ForceModel::Auto => "free complex force per drive tone".into(),
                 ForceModel::GainPerMeasurement => {
                     "drive levels: one complex actuator gain per mode and measurement".into()

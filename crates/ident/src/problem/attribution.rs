@@ -49,7 +49,7 @@ impl Problem {
             .map(|(tone, &i)| {
                 let n = prep.mode_of[i];
                 let get = |u: Unknown| self.index_of(&u).map_or(f64::NAN, |j| values[j]);
-                let f = match self.force_model {
+                let f = match self.table.force_model() {
                     ForceModel::Free | ForceModel::Auto => Complex64::new(
                         get(Unknown::Force {
                             meas: mi,
@@ -63,8 +63,8 @@ impl Problem {
                         }),
                     ),
                     ForceModel::GainPerMeasurement | ForceModel::GainPerMode => {
-                        let meas =
-                            (self.force_model == ForceModel::GainPerMeasurement).then_some(mi);
+                        let meas = (self.table.force_model() == ForceModel::GainPerMeasurement)
+                            .then_some(mi);
                         let gain = Complex64::new(
                             get(Unknown::Gain {
                                 meas,
@@ -235,7 +235,7 @@ mod tests {
         assert_eq!(p.active_modes(2), &[0, 1]);
         assert_eq!(p.active_modes(1), &[1]);
         assert_eq!(p.meas[2].drive_idx, vec![1, 2, 5]);
-        assert_eq!(p.nominal_hz, vec![1000.0, 3000.0]);
+        assert_eq!(p.table.nominal_hz(), &[1000.0, 3000.0]);
     }
 
     #[test]

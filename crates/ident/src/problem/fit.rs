@@ -56,7 +56,7 @@ impl Problem {
         self.check_shape(ds)?;
         let settings = &self.settings;
         let nshots = ds.measurements.iter().map(|m| m.n_shots).max().unwrap_or(1);
-        let nu = self.unknowns.len();
+        let nu = self.table.len();
         let mut scratch: Vec<ProductScratch> = self.meas.iter().map(|m| m.plan.scratch()).collect();
         let rows: Vec<Vec<MeasRows>> = (0..nshots)
             .map(|s| {
@@ -65,7 +65,14 @@ impl Problem {
                     .collect()
             })
             .collect();
-        let mut values = vec![self.fixed.clone(); nshots];
+        // Fixed values in place; NaN marks what the fits fill in.
+        let start: Vec<f64> = self
+            .table
+            .fixed()
+            .iter()
+            .map(|v| v.unwrap_or(f64::NAN))
+            .collect();
+        let mut values = vec![start; nshots];
         let mut cov_diag = vec![vec![f64::NAN; nu]; nshots];
         let mut cov_lin: Vec<BTreeMap<usize, [f64; 4]>> = vec![BTreeMap::new(); nshots];
         let mut groups = Vec::new();
@@ -84,8 +91,16 @@ impl Problem {
         // The shot-averaged dataset (for linearising the noise propagation).
         let mean_ds = shot_mean(ds);
         for g in &self.groups {
-            let lower: Vec<Option<f64>> = g.unknowns.iter().map(|&u| self.bounds[u].0).collect();
-            let upper: Vec<Option<f64>> = g.unknowns.iter().map(|&u| self.bounds[u].1).collect();
+            let lower: Vec<Option<f64>> = g
+                .unknowns
+                .iter()
+                .map(|&u| self.table.bounds()[u].0)
+                .collect();
+            let upper: Vec<Option<f64>> = g
+                .unknowns
+                .iter()
+                .map(|&u| self.table.bounds()[u].1)
+                .collect();
             let mut diag = GroupDiagnostics {
                 stage: g.stage,
                 measurements: g.measurements.clone(),
@@ -102,11 +117,13 @@ impl Problem {
             let mut conds = Vec::new();
             let (mut rss_sum, mut rhs_sum) = (0.0, 0.0);
             // Fixed-Q modes: iterate γ = ω/Q with the fitted ω.
-            let iters = (1 + gls_iters).max(if self.fixed_q.iter().any(Option::is_some) {
-                3
-            } else {
-                1
-            });
+            let iters = (1 + gls_iters).max(
+                if (0..self.mode_names.len()).any(|n| self.table.fixed_q(n).is_some()) {
+                    3
+                } else {
+                    1
+                },
+            );
             let mut sols: Vec<Option<(LsSolution, usize, f64, bool)>> = vec![None; nshots];
             for it in 0..iters {
                 let gls_now = it > 0 && it <= gls_iters;
@@ -174,11 +191,11 @@ impl Problem {
                 }
                 // ω², γ covariance per mode, for f and Q errors.
                 for (j, &u) in g.unknowns.iter().enumerate() {
-                    if let Unknown::OmegaSq(n) = self.unknowns[u] {
+                    if let Unknown::OmegaSq(n) = self.table.unknowns()[u] {
                         if let Some(j2) = g
                             .unknowns
                             .iter()
-                            .position(|&v| self.unknowns[v] == Unknown::Gamma(n))
+                            .position(|&v| self.table.unknowns()[v] == Unknown::Gamma(n))
                         {
                             let c = |x: usize, y: usize| so.cov_unit[x * k + y] * scale;
                             cov_lin[s].insert(n, [c(j, j), c(j, j2), c(j2, j), c(j2, j2)]);

@@ -46,20 +46,20 @@ mod testkit;
 mod unknowns;
 mod weighting;
 
+pub use crate::layout::Unknown;
 pub(crate) use attribution::{nearest_mode, nominal_frequencies};
 pub use error::IdentError;
 pub use fit::{Fit, GroupDiagnostics};
 pub use settings::{Estimator, ForceModel, Settings, UnknownEstimator};
 pub use stages::{FitGroup, NotIdentifiable};
-pub use unknowns::Unknown;
 
 use crate::dataset::Dataset;
+use crate::layout::UnknownTable;
 use attribution::MeasPrep;
 use equations::Term;
 use harmonid_model::Model;
 use harmonid_poly::PowerProduct;
 use regressors::MeasRows;
-use unknowns::UnknownTable;
 
 /// The identification problem, set up once for a model and a dataset.
 #[derive(Debug, Clone)]
@@ -68,28 +68,19 @@ pub struct Problem {
     pub mode_names: Vec<String>,
     /// Parameter names.
     pub param_names: Vec<String>,
-    /// Nominal frequency of each mode, Hz.
-    pub nominal_hz: Vec<f64>,
-    /// All real unknowns.
-    pub unknowns: Vec<Unknown>,
-    /// Values fixed by the model (NaN where unknown).
-    pub fixed: Vec<f64>,
-    /// Lower/upper bounds per unknown.
-    pub bounds: Vec<(Option<f64>, Option<f64>)>,
+    /// The unknowns (the layout the output-error fit shares), nominal resonances and the
+    /// force model in use.
+    pub table: UnknownTable,
     /// Fit groups in order.
     pub groups: Vec<FitGroup>,
     /// Unknowns no measurement determines.
     pub not_identifiable: Vec<NotIdentifiable>,
-    /// The force model in use.
-    pub force_model: ForceModel,
     /// Warnings found while setting up.
     pub warnings: Vec<String>,
     /// The settings it was set up with.
     settings: Settings,
     /// The shape of the dataset it was set up for.
     shape: DatasetShape,
-    /// Modes whose Q is fixed while f is identified: γ = ω/Q updated from the fitted ω.
-    fixed_q: Vec<Option<f64>>,
     monomials: Vec<PowerProduct>,
     eqs: Vec<Vec<Term>>,
     meas: Vec<MeasPrep>,
@@ -109,9 +100,9 @@ impl Problem {
         let nominal_hz = attribution::nominal_frequencies(model, ds, settings)?;
         let (monomials, eqs) = equations::build_equations(model, &mode_names)?;
         let force_model = settings::resolve_force_model(settings.force_model, ds, &manifest_path)?;
-        let (mut table, fixed_q) = UnknownTable::linear_and_params(model, &nominal_hz);
         let max_deg = model.max_degree() as usize;
         let mut meas = Vec::with_capacity(ds.measurements.len());
+        let mut tone_modes = Vec::with_capacity(ds.measurements.len());
         for mi in 0..ds.measurements.len() {
             let prep = attribution::prepare_measurement(
                 ds,
@@ -122,24 +113,19 @@ impl Problem {
                 max_deg,
                 &manifest_path,
             )?;
-            let drive_modes: Vec<usize> = prep.drive_idx.iter().map(|&i| prep.mode_of[i]).collect();
-            table.add_forces(force_model, mi, &drive_modes);
+            tone_modes.push(prep.drive_idx.iter().map(|&i| prep.mode_of[i]).collect());
             meas.push(prep);
         }
+        let table = UnknownTable::new(model, nominal_hz, force_model, tone_modes);
         let mut prob = Problem {
             mode_names,
             param_names: model.params.iter().map(|p| p.name.clone()).collect(),
-            nominal_hz,
-            unknowns: table.unknowns,
-            fixed: table.fixed,
-            bounds: table.bounds,
+            table,
             groups: Vec::new(),
             not_identifiable: Vec::new(),
-            force_model,
             warnings: Vec::new(),
             settings: settings.clone(),
             shape: DatasetShape::of(ds),
-            fixed_q,
             monomials,
             eqs,
             meas,
@@ -172,10 +158,20 @@ impl Problem {
         }
     }
 
+    /// The value of unknown `i` moved to the right-hand side: its estimate in `values` when
+    /// finite, else the model's fixed value, else 0 (not yet estimated).
+    fn known_value(&self, values: &[f64], i: usize) -> f64 {
+        if values[i].is_finite() {
+            values[i]
+        } else {
+            self.table.fixed()[i].unwrap_or(0.0)
+        }
+    }
+
     /// γ = ω/Q of the modes whose Q is fixed while f is identified, from the fitted ω².
     fn update_fixed_q(&self, values: &mut [f64]) {
-        for (n, q) in self.fixed_q.iter().enumerate() {
-            if let Some(q) = q {
+        for n in 0..self.mode_names.len() {
+            if let Some(q) = self.table.fixed_q(n) {
                 let Some(iw) = self.index_of(&Unknown::OmegaSq(n)) else {
                     continue;
                 };

@@ -1,6 +1,5 @@
 //! Regressors: the complex equations of one shot and the real least-squares system of a group.
 
-use super::unknowns::unknown_index;
 use super::{ForceModel, Problem, Unknown};
 use crate::dataset::Dataset;
 use harmonid_spectral::{monomial_amplitudes, ProductScratch};
@@ -82,7 +81,7 @@ impl Problem {
                 if i != r {
                     continue;
                 }
-                match self.force_model {
+                match self.table.force_model() {
                     ForceModel::Free | ForceModel::Auto => {
                         for quad in 0..2u8 {
                             let c = if quad == 0 {
@@ -106,8 +105,8 @@ impl Problem {
                             .as_ref()
                             .and_then(|v| v.get(tone).copied())
                             .unwrap_or_default();
-                        let meas =
-                            (self.force_model == ForceModel::GainPerMeasurement).then_some(mi);
+                        let meas = (self.table.force_model() == ForceModel::GainPerMeasurement)
+                            .then_some(mi);
                         for quad in 0..2u8 {
                             let c = if quad == 0 { -d } else { -d * Complex64::i() };
                             let u = Unknown::Gain {
@@ -125,7 +124,7 @@ impl Problem {
             }
             let coefs = coefs
                 .into_iter()
-                .filter_map(|(u, c)| unknown_index(&self.unknowns, &u).map(|i| (i, c)))
+                .filter_map(|(u, c)| self.table.index_of(&u).map(|i| (i, c)))
                 .collect();
             rows.push(Row { coefs, rhs });
         }
@@ -149,7 +148,7 @@ impl Problem {
         let mut a = DMatrix::zeros(2 * nrow, k);
         let mut b = DVector::zeros(2 * nrow);
         let mut which = Vec::with_capacity(nrow);
-        let mut col = vec![usize::MAX; self.unknowns.len()];
+        let mut col = vec![usize::MAX; self.table.len()];
         for (j, &u) in unknowns.iter().enumerate() {
             col[u] = j;
         }
@@ -163,14 +162,7 @@ impl Problem {
                         a[(2 * i, col[u])] += c.re * w;
                         a[(2 * i + 1, col[u])] += c.im * w;
                     } else {
-                        let v = if values[u].is_finite() {
-                            values[u]
-                        } else if self.fixed[u].is_finite() {
-                            self.fixed[u]
-                        } else {
-                            0.0
-                        };
-                        rhs -= c * v;
+                        rhs -= c * self.known_value(values, u);
                     }
                 }
                 b[2 * i] = rhs.re * w;
@@ -199,7 +191,7 @@ mod tests {
             };
             let p = Problem::new(&testkit::model(), &ds, &s).expect("problem");
             let rows = p.shot_rows_all(&ds, 0);
-            let all: Vec<usize> = (0..p.unknowns.len()).collect();
+            let all: Vec<usize> = (0..p.table.len()).collect();
             let t = testkit::truth(&p);
             let (a, b, which) = p.assemble(&rows, &[0, 1, 2], &all, &t, None);
             assert_eq!(which.len(), 4 + 4 + 7);

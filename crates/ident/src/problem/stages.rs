@@ -29,7 +29,7 @@ impl Problem {
     /// Whether unknown `u` is visible in measurement `mi`.
     pub(super) fn visible(&self, ui: usize, mi: usize) -> bool {
         let act = &self.meas[mi].active;
-        match &self.unknowns[ui] {
+        match &self.table.unknowns()[ui] {
             Unknown::Force { meas, .. } => *meas == mi,
             Unknown::Gain { meas, mode, .. } => {
                 meas.is_none_or(|m| m == mi)
@@ -46,9 +46,9 @@ impl Problem {
     }
     pub(super) fn derive_groups(&mut self, ds: &Dataset) -> Result<(), IdentError> {
         let settings = self.settings.clone();
-        let nu = self.unknowns.len();
+        let nu = self.table.len();
         let nmeas = self.meas.len();
-        let mut determined: Vec<bool> = self.fixed.iter().map(|v| v.is_finite()).collect();
+        let mut determined: Vec<bool> = self.table.fixed().iter().map(Option::is_some).collect();
         // Fixed-Q modes: γ is derived, not fitted.
         let mut stages: Vec<(usize, Vec<usize>)> = Vec::new();
         if settings.joint {
@@ -187,7 +187,7 @@ impl Problem {
         }
         for (u, &done) in determined.iter().enumerate() {
             if !done && !self.not_identifiable.iter().any(|x| x.unknown == u) {
-                let modes = self.unknown_modes(&self.unknowns[u]);
+                let modes = self.unknown_modes(&self.table.unknowns()[u]);
                 let need = mode_sets_text(&modes, &self.mode_names);
                 self.not_identifiable.push(NotIdentifiable {
                     unknown: u,
@@ -249,7 +249,11 @@ mod tests {
         );
         let g2 = &p.groups[2];
         assert_eq!((g2.stage, &g2.measurements), (2, &vec![2]));
-        let names: Vec<&Unknown> = g2.unknowns.iter().map(|&u| &p.unknowns[u]).collect();
+        let names: Vec<&Unknown> = g2
+            .unknowns
+            .iter()
+            .map(|&u| &p.table.unknowns()[u])
+            .collect();
         assert!(names.contains(&&Unknown::Param(1)));
         assert!(!names.contains(&&Unknown::Param(0)));
         assert!(!names.contains(&&Unknown::OmegaSq(0)));
@@ -260,7 +264,7 @@ mod tests {
         };
         let p = Problem::new(&testkit::model(), &ds, &joint).expect("problem");
         assert_eq!(p.groups.len(), 1);
-        assert_eq!(p.groups[0].unknowns.len(), p.unknowns.len());
+        assert_eq!(p.groups[0].unknowns.len(), p.table.len());
     }
 
     #[test]
@@ -269,7 +273,7 @@ mod tests {
         let p = Problem::new(&testkit::model(), &ds, &Settings::default()).expect("problem");
         assert_eq!(p.not_identifiable.len(), 1);
         let ni = &p.not_identifiable[0];
-        assert_eq!(p.unknowns[ni.unknown], Unknown::Param(1));
+        assert_eq!(p.table.unknowns()[ni.unknown], Unknown::Param(1));
         assert!(ni.reason.ends_with("resonances of a+b"), "{}", ni.reason);
         let names = vec!["a".to_string(), "b".into(), "c".into()];
         assert_eq!(

@@ -109,7 +109,8 @@ pub(super) fn dataset(with_pair: bool, shots: usize, sigma: f64, seed: u64) -> D
 /// True value of every unknown of `prob` (gains the same in every measurement; beta = g = 0).
 pub(super) fn truth(prob: &super::Problem) -> Vec<f64> {
     use super::Unknown;
-    prob.unknowns
+    prob.table
+        .unknowns()
         .iter()
         .map(|u| match *u {
             Unknown::OmegaSq(n) => (2.0 * PI * F_HZ[n]).powi(2),

@@ -75,15 +75,8 @@ impl Problem {
             .sum();
         let mut sigma = DMatrix::<f64>::zeros(2 * total, 2 * total);
         let val = |u: &Unknown| -> f64 {
-            self.index_of(u).map_or(0.0, |i| {
-                if values[i].is_finite() {
-                    values[i]
-                } else if self.fixed[i].is_finite() {
-                    self.fixed[i]
-                } else {
-                    0.0
-                }
-            })
+            self.index_of(u)
+                .map_or(0.0, |i| self.known_value(values, i))
         };
         let mut offset = 0;
         for &mi in &g.measurements {
