@@ -9,7 +9,7 @@
 use harmonid_testgen as gen;
 
 use gen::{nanostring_2mode_plan, simulate, Design, Values};
-use harmonid_ident::consistency::{threshold, Comparison, Quantity, FAMILY_ALPHA};
+use harmonid_ident::{consistency_threshold as threshold, Compared, Comparison, FAMILY_ALPHA};
 use harmonid_ident::{identify, Dataset, Report, Settings};
 use std::path::PathBuf;
 
@@ -39,7 +39,7 @@ fn print(label: &str, r: &Report) {
     }
 }
 
-fn find<'a>(r: &'a Report, q: Quantity, mode: &str) -> &'a Comparison {
+fn find<'a>(r: &'a Report, q: Compared, mode: &str) -> &'a Comparison {
     r.consistency
         .iter()
         .find(|c| c.quantity == q && c.mode == mode)
@@ -66,7 +66,7 @@ fn shipped_example_is_consistent_within_its_uncertainties() {
     let ds = Dataset::load(root().join("examples/nanostring_2mode/data")).expect("dataset");
     let r = identify(&m, &ds, &Settings::default()).expect("identify");
     print("examples/nanostring_2mode/data", &r);
-    let g = find(&r, Quantity::Gain, "q2");
+    let g = find(&r, Compared::Gain, "q2");
     let truth: f64 = 1.81 / 1.064_705_882_352_941_2;
     assert!((truth - 1.7).abs() < 1e-12);
     let (single, coupled) = if g.measurements[0] == "single_q2" {
@@ -91,7 +91,7 @@ fn shipped_example_is_consistent_within_its_uncertainties() {
         assert!((g.values[i] - truth).abs() < 2.0 * g.stderrs[i], "{g:?}");
     }
     assert!(g.z.abs() < 1.0, "{g:?}");
-    let g1 = find(&r, Quantity::Gain, "q1");
+    let g1 = find(&r, Compared::Gain, "q1");
     assert!(
         g1.z.abs() < 2.0 && g1.stderrs[0] / g1.values[0] < 0.003,
         "{g1:?}"
@@ -313,7 +313,7 @@ fn a_gain_discrepancy_is_flagged() {
     ds.manifest.measurements[mi] = ds.measurements[mi].spec.clone();
     let r = identify(&m, &ds, &Settings::default()).expect("identify");
     print("gain of q1 in couple_q1_q2 3 % high", &r);
-    let c = find(&r, Quantity::Gain, "q1");
+    let c = find(&r, Compared::Gain, "q1");
     assert!(c.z.abs() > 8.0, "{c:?}");
     let w = inconsistency_warnings(&r);
     assert_eq!(w.len(), 1, "{:?}", r.warnings);
@@ -351,7 +351,7 @@ fn a_frequency_discrepancy_is_flagged() {
     ds.measurements[mi] = other.measurements[0].clone();
     let r = identify(&m, &ds, &Settings::default()).expect("identify");
     print("f of q1 1 Hz higher in couple_q1_q2", &r);
-    let c = find(&r, Quantity::Frequency, "q1");
+    let c = find(&r, Compared::Frequency, "q1");
     assert!(
         c.z.abs() > threshold(r.consistency.len(), FAMILY_ALPHA),
         "{c:?}"

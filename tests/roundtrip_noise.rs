@@ -5,7 +5,7 @@
 use harmonid_testgen as gen;
 
 use gen::{nanostring_2mode_plan, simulate, Design, Values};
-use harmonid_ident::problem::Unknown;
+use harmonid_ident::Unknown;
 use harmonid_ident::{Problem, Settings};
 use std::path::PathBuf;
 

@@ -1,7 +1,7 @@
 //! The dataset-shaped forward model: what a dataset's every measured amplitude should be for
 //! given values of the identification's unknowns, by harmonic balance, with its Jacobian by
 //! implicit differentiation ([`harmonid_sim::sensitivity`]). The output-error estimator and
-//! the Cramér–Rao bounds ([`crate::fisher`]) and the planner are built on it.
+//! the Cramér–Rao bounds ([`crate::uncertainty`]) and the planner are built on it.
 //!
 //! **Unknowns** are [`Unknown`]s, the layout of the linear fit ([`crate::Problem`]): per mode
 //! `ω_n²` (rad²/s²) and `γ_n = ω_n/Q_n` (rad/s), every model parameter (SI units of its

@@ -1,51 +1,81 @@
 //! harmonid-ident: identification of nonlinear multimode resonator models from the complex
 //! amplitudes of multi-tone sideband spectra (the method of Wattjes et al., generalised).
 //!
-//! Per mode `n` and measured frequency `Ω_r` attributed to it (conventions of `DATA_FORMAT.md`:
-//! a complex amplitude `X` at `f` is the signal `Re[X e^{i2πft}]`):
+//! **The estimate** is output-error maximum likelihood: the coefficients whose harmonic-balance
+//! steady states ([`ForwardModel`]) best reproduce every measured line of the pooled shots,
+//! each line weighted by its noise from the scatter of the shots. Its standard errors come
+//! from the Fisher information at the estimate, inflated by `√(χ²/dof)` over a correct model's
+//! expectation when the model misses the data, and are checked by a jackknife, a drift test
+//! and the agreement of the measurements that see one quantity.
+//!
+//! **Its start** is the method's linear fit (equation error): per mode `n` and measured
+//! frequency `Ω_r` attributed to it (conventions of `docs/data-format.md`: a complex amplitude
+//! `X` at `f` is the signal `Re[X e^{i2πft}]`)
 //!
 //! ```text
 //! (ω_n² − Ω_r² + iΩ_r ω_n/Q_n) q̂_n(Ω_r) + Σ_m b_m^(n) ĝ_m(Ω_r) = F̂_n(Ω_r)
 //! ```
 //!
 //! where `ĝ_m` is the complex amplitude of monomial `m(q)` at `Ω_r`, computed exactly from the
-//! measured spectra. Real and imaginary parts give two linear equations in the unknowns
-//! (`ω_n²`, `ω_n/Q_n`, the model's parameters, forces or actuator gains), solved stage by
-//! stage ([`problem`]) by equilibrated least squares ([`solve`]); [`report`] turns per-shot
-//! estimates into the result file.
+//! measured spectra: two real equations per line, linear in the unknowns (`ω_n²`, `ω_n/Q_n`,
+//! the model's parameters, forces or actuator gains), solved stage by stage ([`Problem`]) by
+//! equilibrated least squares, per shot (the spread the paper's histograms show) and on the
+//! pooled shots (the start).
 //!
-//! ```no_run
-//! use harmonid_ident::{identify, Dataset, Settings};
-//! let model = harmonid_model::load("examples/nanostring_2mode/model.hb".as_ref()).expect("model");
-//! let ds = Dataset::load("path/to/dataset").expect("dataset");
+//! The modules follow that order: `identify` → `finalize` (the result, built once) →
+//! `output_error` (starts and the fit) → `uncertainty` (Fisher bounds, jackknife, drift,
+//! consistency) → `forward` (the dataset-shaped harmonic balance both use) → `shots` (pooling,
+//! robust statistics) → `problem` (the linear fit) → `layout` (the one table of unknowns,
+//! [`UnknownTable`]); the dataset reader is [`dataset`].
+//!
+//! ```
+//! use harmonid_ident::{identify, Dataset, Estimator, Settings};
+//! use std::path::Path;
+//! let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/nanostring_2mode");
+//! let model = harmonid_model::load(&dir.join("model.hb")).expect("model");
+//! let ds = Dataset::load(dir.join("data")).expect("dataset");
 //! let report = identify(&model, &ds, &Settings::default()).expect("identify");
+//! assert_eq!(report.estimator, Estimator::Ml.name());
+//! let f1 = &report.modes["q1"].f_hz;
+//! assert!((f1.value - 207_582.0).abs() < 5.0 * f1.stderr.max(1.0));
 //! println!("{}", report.summary(ds.truth.as_ref()));
 //! ```
 
 #![warn(missing_docs)]
 
-pub mod consistency;
 pub mod dataset;
-pub mod drift;
-pub mod estimator;
-pub mod fisher;
-pub mod forward;
-pub mod layout;
-pub mod ml;
-pub mod pool;
-pub mod problem;
-pub mod report;
-pub mod solve;
+mod finalize;
+mod forward;
+mod identify;
+mod layout;
+mod output_error;
+mod problem;
+mod shots;
+mod solve;
+mod uncertainty;
 
 pub use dataset::{
     Dataset, DatasetError, Manifest, Measurement, MeasurementSpec, Point, Truth, TruthForce,
     TruthMode, TruthNoise,
 };
-pub use estimator::{identify, MAX_REL_STDERR};
-pub use fisher::{crlb, Bounds, FisherError, Noise};
-pub use forward::{ForwardError, ForwardModel, ForwardSettings};
-pub use layout::{Quantity, UnknownTable};
-pub use problem::{
-    Estimator, ForceModel, IdentError, Problem, Settings, Unknown, UnknownEstimator,
+pub use finalize::{
+    Estimate, FitReport, ForceResult, GainResult, ModeResult, Report, JACKKNIFE_TOL,
+    MAX_REL_STDERR, RESULT_FORMAT,
 };
-pub use report::{Estimate, Report};
+pub use forward::{ForwardError, ForwardModel, ForwardSettings};
+pub use identify::identify;
+pub use layout::{Quantity, Unknown, UnknownTable};
+pub use output_error::ml::{refine, MlFit, MlSettings};
+pub use problem::{
+    DatasetShape, Estimator, Fit, FitGroup, ForceModel, GroupDiagnostics, IdentError,
+    NotIdentifiable, Problem, Settings, UnknownEstimator,
+};
+pub use shots::{disturbed_shots, pool, shot_stats, Pooled, ShotStats};
+pub use solve::{solve_ls, LsSolution};
+pub use uncertainty::consistency::{
+    threshold as consistency_threshold, Compared, Comparison, FAMILY_ALPHA,
+};
+pub use uncertainty::{
+    bounds_from_information, crlb, crlb_from_jacobian, drift_check, information, Bound, Bounds,
+    Drift, FisherError, Noise, Unidentifiable,
+};

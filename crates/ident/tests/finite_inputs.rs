@@ -4,7 +4,9 @@
 //! (the accuracy tests do that), only that nothing panics and that what is returned is finite
 //! where it claims to be determined.
 
-use harmonid_ident::{drift, identify, pool, solve, Dataset, Estimator, Settings};
+use harmonid_ident::{
+    disturbed_shots, drift_check, identify, solve_ls, Dataset, Estimator, Settings,
+};
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 use proptest::prelude::*;
@@ -43,7 +45,7 @@ proptest! {
     ) {
         let a = DMatrix::from_fn(m, k, |i, j| vals[(i * k + j) % vals.len()]);
         let b = DVector::from_fn(m, |i, _| rhs[i % rhs.len()]);
-        let _ = solve::solve_ls(&a, &b, &bounds[..k], &bounds[4..4 + k]);
+        let _ = solve_ls(&a, &b, &bounds[..k], &bounds[4..4 + k]);
     }
 
     #[test]
@@ -57,9 +59,9 @@ proptest! {
             .map(|s| s.iter().map(|&(re, im)| Complex64::new(re, im)).collect())
             .collect();
         let refs: Vec<&[Complex64]> = data.iter().map(Vec::as_slice).collect();
-        let bad = pool::disturbed_shots(&refs);
+        let bad = disturbed_shots(&refs);
         prop_assert!(bad.iter().all(|&s| s < data.len()));
-        let _ = drift::check(&delta, var);
+        let _ = drift_check(&delta, var);
     }
 
     #[test]

@@ -3,8 +3,8 @@
 use crate::info::{measurement_info, n_shared, Fidelity, MeasInfo, Target};
 use crate::PlanError;
 use harmonid_experiment::Plan;
-use harmonid_ident::fisher::{bounds_from_information, Bounds};
 use harmonid_ident::Unknown;
+use harmonid_ident::{bounds_from_information, Bounds};
 use harmonid_model::Model;
 use harmonid_sim::{ModelValues, NumericModel};
 use std::collections::BTreeSet;

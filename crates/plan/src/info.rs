@@ -2,7 +2,7 @@
 
 use crate::PlanError;
 use harmonid_experiment::{ExperimentError, Plan, PlanMeasurement, Settings, Truncation};
-use harmonid_ident::fisher::{information, Noise};
+use harmonid_ident::{information, Noise};
 use harmonid_ident::{Dataset, ForceModel, ForwardModel, ForwardSettings, Unknown};
 use harmonid_model::Model;
 use harmonid_sim::{ModelValues, NumericModel};

@@ -2,7 +2,7 @@
 //! network.
 
 use crate::PageFigure;
-use harmonid_ident::report::FitReport as FitView;
+use harmonid_ident::FitReport as FitView;
 use harmonid_ident::{Dataset, Truth};
 use harmonid_ident::{Estimate, Report};
 use harmonid_model::Model;

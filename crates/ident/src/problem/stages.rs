@@ -12,14 +12,14 @@ pub struct FitGroup {
     pub stage: usize,
     /// Measurement indices.
     pub measurements: Vec<usize>,
-    /// Free unknowns (indices into [`Problem::unknowns`]).
+    /// Free unknowns (indices into [`Problem::table`]'s unknowns).
     pub unknowns: Vec<usize>,
 }
 
 /// An unknown that could not be determined, and why.
 #[derive(Debug, Clone)]
 pub struct NotIdentifiable {
-    /// Index into [`Problem::unknowns`].
+    /// Index into [`Problem::table`]'s unknowns.
     pub unknown: usize,
     /// Explanation (which measurement would be needed, or which unknowns it is collinear with).
     pub reason: String,

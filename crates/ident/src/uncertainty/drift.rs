@@ -10,6 +10,13 @@
 //!
 //! Needs at least 5 shots.
 
+use crate::dataset::Dataset;
+use crate::forward::ForwardModel;
+use crate::layout::Unknown;
+use crate::output_error::ml::MlFit;
+use crate::shots::Pooled;
+use std::f64::consts::TAU;
+
 /// What the check found for one quantity.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Drift {
@@ -52,6 +59,82 @@ pub fn check(delta: &[f64], var: f64) -> Option<Drift> {
         trend: t.abs() > 5.0,
         excess: scatter_ratio > 1.0 + 5.0 * (2.0 / (nf - 1.0)).sqrt(),
     })
+}
+
+/// Drift check of every identified resonance frequency: per shot, `ω_n²` with everything else
+/// fixed at the estimate (one Gauss–Newton step on that shot's residual, per-line weights of
+/// one shot), tested for a trend and excess scatter ([`check`]). Shot `g` is the `g`-th
+/// kept shot of every measurement.
+pub(crate) fn drift_warnings(
+    fwd: &ForwardModel,
+    fit: &MlFit,
+    sigma_mean: &[f64],
+    ds: &Dataset,
+    pooled: &Pooled,
+) -> Vec<String> {
+    let nk = fwd.unknowns().len();
+    let kept = pooled.kept(ds);
+    let groups = kept.iter().map(Vec::len).min().unwrap_or(0);
+    let mut out = Vec::new();
+    if groups < 5 {
+        return out;
+    }
+    for (n, name) in fwd.mode_names().iter().enumerate() {
+        let Some(k) = fwd
+            .unknowns()
+            .iter()
+            .position(|u| *u == Unknown::OmegaSq(n))
+            .filter(|&k| fwd.fixed()[k].is_none())
+        else {
+            continue;
+        };
+        // Information of one shot and the per-shot projections.
+        let mut info = 0.0;
+        let mut delta = vec![0.0; groups];
+        let mut offset = 0;
+        for (mi, m) in ds.measurements.iter().enumerate() {
+            let per = m.freqs_hz.len() * m.points.len();
+            let nm = kept[mi].len() as f64;
+            for o in 0..per {
+                let a = fit.jac[(offset + o) * nk + k];
+                if a.norm_sqr() == 0.0 {
+                    continue;
+                }
+                // Noise variance of one shot at this line.
+                let v = sigma_mean[offset + o].powi(2) * nm;
+                info += a.norm_sqr() / v;
+                for (g, d) in delta.iter_mut().enumerate() {
+                    let r = m.data[kept[mi][g] * per + o] - fit.x[offset + o];
+                    *d += (a.conj() * r).re / v;
+                }
+            }
+            offset += per;
+        }
+        if info.is_nan() || info <= 0.0 {
+            continue;
+        }
+        for d in delta.iter_mut() {
+            *d /= info;
+        }
+        let w2 = fit.theta[k];
+        let hz = w2.sqrt() / TAU / (2.0 * w2);
+        if let Some(d) = check(&delta, 1.0 / info) {
+            if d.trend {
+                out.push(format!(
+                    "f of {name} drifts over the shots: {:+.3e} Hz per shot (t = {:.1}); pooling assumes a stationary device, so its stderr is too small",
+                    d.slope * hz,
+                    d.t
+                ));
+            }
+            if d.excess {
+                out.push(format!(
+                    "f of {name} scatters {:.1}× more from shot to shot than the noise explains (fitted per shot, the rest fixed); the device may drift or the noise is not stationary",
+                    d.scatter_ratio.sqrt()
+                ));
+            }
+        }
+    }
+    out
 }
 
 #[cfg(test)]

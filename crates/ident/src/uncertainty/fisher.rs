@@ -307,7 +307,7 @@ pub fn crlb_from_jacobian(
 }
 
 /// Bounds from a Fisher information `info` of the unknowns `free` (indices into
-/// [`ForwardModel::unknowns`], row-major `free.len()` square) at `θ`: inverted as [`invert`]
+/// [`ForwardModel::unknowns`], row-major `free.len()` square) at `θ`: inverted as `invert` does
 /// does, then in the reported parametrisation (`fwd` gives the labels and the `γ` of modes
 /// with fixed `Q`). Information added up over several forward models of the same model (a
 /// planner's measurements) works the same, as long as `free` indexes the shared unknowns.

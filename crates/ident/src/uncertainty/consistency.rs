@@ -38,7 +38,7 @@
 //! raises any warning stays below 1 %, whatever `K` (2.58 for one comparison, 3.09 for five,
 //! 3.29 for ten, 3.59 for thirty). The Monte Carlo check is in `tests/identify_consistency.rs`.
 
-use crate::fisher::{self, Noise};
+use super::fisher::{self, Noise};
 use crate::forward::ForwardModel;
 use crate::problem::Unknown;
 use num_complex::Complex64;
@@ -49,7 +49,7 @@ pub const FAMILY_ALPHA: f64 = 0.01;
 
 /// Which quantity a comparison is of.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Quantity {
+pub enum Compared {
     /// Linear resonance frequency of a mode, Hz.
     Frequency,
     /// Quality factor of a mode.
@@ -58,12 +58,12 @@ pub enum Quantity {
     Gain,
 }
 
-impl Quantity {
+impl Compared {
     fn label(self) -> &'static str {
         match self {
-            Quantity::Frequency => "f",
-            Quantity::Q => "Q",
-            Quantity::Gain => "actuator gain |G|",
+            Compared::Frequency => "f",
+            Compared::Q => "Q",
+            Compared::Gain => "actuator gain |G|",
         }
     }
 }
@@ -72,7 +72,7 @@ impl Quantity {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Comparison {
     /// What is compared.
-    pub quantity: Quantity,
+    pub quantity: Compared,
     /// Mode name.
     pub mode: String,
     /// The two measurements' names.
@@ -122,9 +122,9 @@ pub fn compare(fit: &Fitted<'_>) -> Vec<Comparison> {
     }
     let mut out = Vec::new();
     for (n, mode) in fwd.mode_names().iter().enumerate() {
-        for quantity in [Quantity::Frequency, Quantity::Q] {
+        for quantity in [Compared::Frequency, Compared::Q] {
             let u = match quantity {
-                Quantity::Frequency => Unknown::OmegaSq(n),
+                Compared::Frequency => Unknown::OmegaSq(n),
                 _ => Unknown::Gamma(n),
             };
             let Some(k) = fwd.unknowns().iter().position(|x| *x == u) else {
@@ -140,7 +140,7 @@ pub fn compare(fit: &Fitted<'_>) -> Vec<Comparison> {
 }
 
 /// The per-measurement estimates of unknown `k` (mode `n`) and their pairwise comparisons.
-fn split(fit: &Fitted<'_>, k: usize, quantity: Quantity, n: usize, mode: &str) -> Vec<Comparison> {
+fn split(fit: &Fitted<'_>, k: usize, quantity: Compared, n: usize, mode: &str) -> Vec<Comparison> {
     let fwd = fit.fwd;
     let nk = fwd.unknowns().len();
     let n_obs = fit.sigma.len();
@@ -185,11 +185,11 @@ fn split(fit: &Fitted<'_>, k: usize, quantity: Quantity, n: usize, mode: &str) -
         .position(|u| *u == Unknown::OmegaSq(n))
         .map_or(f64::NAN, |i| fit.theta[i]);
     let value = |theta_k: f64| match quantity {
-        Quantity::Frequency => theta_k.sqrt() / TAU,
+        Compared::Frequency => theta_k.sqrt() / TAU,
         _ => w2.sqrt() / theta_k,
     };
     let slope = |theta_k: f64| match quantity {
-        Quantity::Frequency => 1.0 / (2.0 * TAU * theta_k.sqrt()),
+        Compared::Frequency => 1.0 / (2.0 * TAU * theta_k.sqrt()),
         _ => w2.sqrt() / (theta_k * theta_k),
     };
     let mut out = Vec::new();
@@ -335,7 +335,7 @@ fn gains(fit: &Fitted<'_>) -> Vec<Comparison> {
                 }
                 let (va, vb) = (ga.3.norm(), gb.3.norm());
                 out.push(Comparison {
-                    quantity: Quantity::Gain,
+                    quantity: Compared::Gain,
                     mode: fwd.mode_names()[n].clone(),
                     measurements: [fit.names[ga.0].clone(), fit.names[gb.0].clone()],
                     values: [va, vb],
@@ -396,7 +396,7 @@ pub fn warnings(comparisons: &[Comparison]) -> Vec<String> {
         .iter()
         .filter(|c| c.z.abs() > limit)
         .map(|c| {
-            let unit = if c.quantity == Quantity::Frequency {
+            let unit = if c.quantity == Compared::Frequency {
                 " Hz"
             } else {
                 ""
@@ -478,7 +478,7 @@ mod tests {
         crate::identify(&model, ds, &crate::Settings::default()).expect("identify")
     }
 
-    fn z_of(r: &crate::Report, q: Quantity) -> f64 {
+    fn z_of(r: &crate::Report, q: Compared) -> f64 {
         r.consistency
             .iter()
             .find(|c| c.quantity == q)
@@ -499,15 +499,15 @@ mod tests {
         let f = r
             .consistency
             .iter()
-            .find(|c| c.quantity == Quantity::Frequency)
+            .find(|c| c.quantity == Compared::Frequency)
             .expect("f compared");
         assert!((f.values[0] - 1000.0).abs() < 4.0 * f.stderrs[0], "{f:?}");
         assert!(r.warnings.iter().all(|w| !w.starts_with("inconsistent")));
         // The gain of "b" 2 % larger: only the gain is flagged, naming both measurements.
         let r = run(&tiny(g * 1.02, 1000.0, 1));
-        assert!(z_of(&r, Quantity::Gain).abs() > 10.0, "{:?}", r.consistency);
+        assert!(z_of(&r, Compared::Gain).abs() > 10.0, "{:?}", r.consistency);
         assert!(
-            z_of(&r, Quantity::Frequency).abs() < 3.0,
+            z_of(&r, Compared::Frequency).abs() < 3.0,
             "{:?}",
             r.consistency
         );
@@ -529,7 +529,7 @@ mod tests {
         let f = r
             .consistency
             .iter()
-            .find(|c| c.quantity == Quantity::Frequency)
+            .find(|c| c.quantity == Compared::Frequency)
             .expect("f compared");
         assert!(f.z < -5.0, "{f:?}");
         assert!((f.values[1] - f.values[0] - 1.0).abs() < 0.3, "{f:?}");

@@ -1,0 +1,279 @@
+//! The result, built once: the reported values (the output-error estimate, or the pooled
+//! equation-error one), their standard errors (Fisher information at the estimate, or the
+//! per-shot spread), the per-shot spread as a diagnostic, the tables, and the warnings, all
+//! from typed state.
+
+mod result;
+mod summary;
+mod tables;
+
+pub use result::{Estimate, FitReport, ForceResult, GainResult, ModeResult, Report, RESULT_FORMAT};
+
+use crate::dataset::{index_list, Dataset};
+use crate::layout::{Quantity, Unknown};
+use crate::output_error::{OutputError, OutputErrorFailure};
+use crate::problem::{Estimator, Fit, Problem, Settings};
+use crate::shots::Pooled;
+use std::collections::BTreeMap;
+use std::f64::consts::PI;
+use tables::FIXED_BY_THE_MODEL;
+
+/// Relative standard error above which a quantity is reported as not determined.
+pub const MAX_REL_STDERR: f64 = 0.3;
+/// Relative disagreement of the jackknife and the Fisher standard error that is warned about.
+pub const JACKKNIFE_TOL: f64 = 0.3;
+
+/// What an identification found, for [`finalize`].
+pub(crate) struct Found<'a> {
+    /// Path of the model file, as the result names it.
+    pub model_path: &'a str,
+    /// The dataset (every shot).
+    pub ds: &'a Dataset,
+    /// The problem set up for it.
+    pub prob: &'a Problem,
+    /// The per-shot equation-error fits (the spread reported as `std`).
+    pub per_shot: &'a Fit,
+    /// The pooled shots.
+    pub pooled: &'a Pooled,
+    /// The pooled equation-error estimate (layout of `prob.table`).
+    pub linear: &'a [f64],
+    /// The estimator asked for.
+    pub asked: Estimator,
+    /// The output-error fit, or why it failed (`None`: not run).
+    pub output_error: Option<Result<OutputError, OutputErrorFailure>>,
+    /// Notes on the noise source.
+    pub notes: Vec<String>,
+    /// The settings.
+    pub settings: &'a Settings,
+}
+
+/// The result of an identification from what it found.
+pub(crate) fn finalize(found: Found<'_>) -> Report {
+    let Found {
+        model_path,
+        ds,
+        prob,
+        per_shot,
+        pooled,
+        linear,
+        asked,
+        output_error,
+        notes,
+        settings,
+    } = found;
+    let (estimator, fo, fallback) = match output_error {
+        Some(Ok(f)) => (asked, Some(f), None),
+        Some(Err(why)) => (Estimator::Linear, None, Some(why)),
+        None => (asked, None, None),
+    };
+    let values = match (&fo, estimator) {
+        (Some(f), Estimator::Ml) => ml_values(prob, &f.fit.theta, linear),
+        _ => linear.to_vec(),
+    };
+    let judge = Judge {
+        prob,
+        fo: fo.as_ref(),
+        estimator,
+        n_used: pooled.used.iter().copied().min().unwrap_or(1).max(1) as f64,
+        crlb: settings.crlb,
+        structural: structural(prob, fo.as_ref()),
+    };
+    let mut jackknife_warnings = Vec::new();
+    let mut modes = tables::mode_estimates(prob, per_shot);
+    for (n, name) in prob.mode_names.iter().enumerate() {
+        let (Some(iw), Some(ig)) = (
+            prob.index_of(&Unknown::OmegaSq(n)),
+            prob.index_of(&Unknown::Gamma(n)),
+        ) else {
+            continue;
+        };
+        let Some(m) = modes.get_mut(name) else {
+            continue;
+        };
+        let w = values[iw].sqrt();
+        let (f, q) = (w / (2.0 * PI), w / values[ig]);
+        judge.apply(
+            Quantity::Frequency(n),
+            &mut m.f_hz,
+            f,
+            &mut jackknife_warnings,
+        );
+        judge.apply(Quantity::Q(n), &mut m.q, q, &mut jackknife_warnings);
+    }
+    let mut parameters = tables::param_estimates(prob, per_shot);
+    for (p, name) in prob.param_names.iter().enumerate() {
+        let Some(i) = prob.index_of(&Unknown::Param(p)) else {
+            continue;
+        };
+        let Some(e) = parameters.get_mut(name) else {
+            continue;
+        };
+        let v = if prob.not_identifiable.iter().any(|x| x.unknown == i) {
+            f64::NAN
+        } else {
+            values[i]
+        };
+        judge.apply(Quantity::Param(p), e, v, &mut jackknife_warnings);
+    }
+    let fits = tables::fit_reports(ds, prob, &per_shot.groups);
+    let mut rejected_shots = BTreeMap::new();
+    let mut warnings = prob.warnings.clone();
+    warnings.extend(tables::conditioning_warnings(&fits));
+    warnings.extend(tables::force_warnings(prob));
+    for (mi, bad) in pooled.rejected.iter().enumerate() {
+        if !bad.is_empty() {
+            let name = &ds.measurements[mi].spec.name;
+            rejected_shots.insert(name.clone(), bad.clone());
+            warnings.push(format!(
+                "measurement \"{name}\": shot(s) {} rejected as disturbed (far from the median spectrum); the estimate uses the other {}",
+                index_list(bad),
+                pooled.used[mi]
+            ));
+        }
+    }
+    if let Some(why) = fallback {
+        warnings.push(format!(
+            "{why}; reporting the pooled equation-error (linear) estimate"
+        ));
+    }
+    warnings.extend(tables::undetermined_warnings(&modes, &parameters));
+    warnings.extend(jackknife_warnings);
+    let mut all_notes = Vec::new();
+    let mut consistency = Vec::new();
+    if let Some(f) = &fo {
+        all_notes.extend(f.notes.iter().cloned());
+        warnings.extend(f.drift.iter().cloned());
+        warnings.extend(crate::uncertainty::consistency::warnings(&f.consistency));
+        consistency = f.consistency.clone();
+    }
+    all_notes.extend(notes);
+    let one = [values];
+    Report {
+        format: RESULT_FORMAT.to_string(),
+        model: model_path.to_string(),
+        dataset: ds.dir.display().to_string(),
+        force_model: tables::force_model_text(prob.table.force_model()),
+        estimator: estimator.to_string(),
+        rejected_shots,
+        notes: all_notes,
+        shots: per_shot.values.len(),
+        outlier_shots: tables::outlier_shots(&modes, &parameters),
+        eom: tables::eom_table(prob, &one),
+        forces: tables::force_table(ds, prob, &one),
+        gains: tables::gain_table(ds, prob, &one),
+        modes,
+        parameters,
+        fits,
+        warnings,
+        consistency,
+    }
+}
+
+/// The reported values: the output-error estimate `ml` where it is identified, the
+/// equation-error `linear` elsewhere (fixed values, and `γ` of a mode whose `Q` is fixed,
+/// which the linear fit derived from its `ω²`). Both are in the layout of `prob.table`.
+fn ml_values(prob: &Problem, ml: &[f64], linear: &[f64]) -> Vec<f64> {
+    let mut out = linear.to_vec();
+    for (k, v) in out.iter_mut().enumerate() {
+        if prob.table.is_free(k) && !prob.not_identifiable.iter().any(|x| x.unknown == k) {
+            *v = ml[k];
+        }
+    }
+    out
+}
+
+/// The quantities no measurement (or the information at the estimate) determines, with why:
+/// the equation-error set-up's first, then the output-error fit's.
+fn structural(prob: &Problem, fo: Option<&OutputError>) -> Vec<(Quantity, String)> {
+    let mut out: Vec<(Quantity, String)> = prob
+        .not_identifiable
+        .iter()
+        .filter_map(|ni| {
+            Some((
+                Quantity::of(&prob.table.unknowns()[ni.unknown])?,
+                ni.reason.clone(),
+            ))
+        })
+        .collect();
+    if let Some(f) = fo {
+        out.extend(f.unidentifiable.iter().cloned());
+    }
+    out
+}
+
+/// The rules that turn a quantity's per-shot estimate into the reported one.
+struct Judge<'a> {
+    prob: &'a Problem,
+    fo: Option<&'a OutputError>,
+    estimator: Estimator,
+    /// Fewest shots any measurement's pooled mean used.
+    n_used: f64,
+    crlb: bool,
+    structural: Vec<(Quantity, String)>,
+}
+
+impl Judge<'_> {
+    /// Sets `e`'s value and, unless the model fixes it, its standard error (Fisher bound
+    /// times the model-misfit inflation for ml, the per-shot spread over `√n` for linear),
+    /// bounds, jackknife and whether the data determine it. A jackknife that disagrees with
+    /// the Fisher error adds a warning to `warnings`.
+    fn apply(&self, q: Quantity, e: &mut Estimate, value: f64, warnings: &mut Vec<String>) {
+        let fixed = e.reason.as_deref() == Some(FIXED_BY_THE_MODEL);
+        // A single value's median, as the per-shot tables read it: NaN unless finite.
+        e.value = if value.is_finite() { value } else { f64::NAN };
+        if fixed {
+            return;
+        }
+        if let Some((_, why)) = self.structural.iter().find(|(s, _)| *s == q) {
+            e.identifiable = false;
+            e.reason = Some(why.clone());
+            e.stderr = f64::NAN;
+            return;
+        }
+        let ml = self.estimator == Estimator::Ml;
+        let bound = self.fo.and_then(|f| {
+            f.bounds
+                .quantities
+                .iter()
+                .find(|b| b.quantity == q)
+                .map(|b| b.std)
+        });
+        e.crlb = if self.crlb || ml { bound } else { None };
+        e.jackknife = self
+            .fo
+            .and_then(|f| f.jackknife.iter().find(|(j, _)| *j == q).map(|x| x.1));
+        e.stderr = match (ml, bound, self.fo) {
+            (true, Some(b), Some(f)) => b * f.inflation,
+            _ => e.std / self.n_used.sqrt(),
+        };
+        if ml && self.fo.is_some_and(|f| f.at_bound.contains(&q)) {
+            e.at_bound = true;
+            e.identifiable = false;
+            e.reason = Some(
+                "at its bound: the data favour a value beyond it (the estimate is the bound)"
+                    .into(),
+            );
+            return;
+        }
+        let rel = e.stderr / e.value.abs();
+        if rel.is_nan() || rel > MAX_REL_STDERR {
+            e.identifiable = false;
+            e.reason = Some(format!(
+                "relative standard error {rel:.2} above {MAX_REL_STDERR}: the data do not determine it"
+            ));
+        } else {
+            e.identifiable = true;
+            e.reason = None;
+        }
+        if let Some(j) = e.jackknife {
+            if (j / e.stderr - 1.0).abs() > JACKKNIFE_TOL {
+                warnings.push(format!(
+                    "{}: the jackknife standard error {j:.3e} and the Fisher one {:.3e} disagree by more than {:.0} %",
+                    q.key(&self.prob.mode_names, &self.prob.param_names),
+                    e.stderr,
+                    100.0 * JACKKNIFE_TOL
+                ));
+            }
+        }
+    }
+}

@@ -1,0 +1,391 @@
+//! The output-error maximum-likelihood estimate: the forward model ([`crate::ForwardModel`])
+//! fitted to the pooled mean of the shots, each line weighted by its noise from the shot
+//! scatter ([`ml::refine`]), from one of several starts ([`Start`]), and its uncertainty
+//! ([`crate::uncertainty`]): Fisher bounds at the estimate, inflated when the fit is worse than
+//! the noise, a linearised jackknife, drift and cross-measurement consistency checks.
+
+pub mod ml;
+
+use crate::dataset::Dataset;
+use crate::forward::{ForwardError, ForwardModel};
+use crate::layout::{Quantity, Unknown};
+use crate::problem::{Problem, Settings};
+use crate::shots::Pooled;
+use crate::uncertainty::{
+    self, consistency, drift_warnings, expected_reduced_chi2, jackknife, FisherError, Noise,
+};
+use ml::{MlFit, MlSettings};
+use num_complex::Complex64;
+
+/// An equation-error stage whose relative residual exceeds this misses its own equations
+/// (lines its terms need were not measured, or the state is far from where the harmonic
+/// expansion is good): its linear estimates are no guide for the output-error start.
+pub(crate) const POOR_STAGE: f64 = 1e-2;
+
+/// A fit whose `χ²/dof` is within this factor of a correct model's expectation is kept
+/// without trying the other starts. A wrong minimum is far above it (the designed five-mode
+/// plan at 0.01 nm: 10⁴ times); a correct one scatters by `√(2/dof)` around 1.
+const GOOD_FIT: f64 = 2.0;
+
+/// Where the output-error fit starts, tried in this order. A linear estimate far off in a
+/// poorly determined coupling can put the harmonic balance past a fold, or the fit into
+/// another minimum; a weaker nonlinearity always has a steady state near the data, and the
+/// fit moves the parameters from there.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Start {
+    /// The pooled equation-error estimate.
+    PooledLinear,
+    /// The same with the model parameters it does not determine (relative standard error
+    /// above 1) at zero (or their bound).
+    UndeterminedAtZero,
+    /// The same with the parameters of a stage whose equation-error fit is poor at zero.
+    PoorStagesAtZero,
+    /// Every model parameter at zero.
+    EveryParameterAtZero,
+}
+
+impl Start {
+    /// What the start is, as a note says it.
+    fn description(self) -> &'static str {
+        match self {
+            Start::PooledLinear => "the pooled linear estimate",
+            Start::UndeterminedAtZero => {
+                "the model parameters the pooled linear fit does not determine at zero"
+            }
+            Start::PoorStagesAtZero => {
+                "the model parameters of poorly fitting equation-error stages at zero"
+            }
+            Start::EveryParameterAtZero => "every model parameter at zero",
+        }
+    }
+}
+
+/// Why the output-error estimate is not available (the linear one is reported instead).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub(crate) enum OutputErrorFailure {
+    /// The forward model could not be set up for the dataset.
+    #[error("the model cannot be simulated for this dataset ({0})")]
+    Setup(ForwardError),
+    /// No start reached a fit; the first start's error.
+    #[error("output-error fit: {0}")]
+    Fit(ForwardError),
+    /// There was no start to try.
+    #[error("output-error fit: no start")]
+    NoStart,
+    /// The harmonic balance failed when brought back to the best fit's estimate.
+    #[error("output-error fit: back at its estimate: {0}")]
+    BackAtEstimate(ForwardError),
+    /// The information at the estimate could not be computed.
+    #[error("Fisher information at the estimate: {0}")]
+    Fisher(FisherError),
+}
+
+/// The output-error estimate with its Fisher bounds and checks.
+pub(crate) struct OutputError {
+    pub fit: MlFit,
+    pub bounds: uncertainty::Bounds,
+    /// `√max(1, χ²/(dof·E₀))` when the noise came from the shot scatter
+    /// ([`expected_reduced_chi2`]); 1 otherwise.
+    pub inflation: f64,
+    /// Jackknife standard error per quantity.
+    pub jackknife: Vec<(Quantity, f64)>,
+    /// Drift-check warnings.
+    pub drift: Vec<String>,
+    /// Frequencies, Q and gains compared between measurements.
+    pub consistency: Vec<consistency::Comparison>,
+    /// Quantities held at a bound.
+    pub at_bound: Vec<Quantity>,
+    /// Quantities the information at the estimate does not determine, with why.
+    pub unidentifiable: Vec<(Quantity, String)>,
+    pub notes: Vec<String>,
+}
+
+/// The measured amplitudes of the pooled mean (forward order: a shot's data order) and the
+/// noise of each (the shot scatter over `√n`, or 1 when the shots do not scatter).
+fn observations(pooled: &Pooled) -> (Vec<Complex64>, Vec<f64>) {
+    let meas: Vec<Complex64> = pooled
+        .mean
+        .measurements
+        .iter()
+        .flat_map(|m| m.data.iter().copied())
+        .collect();
+    let sigma = if pooled.noise_from_shots() {
+        pooled
+            .sigma
+            .iter()
+            .zip(&pooled.used)
+            .flat_map(|(s, &n)| {
+                s.iter()
+                    .flatten()
+                    .map(move |x| x / (n as f64).sqrt())
+                    .collect::<Vec<_>>()
+            })
+            .collect()
+    } else {
+        vec![1.0; meas.len()]
+    };
+    (meas, sigma)
+}
+
+/// The starts from the pooled linear estimate `linear` with the variances `linear_var` of
+/// its unknowns; `poor`: unknowns of stages that miss their equations. Equal starts are
+/// tried once.
+fn starts(
+    prob: &Problem,
+    linear: &[f64],
+    linear_var: &[f64],
+    poor: &[usize],
+) -> Vec<(Vec<f64>, Start)> {
+    let theta0 = prob.table.start_from(linear);
+    let bounds = prob.table.bounds();
+    let zero_params = |which: &dyn Fn(usize) -> bool| -> Vec<f64> {
+        let mut t = theta0.clone();
+        for (k, u) in prob.table.unknowns().iter().enumerate() {
+            let Unknown::Param(_) = u else { continue };
+            if !prob.table.is_free(k) || !which(k) {
+                continue;
+            }
+            let (lo, hi) = bounds[k];
+            t[k] = 0.0_f64
+                .max(lo.unwrap_or(f64::NEG_INFINITY))
+                .min(hi.unwrap_or(f64::INFINITY));
+        }
+        t
+    };
+    let mut starts = vec![
+        (theta0.clone(), Start::PooledLinear),
+        (
+            zero_params(&|k| {
+                // Loose: a relative standard error above 1, or none at all (NaN).
+                let se = linear_var.get(k).copied().unwrap_or(f64::NAN).sqrt();
+                se.is_nan() || se > linear[k].abs()
+            }),
+            Start::UndeterminedAtZero,
+        ),
+        (zero_params(&|k| poor.contains(&k)), Start::PoorStagesAtZero),
+        (zero_params(&|_| true), Start::EveryParameterAtZero),
+    ];
+    starts.dedup_by(|b, a| a.0 == b.0);
+    starts
+}
+
+/// The output-error fit of `prob` to the pooled shots, from the pooled linear estimate
+/// `linear` (variances `linear_var`; `poor`: unknowns of poorly fitting stages), with its
+/// uncertainty. `ds_shots` has every shot (jackknife, drift).
+pub(crate) fn fit(
+    prob: &Problem,
+    ds_shots: &Dataset,
+    fwd: &mut ForwardModel,
+    pooled: &Pooled,
+    (linear, linear_var, poor): (&[f64], &[f64], &[usize]),
+    settings: &Settings,
+) -> Result<OutputError, OutputErrorFailure> {
+    let (meas, sigma) = observations(pooled);
+    let from_shots = pooled.noise_from_shots();
+    let cols: Vec<usize> = fwd
+        .free()
+        .into_iter()
+        .filter(|&k| !prob.not_identifiable.iter().any(|x| x.unknown == k))
+        .collect();
+    // Each start in turn until a fit is as good as a correct model's (χ²/dof within GOOD_FIT
+    // of its expectation, judged when the noise comes from the shot scatter).
+    let e0 = if from_shots {
+        expected_reduced_chi2(ds_shots, pooled)
+    } else {
+        f64::INFINITY
+    };
+    let tries = Tries {
+        meas: &meas,
+        sigma: &sigma,
+        cols: &cols,
+        bounds: prob.table.bounds(),
+        e0,
+    };
+    let (fit, mut notes) =
+        tries.best(fwd, &pooled.mean, &starts(prob, linear, linear_var, poor))?;
+    let dof = fit.dof.max(1) as f64;
+    let (noise, inflation) = if from_shots {
+        let red = fit.chi2 / dof / e0;
+        (Noise::PerObservation(sigma.clone()), red.max(1.0).sqrt())
+    } else {
+        let s = (fit.chi2 / dof).sqrt();
+        (
+            Noise::Uniform(if s > 0.0 { s } else { f64::MIN_POSITIVE }),
+            1.0,
+        )
+    };
+    let bounds = uncertainty::crlb_from_jacobian(fwd, &fit.theta, &fit.jac, &noise, 1)
+        .map_err(OutputErrorFailure::Fisher)?;
+    let jackknife = if settings.jackknife && from_shots {
+        jackknife(fwd, &fit, &sigma, ds_shots, pooled, &cols)
+    } else {
+        Vec::new()
+    };
+    let drift = if from_shots {
+        drift_warnings(fwd, &fit, &sigma, ds_shots, pooled)
+    } else {
+        Vec::new()
+    };
+    let consistency = compare_measurements(fwd, &fit, &meas, &noise, &cols, &pooled.mean);
+    if !fit.converged {
+        notes.push(format!(
+            "the output-error fit stopped after {} steps before converging (χ² {:.4e} from {:.4e})",
+            fit.steps, fit.chi2, fit.chi2_start
+        ));
+    }
+    let quantity = |k: usize| Quantity::of(&fwd.unknowns()[k]);
+    let at_bound = fit.at_bound.iter().filter_map(|&k| quantity(k)).collect();
+    let unidentifiable = bounds
+        .unidentifiable
+        .iter()
+        .filter_map(|u| {
+            Some((
+                quantity(u.unknown)?,
+                format!("the data do not determine it at the estimate: {}", u.reason),
+            ))
+        })
+        .collect();
+    Ok(OutputError {
+        drift,
+        consistency,
+        fit,
+        unidentifiable,
+        bounds,
+        inflation,
+        jackknife,
+        at_bound,
+        notes,
+    })
+}
+
+/// What every start's fit shares.
+struct Tries<'a> {
+    meas: &'a [Complex64],
+    sigma: &'a [f64],
+    cols: &'a [usize],
+    bounds: &'a [(Option<f64>, Option<f64>)],
+    /// A correct model's expected `χ²/dof` (infinite when the noise is not from the shots).
+    e0: f64,
+}
+
+impl Tries<'_> {
+    /// Tries the starts in turn until a fit is good (within [`GOOD_FIT`] of `e0`); of the
+    /// fits reached, the one with the smallest χ², the forward model left at its states, and a
+    /// note when it is not the first start's.
+    fn best(
+        &self,
+        fwd: &mut ForwardModel,
+        mean: &Dataset,
+        starts: &[(Vec<f64>, Start)],
+    ) -> Result<(MlFit, Vec<String>), OutputErrorFailure> {
+        let reduced = |f: &MlFit| f.chi2 / f.dof.max(1) as f64;
+        let mut first_err = None;
+        let mut best: Option<(MlFit, usize)> = None;
+        let mut first_fit_chi2: Option<f64> = None;
+        let mut last_run = 0;
+        for (i, (theta_s, _)) in starts.iter().enumerate() {
+            if best
+                .as_ref()
+                .is_some_and(|(f, _)| reduced(f) <= GOOD_FIT * self.e0)
+            {
+                break;
+            }
+            // Newton from the data at each start; the drive ramp from rest only at the last.
+            if i > 0 {
+                fwd.start_from_data(mean);
+            }
+            last_run = i;
+            let ml_settings = MlSettings {
+                ramp_at_start: i + 1 == starts.len(),
+                ..MlSettings::default()
+            };
+            match ml::refine(
+                fwd,
+                self.meas,
+                self.sigma,
+                theta_s,
+                self.cols,
+                self.bounds,
+                &ml_settings,
+            ) {
+                Ok(f) => {
+                    if i == 0 {
+                        first_fit_chi2 = Some(reduced(&f));
+                    }
+                    if best.as_ref().is_none_or(|(b, _)| f.chi2 < b.chi2) {
+                        best = Some((f, i));
+                    }
+                }
+                Err(e) => {
+                    first_err.get_or_insert(e);
+                }
+            }
+        }
+        let Some((f, i)) = best else {
+            return Err(first_err.map_or(OutputErrorFailure::NoStart, OutputErrorFailure::Fit));
+        };
+        if i != last_run {
+            // The forward model's states are another start's: back to this fit's, found from
+            // the data it matches.
+            fwd.start_from_data(mean);
+            let mut x = vec![Complex64::new(0.0, 0.0); fwd.n_observations()];
+            fwd.evaluate_trial(&f.theta, &mut x)
+                .map_err(OutputErrorFailure::BackAtEstimate)?;
+        }
+        let mut notes = Vec::new();
+        let start = starts[i].1;
+        if start != Start::PooledLinear {
+            let why = match (first_fit_chi2, first_err) {
+                (Some(c), _) => format!(
+                    "from the pooled linear estimate it ended at χ²/dof = {c:.3e}, {:.3e} from here (a correct model gives about {:.3})",
+                    reduced(&f),
+                    self.e0
+                ),
+                (None, Some(e)) => format!("at the pooled linear estimate {e}"),
+                (None, None) => String::new(),
+            };
+            notes.push(format!(
+                "the output-error fit started from {}: {why}",
+                start.description()
+            ));
+        }
+        Ok((f, notes))
+    }
+}
+
+/// Every frequency, Q and gain compared between the measurements that see it
+/// ([`consistency::compare`]), with the noise the fit used.
+fn compare_measurements(
+    fwd: &ForwardModel,
+    fit: &MlFit,
+    meas: &[Complex64],
+    noise: &Noise,
+    cols: &[usize],
+    mean: &Dataset,
+) -> Vec<consistency::Comparison> {
+    let kept: Vec<usize> = cols
+        .iter()
+        .copied()
+        .filter(|k| !fit.at_bound.contains(k))
+        .collect();
+    let sigma_used: Vec<f64> = match noise {
+        Noise::PerObservation(v) => v.clone(),
+        Noise::Uniform(s) => vec![*s; meas.len()],
+    };
+    let names: Vec<String> = mean
+        .measurements
+        .iter()
+        .map(|m| m.spec.name.clone())
+        .collect();
+    consistency::compare(&consistency::Fitted {
+        fwd,
+        theta: &fit.theta,
+        meas,
+        x: &fit.x,
+        jac: &fit.jac,
+        sigma: &sigma_used,
+        cols: &kept,
+        dof: fit.dof,
+        names: &names,
+    })
+}
