@@ -15,17 +15,8 @@ use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 
 fn force_model(name: &str) -> PyResult<ForceModel> {
-    Ok(match name {
-        "auto" => ForceModel::Auto,
-        "free" => ForceModel::Free,
-        "gain_per_measurement" => ForceModel::GainPerMeasurement,
-        "gain_per_mode" => ForceModel::GainPerMode,
-        other => {
-            return Err(HarmonidError::new_err(format!(
-                "force_model={other:?}: expected \"auto\", \"free\", \"gain_per_measurement\" or \"gain_per_mode\""
-            )))
-        }
-    })
+    name.parse::<ForceModel>()
+        .map_err(|e| HarmonidError::new_err(format!("force_model={name:?}: {e}")))
 }
 
 fn estimator(name: &str) -> PyResult<Estimator> {

@@ -30,7 +30,8 @@
 
 use crate::dataset::Dataset;
 use crate::layout::{Unknown, UnknownTable};
-use crate::problem::{nearest_mode, nominal_frequencies, ForceModel, IdentError};
+use crate::problem::{nearest_mode, nominal_frequencies, IdentError};
+use crate::settings::ForceModel;
 use harmonid_model::{Linear, Model, ParamKind};
 use harmonid_sim::{
     choose_lattice, Excitation, HbSettings, HbSolver, ModeValues, ModelValues, NumericModel,
@@ -173,11 +174,7 @@ impl ForwardModel {
             .measurements
             .iter()
             .all(|m| m.spec.drive_levels_and_phases().is_some());
-        let force_model = match force_model {
-            ForceModel::Auto if all_levels => ForceModel::GainPerMeasurement,
-            ForceModel::Auto => ForceModel::Free,
-            f => f,
-        };
+        let force_model = force_model.resolved(all_levels);
         let tone_modes = ds
             .measurements
             .iter()

@@ -6,7 +6,8 @@ use crate::dataset::Dataset;
 use crate::finalize::{finalize, Found, Report};
 use crate::forward::{ForwardModel, ForwardSettings};
 use crate::output_error::{self, OutputErrorFailure, POOR_STAGE};
-use crate::problem::{Estimator, IdentError, Problem, Settings};
+use crate::problem::{IdentError, Problem};
+use crate::settings::{Estimator, Settings};
 use crate::shots::pool;
 use harmonid_model::Model;
 

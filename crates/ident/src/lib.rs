@@ -50,6 +50,7 @@ mod identify;
 mod layout;
 mod output_error;
 mod problem;
+mod settings;
 mod shots;
 mod solve;
 mod uncertainty;
@@ -67,9 +68,9 @@ pub use identify::identify;
 pub use layout::{Quantity, Unknown, UnknownTable};
 pub use output_error::ml::{refine, MlFit, MlSettings};
 pub use problem::{
-    DatasetShape, Estimator, Fit, FitGroup, ForceModel, GroupDiagnostics, IdentError,
-    NotIdentifiable, Problem, Settings, UnknownEstimator,
+    DatasetShape, Fit, FitGroup, GroupDiagnostics, IdentError, NotIdentifiable, Problem,
 };
+pub use settings::{Estimator, ForceModel, Settings, UnknownEstimator, UnknownForceModel};
 pub use shots::{disturbed_shots, pool, shot_stats, Pooled, ShotStats};
 pub use solve::{solve_ls, LsSolution};
 pub use uncertainty::consistency::{

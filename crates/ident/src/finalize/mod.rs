@@ -12,7 +12,8 @@ pub use result::{Estimate, FitReport, ForceResult, GainResult, ModeResult, Repor
 use crate::dataset::{index_list, Dataset};
 use crate::layout::{Quantity, Unknown};
 use crate::output_error::{OutputError, OutputErrorFailure};
-use crate::problem::{Estimator, Fit, Problem, Settings};
+use crate::problem::{Fit, Problem};
+use crate::settings::{Estimator, Settings};
 use crate::shots::Pooled;
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
@@ -152,7 +153,7 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
         format: RESULT_FORMAT.to_string(),
         model: model_path.to_string(),
         dataset: ds.dir.display().to_string(),
-        force_model: tables::force_model_text(prob.table.force_model()),
+        force_model: prob.table.force_model().description().to_string(),
         estimator: estimator.to_string(),
         rejected_shots,
         notes: all_notes,

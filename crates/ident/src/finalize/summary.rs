@@ -2,7 +2,7 @@
 
 use super::result::{Estimate, Report};
 use crate::dataset::{index_list, Truth};
-use crate::problem::Estimator;
+use crate::settings::Estimator;
 use std::fmt::Write as _;
 
 impl Report {

@@ -8,7 +8,7 @@ use super::result::{
 };
 use crate::dataset::Dataset;
 use crate::layout::Unknown;
-use crate::problem::{Fit, ForceModel, GroupDiagnostics, Problem};
+use crate::problem::{Fit, GroupDiagnostics, Problem};
 use crate::shots::shot_stats;
 use num_complex::Complex64;
 use std::collections::BTreeMap;
@@ -353,19 +353,6 @@ pub(super) fn outlier_shots(
     shots
 }
 
-/// How the result file names a force model.
-pub(super) fn force_model_text(f: ForceModel) -> String {
-    match f {
-        ForceModel::Free | ForceModel::Auto => "free complex force per drive tone".into(),
-        ForceModel::GainPerMeasurement => {
-            "drive levels: one complex actuator gain per mode and measurement".into()
-        }
-        ForceModel::GainPerMode => {
-            "drive levels: one complex actuator gain per mode for the whole dataset".into()
-        }
-    }
-}
-
 impl Report {
     /// The per-shot report: every quantity the median and spread of the per-shot
     /// equation-error estimates of `fit` (estimator `per-shot`), as the method's paper reports
@@ -385,7 +372,7 @@ impl Report {
             estimator: "per-shot".into(),
             rejected_shots: BTreeMap::new(),
             notes: Vec::new(),
-            force_model: force_model_text(prob.table.force_model()),
+            force_model: prob.table.force_model().description().to_string(),
             shots: fit.values.len(),
             outlier_shots: outlier_shots(&modes, &parameters),
             eom: eom_table(prob, &fit.values),

@@ -16,6 +16,7 @@
 //! reported in [`MlFit::at_bound`].
 
 use crate::forward::{ForwardError, ForwardModel};
+use crate::uncertainty::AtEstimate;
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 
@@ -63,6 +64,18 @@ pub struct MlFit {
     pub steps: usize,
     /// Whether the relative decrease of `χ²` fell below the tolerance.
     pub converged: bool,
+}
+
+impl MlFit {
+    /// The estimate as the linearised uncertainty checks read it.
+    pub(crate) fn at_estimate(&self) -> AtEstimate<'_> {
+        AtEstimate {
+            theta: &self.theta,
+            x: &self.x,
+            jac: &self.jac,
+            at_bound: &self.at_bound,
+        }
+    }
 }
 
 fn chi2(meas: &[Complex64], x: &[Complex64], sigma: &[f64]) -> f64 {

@@ -9,7 +9,8 @@ pub mod ml;
 use crate::dataset::Dataset;
 use crate::forward::{ForwardError, ForwardModel};
 use crate::layout::{Quantity, Unknown};
-use crate::problem::{Problem, Settings};
+use crate::problem::Problem;
+use crate::settings::Settings;
 use crate::shots::Pooled;
 use crate::uncertainty::{
     self, consistency, drift_warnings, expected_reduced_chi2, jackknife, FisherError, Noise,
@@ -217,12 +218,12 @@ pub(crate) fn fit(
     let bounds = uncertainty::crlb_from_jacobian(fwd, &fit.theta, &fit.jac, &noise, 1)
         .map_err(OutputErrorFailure::Fisher)?;
     let jackknife = if settings.jackknife && from_shots {
-        jackknife(fwd, &fit, &sigma, ds_shots, pooled, &cols)
+        jackknife(fwd, &fit.at_estimate(), &sigma, ds_shots, pooled, &cols)
     } else {
         Vec::new()
     };
     let drift = if from_shots {
-        drift_warnings(fwd, &fit, &sigma, ds_shots, pooled)
+        drift_warnings(fwd, &fit.at_estimate(), &sigma, ds_shots, pooled)
     } else {
         Vec::new()
     };

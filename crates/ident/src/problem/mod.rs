@@ -38,23 +38,23 @@ mod attribution;
 mod equations;
 mod error;
 mod fit;
+mod force_model;
 mod regressors;
-mod settings;
 mod stages;
 #[cfg(test)]
 mod testkit;
 mod unknowns;
 mod weighting;
 
-pub use crate::layout::Unknown;
+pub(crate) use crate::layout::Unknown;
 pub(crate) use attribution::{nearest_mode, nominal_frequencies};
 pub use error::IdentError;
 pub use fit::{Fit, GroupDiagnostics};
-pub use settings::{Estimator, ForceModel, Settings, UnknownEstimator};
 pub use stages::{FitGroup, NotIdentifiable};
 
 use crate::dataset::Dataset;
 use crate::layout::UnknownTable;
+use crate::settings::{ForceModel, Settings};
 use attribution::MeasPrep;
 use equations::Term;
 use harmonid_model::Model;
@@ -99,7 +99,8 @@ impl Problem {
         let manifest_path = ds.dir.join("dataset.toml").display().to_string();
         let nominal_hz = attribution::nominal_frequencies(model, ds, settings)?;
         let (monomials, eqs) = equations::build_equations(model, &mode_names)?;
-        let force_model = settings::resolve_force_model(settings.force_model, ds, &manifest_path)?;
+        let force_model =
+            force_model::resolve_force_model(settings.force_model, ds, &manifest_path)?;
         let max_deg = model.max_degree() as usize;
         let mut meas = Vec::with_capacity(ds.measurements.len());
         let mut tone_modes = Vec::with_capacity(ds.measurements.len());

@@ -40,7 +40,7 @@
 
 use super::fisher::{self, Noise};
 use crate::forward::ForwardModel;
-use crate::problem::Unknown;
+use crate::layout::Unknown;
 use num_complex::Complex64;
 use std::f64::consts::TAU;
 

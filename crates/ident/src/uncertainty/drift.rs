@@ -10,10 +10,10 @@
 //!
 //! Needs at least 5 shots.
 
+use super::AtEstimate;
 use crate::dataset::Dataset;
 use crate::forward::ForwardModel;
 use crate::layout::Unknown;
-use crate::output_error::ml::MlFit;
 use crate::shots::Pooled;
 use std::f64::consts::TAU;
 
@@ -67,7 +67,7 @@ pub fn check(delta: &[f64], var: f64) -> Option<Drift> {
 /// kept shot of every measurement.
 pub(crate) fn drift_warnings(
     fwd: &ForwardModel,
-    fit: &MlFit,
+    fit: &AtEstimate<'_>,
     sigma_mean: &[f64],
     ds: &Dataset,
     pooled: &Pooled,

@@ -25,7 +25,7 @@
 //! covariance of `ω², γ`).
 
 use crate::forward::{ForwardError, ForwardModel};
-use crate::problem::Unknown;
+use crate::layout::Unknown;
 use nalgebra::{DMatrix, SymmetricEigen};
 use num_complex::Complex64;
 use std::f64::consts::TAU;

@@ -1,9 +1,9 @@
 //! The linearised delete-one-shot jackknife of the output-error estimate.
 
+use super::AtEstimate;
 use crate::dataset::Dataset;
 use crate::forward::ForwardModel;
 use crate::layout::{Quantity, Unknown};
-use crate::output_error::ml::MlFit;
 use crate::shots::Pooled;
 use nalgebra::DMatrix;
 use std::f64::consts::TAU;
@@ -15,7 +15,7 @@ use std::f64::consts::TAU;
 /// that the diagonal weighting ignores) without refitting.
 pub(crate) fn jackknife(
     fwd: &ForwardModel,
-    fit: &MlFit,
+    fit: &AtEstimate<'_>,
     sigma: &[f64],
     ds: &Dataset,
     pooled: &Pooled,

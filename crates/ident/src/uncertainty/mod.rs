@@ -18,6 +18,20 @@ pub(crate) use jackknife::jackknife;
 
 use crate::dataset::Dataset;
 use crate::shots::Pooled;
+use num_complex::Complex64;
+
+/// The output-error fit at its estimate, as the linearised checks ([`jackknife`] and
+/// [`drift_warnings`]) read it: they step from the estimate, they do not refit.
+pub(crate) struct AtEstimate<'a> {
+    /// Every unknown of the forward model (fixed ones included).
+    pub theta: &'a [f64],
+    /// Predictions, m, in the layout of [`crate::ForwardModel::evaluate`].
+    pub x: &'a [Complex64],
+    /// Jacobian, `jac[o·K + k]`.
+    pub jac: &'a [Complex64],
+    /// Unknowns held at a bound (left out of every step).
+    pub at_bound: &'a [usize],
+}
 
 /// `E₀`, the expected `χ²/dof` of a correct model when every line's noise is its sample
 /// standard deviation over the kept shots (as [`crate::shots::pool`] estimates it): `σ̂²` has

@@ -1,7 +1,7 @@
-//! Settings of an identification and the force model.
+//! Settings of an identification: the estimator, the force model and the fits' options, each
+//! option with one spelling ([`FromStr`](std::str::FromStr), `Display`, serde) that the command
+//! line, Python and the result file share.
 
-use super::IdentError;
-use crate::dataset::Dataset;
 use std::collections::BTreeMap;
 
 /// Which estimate to report as `value`. [`Estimator::name`] is its one spelling: the command
@@ -69,8 +69,11 @@ pub struct UnknownEstimator {
     pub found: String,
 }
 
-/// Which force model to use.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// Which force model to use. [`ForceModel::name`] is its one spelling (Python's
+/// `force_model=`, serde), read back by [`FromStr`](std::str::FromStr); `Display` gives words
+/// for messages.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum ForceModel {
     /// Drive levels when every measurement gives them, free forces otherwise.
     #[default]
@@ -83,7 +86,54 @@ pub enum ForceModel {
     GainPerMode,
 }
 
-/// For messages: the command-line name of the force model.
+impl ForceModel {
+    /// Every force model, the default first.
+    pub const ALL: [ForceModel; 4] = [
+        ForceModel::Auto,
+        ForceModel::Free,
+        ForceModel::GainPerMeasurement,
+        ForceModel::GainPerMode,
+    ];
+
+    /// The force model's name: `auto`, `free`, `gain_per_measurement`, `gain_per_mode`.
+    pub fn name(self) -> &'static str {
+        match self {
+            ForceModel::Auto => "auto",
+            ForceModel::Free => "free",
+            ForceModel::GainPerMeasurement => "gain_per_measurement",
+            ForceModel::GainPerMode => "gain_per_mode",
+        }
+    }
+
+    /// What the force model is, for the summary and the result's `force_model`.
+    pub fn description(self) -> &'static str {
+        match self {
+            ForceModel::Auto => {
+                "drive levels when every measurement gives them, free forces otherwise"
+            }
+            ForceModel::Free => "free complex force per drive tone",
+            ForceModel::GainPerMeasurement => {
+                "drive levels: one complex actuator gain per mode and measurement"
+            }
+            ForceModel::GainPerMode => {
+                "drive levels: one complex actuator gain per mode for the whole dataset"
+            }
+        }
+    }
+
+    /// The model in use: `Auto` becomes [`ForceModel::GainPerMeasurement`] when every
+    /// measurement gives drive levels (`all_levels`), [`ForceModel::Free`] otherwise; the
+    /// others stay.
+    pub fn resolved(self, all_levels: bool) -> ForceModel {
+        match self {
+            ForceModel::Auto if all_levels => ForceModel::GainPerMeasurement,
+            ForceModel::Auto => ForceModel::Free,
+            f => f,
+        }
+    }
+}
+
+/// For messages: the force model in words.
 impl std::fmt::Display for ForceModel {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(match self {
@@ -93,6 +143,27 @@ impl std::fmt::Display for ForceModel {
             ForceModel::GainPerMode => "gain per mode",
         })
     }
+}
+
+impl std::str::FromStr for ForceModel {
+    type Err = UnknownForceModel;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        ForceModel::ALL
+            .into_iter()
+            .find(|f| f.name() == s)
+            .ok_or_else(|| UnknownForceModel {
+                found: s.to_string(),
+            })
+    }
+}
+
+/// A name that is no [`ForceModel`]'s.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("expected {}, found {found:?}", ForceModel::ALL.map(|f| format!("{:?}", f.name())).join(", "))]
+pub struct UnknownForceModel {
+    /// The name given.
+    pub found: String,
 }
 
 /// Settings of an identification. `Default` gives the documented defaults.
@@ -154,57 +225,9 @@ impl Default for Settings {
     }
 }
 
-/// The force model in use: `Auto` resolves to drive levels when every measurement gives them;
-/// a gain model without drive levels is an error naming the measurement.
-pub(super) fn resolve_force_model(
-    requested: ForceModel,
-    ds: &Dataset,
-    manifest_path: &str,
-) -> Result<ForceModel, IdentError> {
-    let all_levels = ds
-        .measurements
-        .iter()
-        .all(|m| m.spec.drive_levels_and_phases().is_some());
-    Ok(match requested {
-        ForceModel::Auto if all_levels => ForceModel::GainPerMeasurement,
-        ForceModel::Auto => ForceModel::Free,
-        f @ (ForceModel::GainPerMeasurement | ForceModel::GainPerMode) if !all_levels => {
-            let missing = ds
-                .measurements
-                .iter()
-                .find(|m| m.spec.drive_levels_and_phases().is_none())
-                .map(|m| m.spec.name.clone())
-                .unwrap_or_default();
-            return Err(IdentError::Unsupported(format!(
-                "{manifest_path}: the force model \"{f}\" needs drive_levels_v and drive_phases_rad in every measurement; \"{missing}\" has none (use the free-force model)"
-            )));
-        }
-        f => f,
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn force_model_messages_use_words_not_debug_names() {
-        // Issue 11: Rust debug names (`GainPerMode`, `NotConverged { .. }`) reached users.
-        let manifest = "format = \"harmonid-dataset/1\"\n[[measurement]]\nname = \"m1\"\ndrives_hz = [1000.0]\n";
-        let csv = "shot,freq_hz,re,im\n0,1000,1,2\n";
-        let ds = Dataset::from_readers(std::path::Path::new("d"), manifest, None, |_| {
-            Ok(csv.as_bytes())
-        })
-        .expect("a dataset without drive levels");
-        let e = resolve_force_model(ForceModel::GainPerMode, &ds, "d/dataset.toml")
-            .expect_err("gains need drive levels")
-            .to_string();
-        assert!(
-            e.contains("the force model \"gain per mode\" needs") && !e.contains("GainPerMode"),
-            "{e}"
-        );
-        assert_eq!(ForceModel::Free.to_string(), "free forces");
-    }
 
     #[test]
     fn estimator_names_read_back_in_every_spelling() {
@@ -219,5 +242,30 @@ mod tests {
         let err = "mle".parse::<Estimator>().expect_err("unknown");
         assert_eq!(err.found, "mle");
         assert!(err.to_string().starts_with("expected \"ml\" ("), "{err}");
+    }
+
+    #[test]
+    fn force_model_names_read_back_and_auto_resolves() {
+        for f in ForceModel::ALL {
+            assert_eq!(f.name().parse::<ForceModel>(), Ok(f));
+            let json = serde_json::to_string(&f).expect("json");
+            assert_eq!(json, format!("\"{}\"", f.name()));
+            assert_eq!(serde_json::from_str::<ForceModel>(&json).expect("back"), f);
+        }
+        assert_eq!(ForceModel::default(), ForceModel::ALL[0]);
+        assert_eq!(
+            ForceModel::Auto.resolved(true),
+            ForceModel::GainPerMeasurement
+        );
+        assert_eq!(ForceModel::Auto.resolved(false), ForceModel::Free);
+        assert_eq!(
+            ForceModel::GainPerMode.resolved(false),
+            ForceModel::GainPerMode
+        );
+        let err = "gains".parse::<ForceModel>().expect_err("unknown");
+        assert_eq!(
+            err.to_string(),
+            "expected \"auto\", \"free\", \"gain_per_measurement\", \"gain_per_mode\", found \"gains\""
+        );
     }
 }
