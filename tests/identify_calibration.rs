@@ -241,14 +241,14 @@ fn calibration_long() {
         (
             "three_wave",
             "examples/three_wave/model.hb",
-            Box::new(|p: &str| hand(p, three_wave_plan(), &[0.5; 3], 20)),
+            Box::new(|p: &str| hand(p, gen::three_wave_plan(), &[0.5; 3], 20)),
             1000,
             13000,
         ),
         (
             "cubic",
             "examples/cubic_3mode/model.hb",
-            Box::new(|p: &str| hand(p, cubic_3mode_plan(), &[0.5; 3], 20)),
+            Box::new(|p: &str| hand(p, gen::cubic_3mode_plan(), &[0.5; 3], 20)),
             1000,
             17000,
         ),
@@ -271,43 +271,17 @@ fn calibration_long() {
     );
 }
 
-/// Values of `examples/three_wave/values.toml`; a tone pair 5.5 linewidths either side of each
-/// resonance (forces for about 7.5 nm, a quarter of a linewidth of Duffing shift; three times that makes single_q1 of the three-wave set parametrically unstable: f3 − f2 = f1), and q1 and q2
-/// driven together with q3 observed (it responds at f1 + f2 through κ).
-fn three_wave_plan() -> (Values, Vec<Design>) {
-    let names: Vec<String> = (1..=3).map(|n| format!("q{n}")).collect();
-    let v = gen::example_values("three_wave", &names);
-    let mut d = gen::designs(&v, &names, &[165.0, 333.0, 735.0], 5.5, &[(0, 1)]);
-    d[3].observe = vec![2];
-    (v, d)
-}
-
-/// Values of `examples/cubic_3mode/values.toml` (Q of q1 fixed by the model); tone pairs as
-/// [`three_wave_plan`], and each pair driven together with the third mode observed (μ makes it
-/// respond at 2f1 − f2 = f3, 2f1 − f3 = f2, f2 + f3 − f1 = f1).
-fn cubic_3mode_plan() -> (Values, Vec<Design>) {
-    let names: Vec<String> = (1..=3).map(|n| format!("q{n}")).collect();
-    let v = gen::example_values("cubic_3mode", &names);
-    let mut d = gen::designs(
-        &v,
-        &names,
-        &[165.0, 140.0, 190.0],
-        5.5,
-        &[(0, 1), (0, 2), (1, 2)],
-    );
-    d[3].observe = vec![2];
-    d[4].observe = vec![1];
-    d[5].observe = vec![0];
-    (v, d)
-}
-
 /// The short version of the three-mode cases for CI: 16 realisations at 0.05 nm each of the
 /// three-wave and cubic examples (about a second); loose versions of the long test's targets.
 #[test]
 fn three_mode_stderrs_cover_the_truth() {
     for (path, (v, d), seed0) in [
-        ("examples/three_wave/model.hb", three_wave_plan(), 300),
-        ("examples/cubic_3mode/model.hb", cubic_3mode_plan(), 400),
+        ("examples/three_wave/model.hb", gen::three_wave_plan(), 300),
+        (
+            "examples/cubic_3mode/model.hb",
+            gen::cubic_3mode_plan(),
+            400,
+        ),
     ] {
         let m = model(path);
         let clean = simulate_clean(&m, &v, &d, &[0.5, 0.5, 0.5], 20);

@@ -192,7 +192,16 @@ impl IdentifyResult {
         self.part(py, "eom")
     }
 
-    /// Warnings (conditioning, quantities the data do not determine, ...).
+    /// Whether the model fits the data (`result.goodness_of_fit` of `docs/data-format.md`:
+    /// `chi2_per_dof`, its `expected_chi2_per_dof` and spread, `p_value`, `fits`, per
+    /// measurement and per line), or None for the linear estimator.
+    #[getter]
+    fn goodness_of_fit<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.part(py, "goodness_of_fit")
+    }
+
+    /// Warnings (conditioning, quantities the data do not determine, ...); the first is the
+    /// verdict when the model does not fit the data.
     #[getter]
     fn warnings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         self.part(py, "warnings")
@@ -268,6 +277,15 @@ impl IdentifyResult {
                 .collect(),
             _ => Vec::new(),
         };
-        format!("IdentifyResult({})", params.join(", "))
+        let gof = self.json.get("goodness_of_fit");
+        let verdict = match gof.and_then(|g| g.get("fits")).and_then(Value::as_bool) {
+            Some(false) => format!(
+                "THE MODEL DOES NOT FIT THE DATA (chi2/dof {:.3e}, p {:.1e}; error bars model-limited): ",
+                gof.and_then(|g| g.get("chi2_per_dof")).and_then(Value::as_f64).unwrap_or(f64::NAN),
+                gof.and_then(|g| g.get("p_value")).and_then(Value::as_f64).unwrap_or(f64::NAN),
+            ),
+            _ => String::new(),
+        };
+        format!("IdentifyResult({verdict}{})", params.join(", "))
     }
 }

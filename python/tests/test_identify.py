@@ -117,6 +117,28 @@ def test_threads_share_models_and_datasets():
     assert all(r == results[0] for r in results)
 
 
+def test_the_verdict_on_the_fit():
+    """goodness_of_fit is the result file's; a model without q1's Duffing term does not fit
+    the example (simulated with it), and says so first."""
+    ds = harmonid.Dataset.from_folder(DATA_2)
+    good = harmonid.identify(harmonid.Model.from_file(MODEL_2), ds)
+    g = good.goodness_of_fit
+    assert g == good.to_dict()["goodness_of_fit"]
+    assert g["fits"] is True and 0.0 < g["p_value"] <= 1.0
+    assert len(g["lines"]) == sum(m["lines"] for m in g["measurements"])
+    assert not repr(good).startswith("IdentifyResult(THE MODEL")
+    no_beta1 = harmonid.Model.from_str(
+        "mode q1 at 207.58 kHz\nmode q2 at 415.84 kHz\nparam beta2, g12\n"
+        "potential: beta2/4*q2^4\npotential: g12/2*q1^2*q2^2\n"
+    )
+    bad = harmonid.identify(no_beta1, ds)
+    assert bad.goodness_of_fit["fits"] is False and bad.goodness_of_fit["p_value"] < 1e-6
+    assert bad.warnings[0].startswith("THE MODEL DOES NOT FIT THE DATA")
+    assert bad.summary().startswith("THE MODEL DOES NOT FIT THE DATA")
+    assert repr(bad).startswith("IdentifyResult(THE MODEL DOES NOT FIT THE DATA")
+    assert harmonid.identify(no_beta1, ds, estimator="linear").goodness_of_fit is None
+
+
 def test_errors_are_located(tmp_path):
     model = harmonid.Model.from_file(MODEL_2)
     ds = harmonid.Dataset.from_folder(DATA_2)

@@ -78,5 +78,6 @@ pub use uncertainty::consistency::{
 };
 pub use uncertainty::{
     bounds_from_information, crlb, crlb_from_jacobian, drift_check, information, Bound, Bounds,
-    Drift, FisherError, Noise, Unidentifiable,
+    Drift, FisherError, GoodnessOfFit, LineResidual, MeasurementFit, Noise, Unidentifiable,
+    P_DOES_NOT_FIT,
 };

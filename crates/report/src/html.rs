@@ -36,7 +36,7 @@ table{border-collapse:collapse;font-size:.9em}td,th{border:1px solid #ccc;paddin
 th{background:#f2f2f2}td.l,th.l{text-align:left}tr.bad td{background:#fde8df}
 figure{margin:1.5em 0}figure svg{max-width:100%;height:auto;border:1px solid #eee}
 figcaption{font-size:.9em;color:#333;max-width:60em}pre{background:#f7f7f7;padding:.8em;overflow-x:auto}
-.warn{background:#fff4d6;border-left:4px solid #e69f00;padding:.5em 1em}nav a{margin-right:1em}";
+.warn{background:#fff4d6;border-left:4px solid #e69f00;padding:.5em 1em}.verdict{background:#fde8df;border-left:6px solid #d55e00;padding:.6em 1em}nav a{margin-right:1em}";
 
 /// The stage and condition number of the fit that identified `unknown` (its name as the fit
 /// lists it, e.g. `beta1` or `of q1` for a mode's linear parameters).
@@ -115,6 +115,22 @@ pub fn page(p: &PageInputs) -> String {
         esc(&title),
         esc(&title)
     );
+    // The verdict first: values of a model that does not fit are the best it can do, not the
+    // device's, and their error bars say less than they seem to.
+    if let Some(g) = &r.goodness_of_fit {
+        match g.does_not_fit_text() {
+            Some(v) => {
+                let _ = writeln!(
+                    s,
+                    "<div class=\"verdict\"><strong>{}</strong></div>",
+                    esc(&v)
+                );
+            }
+            None => {
+                let _ = writeln!(s, "<p>Goodness of fit: {}.</p>", esc(&g.one_line()));
+            }
+        }
+    }
     let _ = writeln!(
         s,
         "<p>Dataset <code>{}</code> ({}), {} shot(s), {} measurement(s); force model: {}. {}</p>",
@@ -133,9 +149,14 @@ pub fn page(p: &PageInputs) -> String {
         s.push_str("<a href=\"#potential\">potential</a>");
     }
     s.push_str("</nav>\n");
-    if !p.warnings.is_empty() {
+    let verdict = r
+        .goodness_of_fit
+        .as_ref()
+        .and_then(|g| g.does_not_fit_text())
+        .unwrap_or_default();
+    if p.warnings.iter().any(|w| w.as_str() != verdict) {
         s.push_str("<h2 id=\"warnings\">Warnings</h2>\n<div class=\"warn\"><ul>\n");
-        for w in p.warnings {
+        for w in p.warnings.iter().filter(|w| w.as_str() != verdict) {
             let _ = writeln!(s, "<li>{}</li>", esc(w));
         }
         s.push_str("</ul></div>\n");

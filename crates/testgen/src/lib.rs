@@ -393,3 +393,33 @@ pub fn simulate_plan_file(model: &Model, dir: &std::path::Path, shots: usize) ->
     };
     (v, ds)
 }
+
+/// Values of `examples/three_wave/values.toml`; a tone pair 5.5 linewidths either side of each
+/// resonance (forces for about 7.5 nm, a quarter of a linewidth of Duffing shift; three times that makes single_q1 of the three-wave set parametrically unstable: f3 − f2 = f1), and q1 and q2
+/// driven together with q3 observed (it responds at f1 + f2 through κ).
+pub fn three_wave_plan() -> (Values, Vec<Design>) {
+    let names: Vec<String> = (1..=3).map(|n| format!("q{n}")).collect();
+    let v = example_values("three_wave", &names);
+    let mut d = designs(&v, &names, &[165.0, 333.0, 735.0], 5.5, &[(0, 1)]);
+    d[3].observe = vec![2];
+    (v, d)
+}
+
+/// Values of `examples/cubic_3mode/values.toml` (Q of q1 fixed by the model); tone pairs as
+/// [`three_wave_plan`], and each pair driven together with the third mode observed (μ makes it
+/// respond at 2f1 − f2 = f3, 2f1 − f3 = f2, f2 + f3 − f1 = f1).
+pub fn cubic_3mode_plan() -> (Values, Vec<Design>) {
+    let names: Vec<String> = (1..=3).map(|n| format!("q{n}")).collect();
+    let v = example_values("cubic_3mode", &names);
+    let mut d = designs(
+        &v,
+        &names,
+        &[165.0, 140.0, 190.0],
+        5.5,
+        &[(0, 1), (0, 2), (1, 2)],
+    );
+    d[3].observe = vec![2];
+    d[4].observe = vec![1];
+    d[5].observe = vec![0];
+    (v, d)
+}

@@ -123,15 +123,10 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
     warnings.extend(tables::force_warnings(prob));
     for (mi, bad) in pooled.rejected.iter().enumerate() {
         if !bad.is_empty() {
-            let name = &ds.measurements[mi].spec.name;
-            rejected_shots.insert(name.clone(), bad.clone());
-            warnings.push(format!(
-                "measurement \"{name}\": shot(s) {} rejected as disturbed (far from the median spectrum); the estimate uses the other {}",
-                index_list(bad),
-                pooled.used[mi]
-            ));
+            rejected_shots.insert(ds.measurements[mi].spec.name.clone(), bad.clone());
         }
     }
+    warnings.extend(rejected_warning(&rejected_shots, ds.measurements.len()));
     if let Some(why) = fallback {
         warnings.push(format!(
             "{why}; reporting the pooled equation-error (linear) estimate"
@@ -139,6 +134,13 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
     }
     warnings.extend(tables::undetermined_warnings(&modes, &parameters));
     warnings.extend(jackknife_warnings);
+    let goodness_of_fit = fo
+        .as_ref()
+        .filter(|_| estimator == Estimator::Ml)
+        .map(|f| f.goodness.clone());
+    if let Some(text) = goodness_of_fit.as_ref().and_then(|g| g.does_not_fit_text()) {
+        warnings.insert(0, text);
+    }
     let mut all_notes = Vec::new();
     let mut consistency = Vec::new();
     if let Some(f) = &fo {
@@ -157,6 +159,7 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
         estimator: estimator.to_string(),
         rejected_shots,
         notes: all_notes,
+        goodness_of_fit,
         shots: per_shot.values.len(),
         outlier_shots: tables::outlier_shots(&modes, &parameters),
         eom: tables::eom_table(prob, &one),
@@ -168,6 +171,45 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
         warnings,
         consistency,
     }
+}
+
+/// One warning for every shot rejected as disturbed: measurements that lost the same shots
+/// share a clause ("shots 10-12 in all 15 measurements"), at most five names per clause.
+fn rejected_warning(
+    rejected: &BTreeMap<String, Vec<usize>>,
+    measurements: usize,
+) -> Option<String> {
+    if rejected.is_empty() {
+        return None;
+    }
+    let mut by_shots: BTreeMap<&[usize], Vec<&str>> = BTreeMap::new();
+    for (name, shots) in rejected {
+        by_shots.entry(shots).or_default().push(name);
+    }
+    let clauses: Vec<String> = by_shots
+        .iter()
+        .map(|(shots, names)| {
+            let which = if names.len() == measurements && measurements > 1 {
+                format!("all {measurements} measurements")
+            } else {
+                let mut s: Vec<String> = names.iter().take(5).map(|n| format!("\"{n}\"")).collect();
+                if names.len() > 5 {
+                    s.push(format!("{} more", names.len() - 5));
+                }
+                s.join(", ")
+            };
+            format!(
+                "shot{} {} in {which}",
+                if shots.len() == 1 { "" } else { "s" },
+                index_list(shots)
+            )
+        })
+        .collect();
+    Some(format!(
+        "shots rejected as disturbed (far from their measurement's median spectrum) in {} of {measurements} measurements, each pooled mean using the others: {}",
+        rejected.len(),
+        clauses.join("; ")
+    ))
 }
 
 /// The reported values: the output-error estimate `ml` where it is identified, the
@@ -276,5 +318,34 @@ impl Judge<'_> {
                 ));
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rejected_shots_are_one_warning_grouped_by_shots() {
+        assert_eq!(rejected_warning(&BTreeMap::new(), 3), None);
+        let same: BTreeMap<String, Vec<usize>> = (0..15)
+            .map(|m| (format!("m{m:02}"), vec![10, 11, 12]))
+            .collect();
+        let w = rejected_warning(&same, 15).expect("a warning");
+        assert!(
+            w.ends_with(": shots 10, 11, 12 in all 15 measurements"),
+            "{w}"
+        );
+        let mut mixed: BTreeMap<String, Vec<usize>> =
+            (0..7).map(|m| (format!("m{m}"), vec![0])).collect();
+        mixed.insert("x".into(), vec![3, 4]);
+        let w = rejected_warning(&mixed, 20).expect("a warning");
+        assert!(w.contains("in 8 of 20 measurements"), "{w}");
+        assert!(
+            w.ends_with(
+                ": shot 0 in \"m0\", \"m1\", \"m2\", \"m3\", \"m4\", 2 more; shots 3, 4 in \"x\""
+            ),
+            "{w}"
+        );
     }
 }

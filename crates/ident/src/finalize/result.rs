@@ -1,6 +1,7 @@
 //! The result of an identification (`DATA_FORMAT.md`, "Result of an identification") and
 //! its file.
 
+use crate::uncertainty::GoodnessOfFit;
 use serde::{Deserialize, Deserializer, Serialize};
 use std::collections::BTreeMap;
 
@@ -161,6 +162,11 @@ pub struct Report {
     /// Notes on how the estimate was made (noise source, fall-backs).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub notes: Vec<String>,
+    /// Whether the model fits the data: the output-error fit's `χ²` against a correct
+    /// model's, per measurement and per line (`None` for the linear estimator and for a
+    /// noise study's per-shot report).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub goodness_of_fit: Option<GoodnessOfFit>,
     /// Number of shots.
     #[serde(default)]
     pub shots: usize,
@@ -249,6 +255,7 @@ mod tests {
             estimator: "ml".into(),
             rejected_shots: [("m".to_string(), vec![1])].into(),
             notes: vec!["a note".into()],
+            goodness_of_fit: None,
             shots: 3,
             modes: [("q1".to_string(), mode)].into(),
             parameters: [

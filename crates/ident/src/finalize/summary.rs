@@ -40,6 +40,13 @@ impl Report {
     /// fits per stage with residuals and conditioning, warnings.
     pub fn summary(&self, truth: Option<&Truth>) -> String {
         let mut s = String::new();
+        let verdict = self
+            .goodness_of_fit
+            .as_ref()
+            .and_then(|g| g.does_not_fit_text());
+        if let Some(v) = &verdict {
+            let _ = writeln!(s, "{v}\n");
+        }
         let _ = writeln!(
             s,
             "harmonid identify: {} shot(s), force model: {}",
@@ -63,6 +70,9 @@ impl Report {
                 ""
             }
         );
+        if let Some(g) = &self.goodness_of_fit {
+            let _ = writeln!(s, "  goodness of fit: {}", g.one_line());
+        }
         let with_crlb = self
             .modes
             .values()
@@ -151,13 +161,7 @@ impl Report {
                 }
             }
         }
-        for (m, shots) in &self.rejected_shots {
-            let _ = writeln!(
-                s,
-                "\nrejected from the pooled mean of {m}: shots {}",
-                index_list(shots)
-            );
-        }
+
         for n in &self.notes {
             let _ = writeln!(s, "note: {n}");
         }
@@ -168,7 +172,11 @@ impl Report {
                 index_list(&self.outlier_shots)
             );
         }
-        for w in &self.warnings {
+        for w in self
+            .warnings
+            .iter()
+            .filter(|w| Some(*w) != verdict.as_ref())
+        {
             let _ = writeln!(s, "warning: {w}");
         }
         s

@@ -373,6 +373,7 @@ impl Report {
             rejected_shots: BTreeMap::new(),
             notes: Vec::new(),
             force_model: prob.table.force_model().description().to_string(),
+            goodness_of_fit: None,
             shots: fit.values.len(),
             outlier_shots: outlier_shots(&modes, &parameters),
             eom: eom_table(prob, &fit.values),

@@ -13,7 +13,8 @@ use crate::problem::Problem;
 use crate::settings::Settings;
 use crate::shots::Pooled;
 use crate::uncertainty::{
-    self, consistency, drift_warnings, expected_reduced_chi2, jackknife, FisherError, Noise,
+    self, consistency, drift_warnings, expected_reduced_chi2, goodness_of_fit, jackknife,
+    FisherError, GoodnessOfFit, Noise,
 };
 use ml::{MlFit, MlSettings};
 use num_complex::Complex64;
@@ -98,6 +99,8 @@ pub(crate) struct OutputError {
     pub at_bound: Vec<Quantity>,
     /// Quantities the information at the estimate does not determine, with why.
     pub unidentifiable: Vec<(Quantity, String)>,
+    /// Whether the model fits the data at the estimate.
+    pub goodness: GoodnessOfFit,
     pub notes: Vec<String>,
 }
 
@@ -227,6 +230,20 @@ pub(crate) fn fit(
     } else {
         Vec::new()
     };
+    // Without shot noise the residual is the noise: standardize by its scale.
+    let residual_scale = match &noise {
+        Noise::Uniform(s) => *s,
+        _ => 1.0,
+    };
+    let scaled: Vec<f64> = sigma.iter().map(|s| s * residual_scale).collect();
+    let mut goodness = goodness_of_fit(
+        &pooled.mean,
+        &pooled.used,
+        (&meas, &fit.x, &scaled),
+        fit.dof,
+        from_shots,
+    );
+    goodness.stderr_inflation = inflation;
     let consistency = compare_measurements(fwd, &fit, &meas, &noise, &cols, &pooled.mean);
     if !fit.converged {
         notes.push(format!(
@@ -247,6 +264,7 @@ pub(crate) fn fit(
         })
         .collect();
     Ok(OutputError {
+        goodness,
         drift,
         consistency,
         fit,
@@ -282,6 +300,9 @@ impl Tries<'_> {
         let reduced = |f: &MlFit| f.chi2 / f.dof.max(1) as f64;
         let mut first_err = None;
         let mut best: Option<(MlFit, usize)> = None;
+        // The forward model at the best fit's steady states, for when they cannot be found
+        // again from the data (a state on a branch the data-based start does not reach).
+        let mut best_fwd: Option<ForwardModel> = None;
         let mut first_fit_chi2: Option<f64> = None;
         let mut last_run = 0;
         for (i, (theta_s, _)) in starts.iter().enumerate() {
@@ -315,6 +336,7 @@ impl Tries<'_> {
                     }
                     if best.as_ref().is_none_or(|(b, _)| f.chi2 < b.chi2) {
                         best = Some((f, i));
+                        best_fwd = (i + 1 < starts.len()).then(|| fwd.clone());
                     }
                 }
                 Err(e) => {
@@ -330,8 +352,9 @@ impl Tries<'_> {
             // the data it matches.
             fwd.start_from_data(mean);
             let mut x = vec![Complex64::new(0.0, 0.0); fwd.n_observations()];
-            fwd.evaluate_trial(&f.theta, &mut x)
-                .map_err(OutputErrorFailure::BackAtEstimate)?;
+            if let Err(e) = fwd.evaluate_trial(&f.theta, &mut x) {
+                *fwd = best_fwd.ok_or(OutputErrorFailure::BackAtEstimate(e))?;
+            }
         }
         let mut notes = Vec::new();
         let start = starts[i].1;

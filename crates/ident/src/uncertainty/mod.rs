@@ -1,11 +1,13 @@
 //! The uncertainty of the output-error estimate: Cramér–Rao bounds from the Fisher
 //! information ([`fisher`]), the noise expectation of a correct model's χ², a linearised
-//! jackknife, a drift check over the shots and the comparison of quantities between
-//! measurements ([`consistency`]).
+//! jackknife, a drift check over the shots, the comparison of quantities between
+//! measurements ([`consistency`]) and the verdict on whether the model fits at all
+//! ([`GoodnessOfFit`]).
 
 pub mod consistency;
 mod drift;
 pub mod fisher;
+mod goodness;
 mod jackknife;
 
 pub(crate) use drift::drift_warnings;
@@ -14,6 +16,8 @@ pub use fisher::{
     bounds_from_information, crlb, crlb_from_jacobian, information, Bound, Bounds, FisherError,
     Noise, Unidentifiable,
 };
+pub(crate) use goodness::goodness_of_fit;
+pub use goodness::{GoodnessOfFit, LineResidual, MeasurementFit, P_DOES_NOT_FIT};
 pub(crate) use jackknife::jackknife;
 
 use crate::dataset::Dataset;
