@@ -30,6 +30,7 @@ fn p_values(
             let ds = add_noise(clean, sigma, seed0 + r);
             let rep = identify(m, &ds, &Settings::default()).expect("identify");
             let g = rep.goodness_of_fit.expect("the ml estimate is judged");
+            assert!(g.converged, "seed {}: {:?}", seed0 + r, rep.notes);
             g.p_value.expect("noise from the shot scatter")
         })
         .collect()

@@ -118,7 +118,7 @@ pub fn page(p: &PageInputs) -> String {
     // The verdict first: values of a model that does not fit are the best it can do, not the
     // device's, and their error bars say less than they seem to.
     if let Some(g) = &r.goodness_of_fit {
-        match g.does_not_fit_text() {
+        match g.headline() {
             Some(v) => {
                 let _ = writeln!(
                     s,
@@ -152,7 +152,7 @@ pub fn page(p: &PageInputs) -> String {
     let verdict = r
         .goodness_of_fit
         .as_ref()
-        .and_then(|g| g.does_not_fit_text())
+        .and_then(|g| g.headline())
         .unwrap_or_default();
     if p.warnings.iter().any(|w| w.as_str() != verdict) {
         s.push_str("<h2 id=\"warnings\">Warnings</h2>\n<div class=\"warn\"><ul>\n");

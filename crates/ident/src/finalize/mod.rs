@@ -138,7 +138,7 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
         .as_ref()
         .filter(|_| estimator == Estimator::Ml)
         .map(|f| f.goodness.clone());
-    if let Some(text) = goodness_of_fit.as_ref().and_then(|g| g.does_not_fit_text()) {
+    if let Some(text) = goodness_of_fit.as_ref().and_then(|g| g.headline()) {
         warnings.insert(0, text);
     }
     let mut all_notes = Vec::new();
@@ -289,6 +289,14 @@ impl Judge<'_> {
             (true, Some(b), Some(f)) => b * f.inflation,
             _ => e.std / self.n_used.sqrt(),
         };
+        if ml && self.fo.is_some_and(|f| !f.fit.converged) {
+            e.identifiable = false;
+            e.reason = Some(
+                "the output-error fit stopped before converging: this is where it stopped, not an estimate"
+                    .into(),
+            );
+            return;
+        }
         if ml && self.fo.is_some_and(|f| f.at_bound.contains(&q)) {
             e.at_bound = true;
             e.identifiable = false;

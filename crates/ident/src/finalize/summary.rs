@@ -40,10 +40,7 @@ impl Report {
     /// fits per stage with residuals and conditioning, warnings.
     pub fn summary(&self, truth: Option<&Truth>) -> String {
         let mut s = String::new();
-        let verdict = self
-            .goodness_of_fit
-            .as_ref()
-            .and_then(|g| g.does_not_fit_text());
+        let verdict = self.goodness_of_fit.as_ref().and_then(|g| g.headline());
         if let Some(v) = &verdict {
             let _ = writeln!(s, "{v}\n");
         }

@@ -244,6 +244,7 @@ pub(crate) fn fit(
         from_shots,
     );
     goodness.stderr_inflation = inflation;
+    goodness.converged = fit.converged;
     let consistency = compare_measurements(fwd, &fit, &meas, &noise, &cols, &pooled.mean);
     if !fit.converged {
         notes.push(format!(

@@ -51,6 +51,11 @@ pub struct GoodnessOfFit {
     /// Root mean square of the standardized residual per quadrature, in noise sigmas (about 1
     /// for a correct model).
     pub rms_residual_sigma: f64,
+    /// Whether the output-error fit converged. When it did not, the values are where it
+    /// stopped, not estimates: every quantity is reported not determined, and the headline
+    /// says so first.
+    #[serde(default = "yes")]
+    pub converged: bool,
     /// The factor the output-error standard errors were multiplied by,
     /// `√max(1, chi2_per_dof / expected_chi2_per_dof)`: above 1 they are model-limited (the
     /// misfit, not the noise, sets them).
@@ -166,6 +171,7 @@ pub(crate) fn goodness_of_fit(
         fits: p_value.map(|p| p >= P_DOES_NOT_FIT),
         rms_residual_sigma: (chi2 / n_real.max(1) as f64).sqrt(),
         stderr_inflation: 1.0,
+        converged: true,
         measurements,
         lines,
     }
@@ -208,6 +214,11 @@ impl GoodnessOfFit {
             self.expected_chi2_per_dof,
             self.spread_chi2_per_dof
         );
+        if !self.converged {
+            return format!(
+                "{head}: THE OUTPUT-ERROR FIT DID NOT CONVERGE (values are where it stopped)"
+            );
+        }
         match (self.p_value, self.fits) {
             (Some(p), Some(true)) => {
                 format!(
@@ -224,9 +235,19 @@ impl GoodnessOfFit {
         }
     }
 
-    /// The verdict in plain words, when the model does not fit (`None` otherwise): by how
-    /// many noise sigmas it misses, where, and what that means for the error bars.
-    pub fn does_not_fit_text(&self) -> Option<String> {
+    /// What a reader must know before the values, in plain words (`None` when the fit
+    /// converged and the model fits): a fit that stopped before converging, or a model that
+    /// does not fit the data by how many noise sigmas, where, and what that means for the
+    /// error bars.
+    pub fn headline(&self) -> Option<String> {
+        if !self.converged {
+            return Some(format!(
+                "THE OUTPUT-ERROR FIT DID NOT CONVERGE: it stopped at χ²/dof = {} (a correct model gives {:.3} ± {:.2}). The values are where it stopped, not estimates, and every quantity is reported NOT DETERMINED; a plan that determines them (harmonid plan), more shots, or the linear estimate (--estimator linear) may help.",
+                sig3(self.chi2_per_dof),
+                self.expected_chi2_per_dof,
+                self.spread_chi2_per_dof,
+            ));
+        }
         if self.fits != Some(false) {
             return None;
         }
@@ -264,6 +285,10 @@ impl GoodnessOfFit {
             sig3(self.stderr_inflation),
         ))
     }
+}
+
+fn yes() -> bool {
+    true
 }
 
 /// A p-value as text: below the smallest double it is "< 1e-300", not 0.
@@ -361,16 +386,29 @@ mod tests {
         assert_eq!(g.measurements[0].chi2_per_dof, 1300.0 / 2.0);
         assert!((g.expected_chi2_per_dof - 38.0 / 36.0).abs() < 1e-12);
         assert_eq!(g.fits, Some(false));
-        let text = g.does_not_fit_text().expect("does not fit");
+        let text = g.headline().expect("does not fit");
         assert!(text.contains("Worst: \"m0\""), "{text}");
         assert!(
             text.contains("worst line 1000.000 Hz in \"m0\", 30.0 sigmas off"),
             "{text}"
         );
+        // A fit that stopped early says so first, whatever its χ².
+        let stopped = GoodnessOfFit {
+            converged: false,
+            ..g.clone()
+        };
+        let text = stopped.headline().expect("not converged");
+        assert!(
+            text.starts_with("THE OUTPUT-ERROR FIT DID NOT CONVERGE: it stopped at χ²/dof = 434 "),
+            "{text}"
+        );
+        assert!(stopped
+            .one_line()
+            .ends_with("THE OUTPUT-ERROR FIT DID NOT CONVERGE (values are where it stopped)"));
         // Without shot noise nothing is judged.
         let g = goodness_of_fit(&ds, &[1, 1], (&meas, &x, &sigma), 3, false);
         assert_eq!((g.p_value, g.fits), (None, None));
-        assert!(g.does_not_fit_text().is_none());
+        assert!(g.headline().is_none());
     }
 
     /// The p-value of a correct model's residuals (no fitted unknowns) with the noise
