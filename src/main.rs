@@ -20,6 +20,8 @@ enum Command {
     Mix(cli::mix::Args),
     /// Identify the model's coefficients from a measured dataset.
     Identify(cli::identify::Args),
+    /// Fit one dataset by several models: which one the data support, and does it fit?
+    Compare(cli::compare::Args),
     /// Simulate measurements and write a dataset folder.
     Simulate(cli::simulate::Args),
     /// Compute a frequency-response curve with continuation through folds.
@@ -38,6 +40,7 @@ fn main() -> miette::Result<()> {
         Command::Check(args) => cli::check::run(args),
         Command::Mix(args) => cli::mix::run(args),
         Command::Identify(args) => cli::identify::run(args),
+        Command::Compare(args) => cli::compare::run(args),
         Command::Simulate(args) => cli::simulate::run(args),
         Command::Sweep(args) => cli::sweep::run(args),
         Command::NoiseStudy(args) => cli::noise_study::run(args),

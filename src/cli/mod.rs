@@ -2,6 +2,7 @@
 
 pub mod check;
 pub mod common;
+pub mod compare;
 pub mod figure;
 pub mod identify;
 pub mod mix;

@@ -43,6 +43,7 @@
 
 #![warn(missing_docs)]
 
+mod compare;
 pub mod dataset;
 mod finalize;
 mod forward;
@@ -55,6 +56,7 @@ mod shots;
 mod solve;
 mod uncertainty;
 
+pub use compare::{compare, CompareError, ModelComparison, ModelFit, NestedTest};
 pub use dataset::{
     Dataset, DatasetError, Manifest, Measurement, MeasurementSpec, Point, Truth, TruthForce,
     TruthMode, TruthNoise,

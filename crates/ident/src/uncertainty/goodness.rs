@@ -292,7 +292,7 @@ fn yes() -> bool {
 }
 
 /// A p-value as text: below the smallest double it is "< 1e-300", not 0.
-fn p_text(p: f64) -> String {
+pub(crate) fn p_text(p: f64) -> String {
     if p < 1e-300 {
         "< 1e-300".into()
     } else if p < 0.01 {

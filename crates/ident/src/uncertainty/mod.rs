@@ -16,7 +16,7 @@ pub use fisher::{
     bounds_from_information, crlb, crlb_from_jacobian, information, Bound, Bounds, FisherError,
     Noise, Unidentifiable,
 };
-pub(crate) use goodness::goodness_of_fit;
+pub(crate) use goodness::{goodness_of_fit, p_text};
 pub use goodness::{GoodnessOfFit, LineResidual, MeasurementFit, P_DOES_NOT_FIT};
 pub(crate) use jackknife::jackknife;
 
