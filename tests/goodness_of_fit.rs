@@ -173,3 +173,55 @@ fn goodness_of_fit_long() {
     }
     assert!(failures.is_empty(), "{failures:#?}");
 }
+
+/// `identify --holdout` (issue 22, item 2): a correct model predicts a held-out measurement
+/// to about its noise; one without q1's Duffing term misses it by far more; bad holdouts are
+/// refused with the names.
+#[test]
+fn held_out_measurements_are_predicted_by_a_correct_model_only() {
+    use harmonid_ident::{identify_with_holdout, IdentError};
+    let truth = model("examples/nanostring_2mode/model.hb");
+    let (v, d) = gen::nanostring_2mode_fold_plan();
+    let ds = simulate(&truth, &v, &d, &[0.309, 0.588], 1e-11, 20, 91);
+    let held = vec!["single_q1".to_string()];
+    let rep = identify_with_holdout(&truth, &ds, &held, &Settings::default()).expect("holdout");
+    assert_eq!(rep.holdout.len(), 1);
+    let h = &rep.holdout[0];
+    assert_eq!(h.measurement, "single_q1");
+    let rms = h.rms_sigma.expect("noise from the shots");
+    // Above 1: the prediction carries the estimate's own uncertainty besides the noise.
+    assert!((0.5..3.0).contains(&rms), "correct model: {rms} sigmas");
+    // The fit itself saw no single_q1.
+    let g = rep.goodness_of_fit.as_ref().expect("judged");
+    assert!(g.measurements.iter().all(|m| m.name != "single_q1"));
+    assert!(rep.summary(None).contains("held out \"single_q1\""));
+    // A model that cannot describe q1's nonlinearity, fitted on the coupled measurement
+    // (where q1's nonlinearity is mixed with the coupling), predicts single_q1 badly.
+    let without = harmonid_model::parse_str(
+        "mode q1 at 207.58 kHz\nmode q2 at 415.84 kHz\nparam beta2, g12\n\
+         potential: beta2/4*q2^4\npotential: g12/2*q1^2*q2^2\n",
+        "no_beta1.hb",
+    )
+    .expect("model");
+    let bad = identify_with_holdout(&without, &ds, &held, &Settings::default()).expect("holdout");
+    let bad_rms = bad.holdout[0].rms_sigma.expect("noise");
+    eprintln!("held-out single_q1: correct model {rms:.3} sigmas ({:.3} %), without beta1 {bad_rms:.3} sigmas ({:.3} %)", 100.0 * h.relative_rms, 100.0 * bad.holdout[0].relative_rms);
+    assert!(
+        bad_rms > 5.0 * rms,
+        "wrong model predicts to {bad_rms} sigmas, right one {rms}"
+    );
+    // Bad input: an unknown name, every measurement.
+    let e = identify_with_holdout(&truth, &ds, &["nope".to_string()], &Settings::default())
+        .expect_err("unknown measurement");
+    assert!(
+        matches!(e, IdentError::Holdout(_)) && e.to_string().contains("no measurement \"nope\""),
+        "{e}"
+    );
+    let all: Vec<String> = ds
+        .measurements
+        .iter()
+        .map(|m| m.spec.name.clone())
+        .collect();
+    let e = identify_with_holdout(&truth, &ds, &all, &Settings::default()).expect_err("all");
+    assert!(e.to_string().contains("every measurement"), "{e}");
+}

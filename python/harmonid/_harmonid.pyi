@@ -94,6 +94,7 @@ def identify(
     gls: Optional[bool] = None,
     gls_iterations: Optional[int] = None,
     sample_covariance: Optional[bool] = None,
+    holdout: Optional[Sequence[str]] = None,
 ) -> IdentifyResult: ...
 def mix(
     model: Model,

@@ -38,12 +38,14 @@ fn estimator(name: &str) -> PyResult<Estimator> {
 ///   simulated), or `"linear"`, the equation-error fit of the pooled shots (`--estimator`);
 /// - `crlb`: also compute the Cramér–Rao bound of every quantity at the estimate (`--crlb`;
 ///   `result.crlb`);
+/// - `holdout`: measurement names to leave out of the fit; the result's `holdout` says how
+///   well the estimate predicts them (`--holdout`);
 /// - `rank_tol`, `gls`, `gls_iterations`, `sample_covariance`: the library's settings
 ///   (`Settings` in `harmonid_ident`); None keeps the documented default.
 ///
 /// Runs without holding the GIL. Returns an `IdentifyResult`.
 #[pyfunction]
-#[pyo3(signature = (model, dataset, *, joint = false, force_model = "auto", nominal_hz = None, near_rel = None, unweighted = false, estimator = "ml", crlb = false, rank_tol = None, gls = None, gls_iterations = None, sample_covariance = None))]
+#[pyo3(signature = (model, dataset, *, joint = false, force_model = "auto", nominal_hz = None, near_rel = None, unweighted = false, estimator = "ml", crlb = false, rank_tol = None, gls = None, gls_iterations = None, sample_covariance = None, holdout = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn identify(
     py: Python<'_>,
@@ -60,6 +62,7 @@ pub fn identify(
     gls: Option<bool>,
     gls_iterations: Option<usize>,
     sample_covariance: Option<bool>,
+    holdout: Option<Vec<String>>,
 ) -> PyResult<IdentifyResult> {
     let mut nominal = BTreeMap::new();
     for (name, hz) in nominal_hz.unwrap_or_default() {
@@ -106,7 +109,13 @@ pub fn identify(
     let (m, ds) = (Arc::clone(&model.inner), Arc::clone(&dataset.inner));
     let (report, summary) = py
         .detach(|| {
-            harmonid_ident::identify(&m, &ds, &settings).map(|r| {
+            let held = holdout.unwrap_or_default();
+            let result = if held.is_empty() {
+                harmonid_ident::identify(&m, &ds, &settings)
+            } else {
+                harmonid_ident::identify_with_holdout(&m, &ds, &held, &settings)
+            };
+            result.map(|r| {
                 let s = r.summary(ds.truth.as_ref());
                 (r, s)
             })

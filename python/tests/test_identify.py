@@ -22,6 +22,7 @@ OPTIONS = [
     ({"estimator": "linear"}, ["--estimator", "linear"]),
     ({"crlb": True}, ["--crlb"]),
     ({"estimator": "linear", "crlb": True}, ["--estimator", "linear", "--crlb"]),
+    ({"holdout": ["single_q1"]}, ["--holdout", "single_q1"]),
 ]
 
 

@@ -2,7 +2,7 @@
 //! measured dataset (sequential stages by default), print a summary table, write the result.
 
 use crate::cli::common::{check_outputs, print_out, write_output};
-use harmonid_ident::{identify, Dataset, Estimator, ForceModel, Settings};
+use harmonid_ident::{identify, identify_with_holdout, Dataset, Estimator, ForceModel, Settings};
 use miette::miette;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -50,6 +50,10 @@ pub struct Args {
     /// in the result), for the force model in use and the noise from the shot scatter.
     #[arg(long)]
     pub crlb: bool,
+    /// Fit without these measurements, then report how well the estimate predicts them (RMS
+    /// in noise units and relative; their forces or gains are refitted, the model fixed).
+    #[arg(long, value_delimiter = ',', value_name = "NAME[,NAME...]")]
+    pub holdout: Vec<String>,
 }
 
 /// `--estimator`: the library's names, with its descriptions as the help of each value.
@@ -123,7 +127,11 @@ pub fn run(args: Args) -> miette::Result<()> {
         ds.measurements.len(),
         ds.measurements.first().map_or(0, |m| m.n_shots)
     ));
-    let report = identify(&model, &ds, &settings);
+    let report = if args.holdout.is_empty() {
+        identify(&model, &ds, &settings)
+    } else {
+        identify_with_holdout(&model, &ds, &args.holdout, &settings)
+    };
     pb.finish_and_clear();
     let mut report = report.map_err(miette::Report::new)?;
     report.model = args.model.display().to_string();

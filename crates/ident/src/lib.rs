@@ -47,6 +47,7 @@ mod compare;
 pub mod dataset;
 mod finalize;
 mod forward;
+mod holdout;
 mod identify;
 mod layout;
 mod output_error;
@@ -66,6 +67,7 @@ pub use finalize::{
     MAX_REL_STDERR, RESULT_FORMAT,
 };
 pub use forward::{ForwardError, ForwardModel, ForwardSettings};
+pub use holdout::{identify_with_holdout, HeldOut};
 pub use identify::identify;
 pub use layout::{Quantity, Unknown, UnknownTable};
 pub use output_error::ml::{refine, MlFit, MlSettings};

@@ -17,7 +17,7 @@ use crate::settings::{Estimator, Settings};
 use crate::shots::Pooled;
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
-use tables::FIXED_BY_THE_MODEL;
+pub(crate) use tables::FIXED_BY_THE_MODEL;
 
 /// Relative standard error above which a quantity is reported as not determined.
 pub const MAX_REL_STDERR: f64 = 0.3;
@@ -160,6 +160,7 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
         rejected_shots,
         notes: all_notes,
         goodness_of_fit,
+        holdout: Vec::new(),
         shots: per_shot.values.len(),
         outlier_shots: tables::outlier_shots(&modes, &parameters),
         eom: tables::eom_table(prob, &one),

@@ -167,6 +167,10 @@ pub struct Report {
     /// noise study's per-shot report).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub goodness_of_fit: Option<GoodnessOfFit>,
+    /// How well the estimate predicts the measurements held out of the fit (`identify
+    /// --holdout`), in the order given; absent without a holdout.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub holdout: Vec<crate::HeldOut>,
     /// Number of shots.
     #[serde(default)]
     pub shots: usize,
@@ -256,6 +260,7 @@ mod tests {
             rejected_shots: [("m".to_string(), vec![1])].into(),
             notes: vec!["a note".into()],
             goodness_of_fit: None,
+            holdout: Vec::new(),
             shots: 3,
             modes: [("q1".to_string(), mode)].into(),
             parameters: [

@@ -70,6 +70,17 @@ impl Report {
         if let Some(g) = &self.goodness_of_fit {
             let _ = writeln!(s, "  goodness of fit: {}", g.one_line());
         }
+        for h in &self.holdout {
+            let _ = writeln!(
+                s,
+                "  held out \"{}\" ({} lines, not fitted): predicted to {}{:.3} % RMS of its amplitudes",
+                h.measurement,
+                h.lines,
+                h.rms_sigma
+                    .map_or(String::new(), |r| format!("{r:.3} noise sigmas RMS, ")),
+                100.0 * h.relative_rms
+            );
+        }
         let with_crlb = self
             .modes
             .values()

@@ -47,7 +47,7 @@ pub(super) fn estimate(per_shot: Vec<f64>, single_var: f64) -> Estimate {
 }
 
 /// The reason of a quantity the model fixes.
-pub(super) const FIXED_BY_THE_MODEL: &str = "fixed by the model";
+pub(crate) const FIXED_BY_THE_MODEL: &str = "fixed by the model";
 
 fn mark_fixed(e: &mut Estimate) {
     e.std = 0.0;
@@ -374,6 +374,7 @@ impl Report {
             notes: Vec::new(),
             force_model: prob.table.force_model().description().to_string(),
             goodness_of_fit: None,
+            holdout: Vec::new(),
             shots: fit.values.len(),
             outlier_shots: outlier_shots(&modes, &parameters),
             eom: eom_table(prob, &fit.values),

@@ -82,6 +82,14 @@ pub enum IdentError {
     #[error("{0}")]
     #[diagnostic(code(harmonid::ident::unsupported))]
     Unsupported(String),
+    /// A held-out set that cannot be used (names no measurement, is every measurement, or
+    /// leaves a quantity undetermined).
+    #[error("{0}")]
+    #[diagnostic(
+        code(harmonid::ident::holdout),
+        help("--holdout takes measurement names from the dataset's manifest, comma-separated")
+    )]
+    Holdout(String),
     /// Planning products failed.
     #[error("measurement \"{measurement}\": {source}")]
     #[diagnostic(code(harmonid::ident::spectral))]

@@ -51,6 +51,9 @@ pub struct GoodnessOfFit {
     /// Root mean square of the standardized residual per quadrature, in noise sigmas (about 1
     /// for a correct model).
     pub rms_residual_sigma: f64,
+    /// `√(Σ|X̄ − X|² / Σ|X̄|²)` over every line: the misfit relative to the measured
+    /// amplitudes.
+    pub relative_rms: f64,
     /// Whether the output-error fit converged. When it did not, the values are where it
     /// stopped, not estimates: every quantity is reported not determined, and the headline
     /// says so first.
@@ -75,6 +78,10 @@ pub struct MeasurementFit {
     pub lines: usize,
     /// Its part of `χ²`.
     pub chi2: f64,
+    /// `√(Σ|X̄ − X|² / Σ|X̄|²)` over its lines.
+    pub relative_rms: f64,
+    /// Root mean square of its standardized residuals per quadrature, in noise sigmas.
+    pub rms_residual_sigma: f64,
     /// `chi2` over its share of the degrees of freedom (`2·lines·dof/N`, `N` real residuals
     /// in all).
     pub chi2_per_dof: f64,
@@ -115,17 +122,20 @@ pub(crate) fn goodness_of_fit(
     let n_real = 2 * meas.len();
     let dof_share = dof as f64 / n_real.max(1) as f64;
     let (mut chi2, mut cumulants) = (0.0, [0.0; 3]);
+    let (mut total_miss2, mut total_meas2) = (0.0, 0.0);
     let mut measurements = Vec::with_capacity(ds.measurements.len());
     let mut lines = Vec::with_capacity(meas.len());
     let mut o = 0;
     for (m, &n) in ds.measurements.iter().zip(used) {
         let k = line_cumulants(2.0 * (n as f64 - 1.0));
         let per = m.freqs_hz.len() * m.points.len();
-        let mut c = 0.0;
+        let (mut c, mut miss2, mut meas2) = (0.0, 0.0, 0.0);
         for &freq_hz in &m.freqs_hz {
             for &p in &m.points {
                 let r = (meas[o] - x[o]) / sigma[o];
                 c += r.norm_sqr();
+                miss2 += (meas[o] - x[o]).norm_sqr();
+                meas2 += meas[o].norm_sqr();
                 lines.push(LineResidual {
                     measurement: m.spec.name.clone(),
                     freq_hz,
@@ -138,6 +148,8 @@ pub(crate) fn goodness_of_fit(
             }
         }
         chi2 += c;
+        total_miss2 += miss2;
+        total_meas2 += meas2;
         for (sum, x) in cumulants.iter_mut().zip(k) {
             *sum += per as f64 * x;
         }
@@ -146,6 +158,8 @@ pub(crate) fn goodness_of_fit(
             name: m.spec.name.clone(),
             lines: per,
             chi2: c,
+            relative_rms: (miss2 / meas2).sqrt(),
+            rms_residual_sigma: (c / (2 * per).max(1) as f64).sqrt(),
             chi2_per_dof: if share > 0.0 { c / share } else { f64::NAN },
             expected_chi2_per_dof: if from_shots { k[0] / 2.0 } else { 1.0 },
         });
@@ -170,6 +184,7 @@ pub(crate) fn goodness_of_fit(
         p_value,
         fits: p_value.map(|p| p >= P_DOES_NOT_FIT),
         rms_residual_sigma: (chi2 / n_real.max(1) as f64).sqrt(),
+        relative_rms: (total_miss2 / total_meas2).sqrt(),
         stderr_inflation: 1.0,
         converged: true,
         measurements,
@@ -382,6 +397,9 @@ mod tests {
         assert_eq!(g.lines[0].sigma, 30.0);
         assert_eq!(g.chi2, 900.0 + 400.0 + 2.0);
         assert_eq!(g.chi2_per_dof, 434.0);
+        // The model is zero: it misses everything, and m1 by 1 sigma per quadrature.
+        assert_eq!((g.relative_rms, g.measurements[0].relative_rms), (1.0, 1.0));
+        assert_eq!(g.measurements[1].rms_residual_sigma, 1.0);
         // m0 has 4 of the 6 real residuals: 2 of the 3 degrees of freedom.
         assert_eq!(g.measurements[0].chi2_per_dof, 1300.0 / 2.0);
         assert!((g.expected_chi2_per_dof - 38.0 / 36.0).abs() < 1e-12);

@@ -1,0 +1,137 @@
+//! Held-out prediction: fit without some measurements, then predict them.
+//!
+//! The model is identified from the other measurements ([`identify`]); then every quantity it
+//! describes (`f`, `Q`, every parameter) is fixed at the estimate and the held-out measurements
+//! are fitted for their forces or actuator gains alone (per-measurement nuisances the fit could
+//! not know; a gain shared with the fitted measurements is refitted too), by the same
+//! output-error fit. How well that model then reproduces them, in noise units and relative to
+//! the measured amplitudes, is the prediction error: a model that only fits the data it saw
+//! predicts the others badly.
+
+use crate::dataset::Dataset;
+use crate::finalize::Report;
+use crate::identify::identify;
+use crate::problem::IdentError;
+use crate::settings::Settings;
+use harmonid_model::{Linear, Model, ParamKind};
+use serde::{Deserialize, Serialize};
+
+/// How well the fit predicts one held-out measurement.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct HeldOut {
+    /// The measurement's name.
+    pub measurement: String,
+    /// Its measured lines (frequencies × points).
+    pub lines: usize,
+    /// Root mean square of the prediction's standardized residual per quadrature, in noise
+    /// sigmas (about 1 for a model that predicts to the noise; absent without shot noise).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rms_sigma: Option<f64>,
+    /// `√(Σ|X̄ − X|² / Σ|X̄|²)` over its lines.
+    pub relative_rms: f64,
+}
+
+/// Identifies `model` from `ds` without the measurements named in `held`, and reports how well
+/// the estimate predicts them in [`Report::holdout`]; see the module documentation.
+pub fn identify_with_holdout(
+    model: &Model,
+    ds: &Dataset,
+    held: &[String],
+    settings: &Settings,
+) -> Result<Report, IdentError> {
+    for name in held {
+        if !ds.measurements.iter().any(|m| &m.spec.name == name) {
+            return Err(IdentError::Holdout(format!(
+                "--holdout {name}: the dataset has no measurement \"{name}\" (measurements: {})",
+                ds.measurements
+                    .iter()
+                    .map(|m| m.spec.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )));
+        }
+    }
+    let split = |keep_held: bool| -> Result<Dataset, IdentError> {
+        let ms = ds
+            .measurements
+            .iter()
+            .filter(|m| held.contains(&m.spec.name) == keep_held)
+            .cloned()
+            .collect();
+        Ok(Dataset::from_parts(
+            ds.dir.clone(),
+            ds.manifest.clone(),
+            ms,
+            ds.truth.clone(),
+        )?)
+    };
+    if held.len() >= ds.measurements.len() {
+        return Err(IdentError::Holdout(format!(
+            "--holdout {}: that is every measurement of the dataset; hold out fewer so some are left to fit",
+            held.join(",")
+        )));
+    }
+    let fit_ds = split(false)?;
+    let held_ds = split(true)?;
+    let mut report = identify(model, &fit_ds, settings)?;
+    let undetermined: Vec<(String, String)> = report
+        .modes
+        .iter()
+        .flat_map(|(n, m)| [(format!("f_hz:{n}"), &m.f_hz), (format!("Q:{n}"), &m.q)])
+        .chain(report.parameters.iter().map(|(p, e)| (p.clone(), e)))
+        .filter(|(_, e)| !e.identifiable && e.reason.as_deref() != Some(FIXED))
+        .map(|(name, e)| (name, e.reason.clone().unwrap_or_default()))
+        .collect();
+    if !undetermined.is_empty() {
+        return Err(IdentError::Holdout(format!(
+            "--holdout {}: without {} the other measurements do not determine {} ({}: {}); hold out a measurement they do not need",
+            held.join(","),
+            if held.len() == 1 { "it" } else { "them" },
+            undetermined.iter().map(|u| u.0.as_str()).collect::<Vec<_>>().join(", "),
+            undetermined[0].0,
+            undetermined[0].1
+        )));
+    }
+    let fixed = fixed_at(model, &report);
+    let prediction = identify(&fixed, &held_ds, settings)?;
+    report.holdout = match &prediction.goodness_of_fit {
+        Some(g) => g
+            .measurements
+            .iter()
+            .map(|m| HeldOut {
+                measurement: m.name.clone(),
+                lines: m.lines,
+                rms_sigma: g.p_value.map(|_| m.rms_residual_sigma),
+                relative_rms: m.relative_rms,
+            })
+            .collect(),
+        None => {
+            return Err(IdentError::Holdout(format!(
+                "--holdout {}: the estimate cannot be simulated for the held-out measurements ({})",
+                held.join(","),
+                prediction.warnings.first().cloned().unwrap_or_default()
+            )))
+        }
+    };
+    Ok(report)
+}
+
+/// The reason a quantity the model fixes carries in the result.
+const FIXED: &str = crate::finalize::FIXED_BY_THE_MODEL;
+
+/// `model` with every mode's `f`, `Q` and every parameter fixed at `report`'s values.
+fn fixed_at(model: &Model, report: &Report) -> Model {
+    let mut m = model.clone();
+    for mode in &mut m.modes {
+        if let Some(r) = report.modes.get(&mode.name) {
+            mode.f_hz = Linear::Fixed(r.f_hz.value);
+            mode.q_factor = Linear::Fixed(r.q.value);
+        }
+    }
+    for p in &mut m.params {
+        if let Some(e) = report.parameters.get(&p.name) {
+            p.kind = ParamKind::Fixed(e.value);
+        }
+    }
+    m
+}
