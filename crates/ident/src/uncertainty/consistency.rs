@@ -388,13 +388,23 @@ fn erfc(x: f64) -> f64 {
     }
 }
 
+/// At most this many inconsistency warnings are written one by one (the largest `|z|`); the
+/// rest are counted in one line, so that they do not drown the other warnings.
+pub const MAX_INCONSISTENCY_WARNINGS: usize = 5;
+
 /// The warnings for the comparisons beyond the threshold of `comparisons.len()` comparisons
-/// at [`FAMILY_ALPHA`].
+/// at [`FAMILY_ALPHA`]: the [`MAX_INCONSISTENCY_WARNINGS`] largest one by one, then one line
+/// counting the others and the measurements they involve.
 pub fn warnings(comparisons: &[Comparison]) -> Vec<String> {
     let limit = threshold(comparisons.len(), FAMILY_ALPHA);
-    comparisons
-        .iter()
-        .filter(|c| c.z.abs() > limit)
+    let beyond: Vec<&Comparison> = comparisons.iter().filter(|c| c.z.abs() > limit).collect();
+    // The largest |z| are written, in the comparisons' order; the rest counted.
+    let mut by_size = beyond.clone();
+    by_size.sort_by(|a, b| b.z.abs().total_cmp(&a.z.abs()));
+    let rest = by_size.split_off(by_size.len().min(MAX_INCONSISTENCY_WARNINGS));
+    let mut out: Vec<String> = beyond
+        .into_iter()
+        .filter(|c| by_size.iter().any(|k| std::ptr::eq(*k, *c)))
         .map(|c| {
             let unit = if c.quantity == Compared::Frequency {
                 " Hz"
@@ -415,7 +425,22 @@ pub fn warnings(comparisons: &[Comparison]) -> Vec<String> {
                 comparisons.len(),
             )
         })
-        .collect()
+        .collect();
+    if !rest.is_empty() {
+        let mut measurements: Vec<&str> = rest
+            .iter()
+            .flat_map(|c| c.measurements.iter().map(String::as_str))
+            .collect();
+        measurements.sort_unstable();
+        measurements.dedup();
+        out.push(format!(
+            "inconsistent measurements: {} more comparisons beyond the limit of {limit:.2} (up to {:.1} standard errors apart), among {} measurements; the model misses something the measurements excite differently, or the device changed",
+            rest.len(),
+            rest[0].z.abs(),
+            measurements.len()
+        ));
+    }
+    out
 }
 
 #[cfg(test)]
@@ -425,6 +450,34 @@ mod tests {
     use rand::SeedableRng;
     use rand_distr::{Distribution, Normal};
     use std::f64::consts::PI;
+
+    #[test]
+    fn many_inconsistencies_are_five_lines_and_a_count() {
+        let c = |i: usize, z: f64| Comparison {
+            quantity: Compared::Q,
+            mode: "q1".into(),
+            measurements: [format!("a{i}"), format!("b{i}")],
+            values: [1.0, 2.0],
+            stderrs: [0.1, 0.1],
+            z,
+        };
+        // 20 comparisons: the limit is 3.48; eight beyond it, one inside.
+        let mut cs: Vec<Comparison> = (0..8).map(|i| c(i, 10.0 + i as f64)).collect();
+        cs.extend((8..20).map(|i| c(i, 0.5)));
+        let w = warnings(&cs);
+        assert_eq!(w.len(), 6, "{w:#?}");
+        // The five largest (a3..a7) in the comparisons' order, then the count.
+        assert!(w[0].contains("\"a3\"") && w[4].contains("\"a7\""), "{w:#?}");
+        assert!(
+            w[5].contains("3 more comparisons")
+                && w[5].contains("up to 12.0 standard errors")
+                && w[5].contains("among 6 measurements"),
+            "{}",
+            w[5]
+        );
+        // Few: every one written, nothing counted.
+        assert_eq!(warnings(&cs[..3]).len(), 3);
+    }
 
     /// One linear mode (Q 100) seen in two two-tone measurements with drive levels: "a" with
     /// gain 3 − i at 1 kHz, "b" with gain `gain_b` and resonance `f_b` (Hz); 10 shots of noise
