@@ -106,8 +106,46 @@ fn row(
 
 /// The page.
 pub fn page(p: &PageInputs) -> String {
-    let r = p.result;
     let mut s = String::with_capacity(1 << 20);
+    write_head(p, &mut s);
+    write_parameters(p, &mut s);
+    write_equations(p, &mut s);
+    let section = |s: &mut String, id: &str, title: &str, pick: &dyn Fn(&PageFigure) -> bool| {
+        let _ = writeln!(s, "<h2 id=\"{id}\">{title}</h2>");
+        for f in p.figures.iter().filter(|f| pick(f)) {
+            let _ = writeln!(
+                s,
+                "<figure id=\"fig-{}\">{}<figcaption>{} <a href=\"figures/{}.svg\">SVG</a> · <a href=\"figures/{}.png\">PNG</a></figcaption></figure>",
+                f.stem,
+                f.svg,
+                esc(&f.caption),
+                f.stem,
+                f.stem
+            );
+        }
+    };
+    section(
+        &mut s,
+        "spectra",
+        "Spectra and their reconstruction",
+        &|f| f.stem.starts_with("spectrum_"),
+    );
+    section(&mut s, "histograms", "Per-shot estimates", &|f| {
+        f.stem.starts_with("hist_")
+    });
+    if p.figures.iter().any(|f| f.stem == "potential") {
+        section(&mut s, "potential", "Potential matrix", &|f| {
+            f.stem == "potential"
+        });
+    }
+    s.push_str("<p><small>Written by harmonid report.</small></p>\n</body></html>\n");
+    s
+}
+
+/// The title, the verdict on the fit (first: values of a model that does not fit are the best
+/// it can do, not the device's), the dataset line, the navigation and the warnings.
+fn write_head(p: &PageInputs, s: &mut String) {
+    let r = p.result;
     let title = format!("harmonid report: {}", p.model_path.display());
     let _ = write!(
         s,
@@ -161,6 +199,11 @@ pub fn page(p: &PageInputs) -> String {
         }
         s.push_str("</ul></div>\n");
     }
+}
+
+/// The parameter table and the fits.
+fn write_parameters(p: &PageInputs, s: &mut String) {
+    let r = p.result;
     // Parameter table.
     // Optional columns, shown when any estimate has them.
     let extra: Vec<Extra> = EXTRA
@@ -183,7 +226,7 @@ pub fn page(p: &PageInputs) -> String {
         let tm = p.truth.and_then(|t| t.modes.get(n));
         let fit = fit_of(&r.fits, &format!("of {n}"));
         row(
-            &mut s,
+            s,
             &format!("f_{n}"),
             "Hz",
             &m.f_hz,
@@ -193,7 +236,7 @@ pub fn page(p: &PageInputs) -> String {
             &extra,
         );
         row(
-            &mut s,
+            s,
             &format!("Q_{n}"),
             "",
             &m.q,
@@ -219,16 +262,7 @@ pub fn page(p: &PageInputs) -> String {
         let truth = p
             .truth
             .and_then(|t| crate::result::truth_of_param(r, name, t));
-        row(
-            &mut s,
-            name,
-            "",
-            e,
-            &bound,
-            fit_of(&r.fits, name),
-            truth,
-            &extra,
-        );
+        row(s, name, "", e, &bound, fit_of(&r.fits, name), truth, &extra);
     }
     s.push_str("</table>\n<p>value: median over shots; stderr: uncertainty of the value; std: spread of one shot after rejecting outliers by the interquartile rule; condition number of the column-equilibrated fit.</p>\n");
     // Fits.
@@ -245,6 +279,11 @@ pub fn page(p: &PageInputs) -> String {
         );
     }
     s.push_str("</table>\n");
+}
+
+/// The equations of motion and the identified coefficients.
+fn write_equations(p: &PageInputs, s: &mut String) {
+    let r = p.result;
     // Equations.
     let _ = write!(
         s,
@@ -263,34 +302,4 @@ pub fn page(p: &PageInputs) -> String {
         }
     }
     s.push_str("</table>\n");
-    let section = |s: &mut String, id: &str, title: &str, pick: &dyn Fn(&PageFigure) -> bool| {
-        let _ = writeln!(s, "<h2 id=\"{id}\">{title}</h2>");
-        for f in p.figures.iter().filter(|f| pick(f)) {
-            let _ = writeln!(
-                s,
-                "<figure id=\"fig-{}\">{}<figcaption>{} <a href=\"figures/{}.svg\">SVG</a> · <a href=\"figures/{}.png\">PNG</a></figcaption></figure>",
-                f.stem,
-                f.svg,
-                esc(&f.caption),
-                f.stem,
-                f.stem
-            );
-        }
-    };
-    section(
-        &mut s,
-        "spectra",
-        "Spectra and their reconstruction",
-        &|f| f.stem.starts_with("spectrum_"),
-    );
-    section(&mut s, "histograms", "Per-shot estimates", &|f| {
-        f.stem.starts_with("hist_")
-    });
-    if p.figures.iter().any(|f| f.stem == "potential") {
-        section(&mut s, "potential", "Potential matrix", &|f| {
-            f.stem == "potential"
-        });
-    }
-    s.push_str("<p><small>Written by harmonid report.</small></p>\n</body></html>\n");
-    s
 }

@@ -44,43 +44,7 @@ impl Report {
         if let Some(v) = &verdict {
             let _ = writeln!(s, "{v}\n");
         }
-        let _ = writeln!(
-            s,
-            "harmonid identify: {} shot(s), force model: {}",
-            self.shots, self.force_model
-        );
-        let _ = writeln!(
-            s,
-            "  estimator: {}; value ± stderr{}; std = spread of per-shot estimates (diagnostic){}",
-            match self.estimator.parse::<Estimator>() {
-                Ok(e) => e.description(),
-                Err(_) => self.estimator.as_str(),
-            },
-            if self.estimator == Estimator::Ml.name() {
-                " (Fisher information at the estimate)"
-            } else {
-                ""
-            },
-            if self.shots <= 1 {
-                " (single shot: the fit's standard error)"
-            } else {
-                ""
-            }
-        );
-        if let Some(g) = &self.goodness_of_fit {
-            let _ = writeln!(s, "  goodness of fit: {}", g.one_line());
-        }
-        for h in &self.holdout {
-            let _ = writeln!(
-                s,
-                "  held out \"{}\" ({} lines, not fitted): predicted to {}{:.3} % RMS of its amplitudes",
-                h.measurement,
-                h.lines,
-                h.rms_sigma
-                    .map_or(String::new(), |r| format!("{r:.3} noise sigmas RMS, ")),
-                100.0 * h.relative_rms
-            );
-        }
+        self.write_head(&mut s);
         let with_crlb = self
             .modes
             .values()
@@ -188,6 +152,48 @@ impl Report {
             let _ = writeln!(s, "warning: {w}");
         }
         s
+    }
+
+    /// The summary's head: what was fitted, by which estimator, the verdict on the fit and
+    /// the held-out predictions.
+    fn write_head(&self, s: &mut String) {
+        let _ = writeln!(
+            s,
+            "harmonid identify: {} shot(s), force model: {}",
+            self.shots, self.force_model
+        );
+        let _ = writeln!(
+            s,
+            "  estimator: {}; value ± stderr{}; std = spread of per-shot estimates (diagnostic){}",
+            match self.estimator.parse::<Estimator>() {
+                Ok(e) => e.description(),
+                Err(_) => self.estimator.as_str(),
+            },
+            if self.estimator == Estimator::Ml.name() {
+                " (Fisher information at the estimate)"
+            } else {
+                ""
+            },
+            if self.shots <= 1 {
+                " (single shot: the fit's standard error)"
+            } else {
+                ""
+            }
+        );
+        if let Some(g) = &self.goodness_of_fit {
+            let _ = writeln!(s, "  goodness of fit: {}", g.one_line());
+        }
+        for h in &self.holdout {
+            let _ = writeln!(
+                s,
+                "  held out \"{}\" ({} lines, not fitted): predicted to {}{:.3} % RMS of its amplitudes",
+                h.measurement,
+                h.lines,
+                h.rms_sigma
+                    .map_or(String::new(), |r| format!("{r:.3} noise sigmas RMS, ")),
+                100.0 * h.relative_rms
+            );
+        }
     }
 
     /// The truth value of parameter `p`: found through the `eom` table, as the coefficient of a
