@@ -1,7 +1,7 @@
 //! Per-shot fits of every group, stage by stage.
 
 use super::weighting::shot_mean;
-use super::{IdentError, MeasRows, Problem, Unknown};
+use super::{FitGroup, IdentError, MeasRows, Problem, Unknown};
 use crate::dataset::Dataset;
 use crate::solve::{solve_ls, FitStatus, LsSolution};
 use harmonid_spectral::ProductScratch;
@@ -114,8 +114,6 @@ impl Problem {
                 status: vec![FitStatus::Solved; nshots],
                 rows: 0,
             };
-            let mut conds = Vec::new();
-            let (mut rss_sum, mut rhs_sum) = (0.0, 0.0);
             // Fixed-Q modes: iterate γ = ω/Q with the fitted ω.
             let iters = (1 + gls_iters).max(
                 if (0..self.mode_names.len()).any(|n| self.table.fixed_q(n).is_some()) {
@@ -174,43 +172,7 @@ impl Problem {
                     sols[s] = Some((so, a.nrows(), b.norm_squared(), whitened));
                 }
             }
-            for (s, sol) in sols.into_iter().enumerate() {
-                let Some((so, nrows, bnorm2, whitened)) = sol else {
-                    continue;
-                };
-                diag.status[s] = so.status;
-                if so.status != FitStatus::Solved {
-                    diag.status_bounds += 1;
-                }
-                // With known data noise the whitened problem has unit variance; otherwise the
-                // scale comes from the residuals.
-                let scale = if whitened && absolute { 1.0 } else { so.sigma2 };
-                let k = g.unknowns.len();
-                for (j, &u) in g.unknowns.iter().enumerate() {
-                    cov_diag[s][u] = so.cov_unit[j * k + j] * scale;
-                }
-                // ω², γ covariance per mode, for f and Q errors.
-                for (j, &u) in g.unknowns.iter().enumerate() {
-                    if let Unknown::OmegaSq(n) = self.table.unknowns()[u] {
-                        if let Some(j2) = g
-                            .unknowns
-                            .iter()
-                            .position(|&v| self.table.unknowns()[v] == Unknown::Gamma(n))
-                        {
-                            let c = |x: usize, y: usize| so.cov_unit[x * k + y] * scale;
-                            cov_lin[s].insert(n, [c(j, j), c(j, j2), c(j2, j), c(j2, j2)]);
-                        }
-                    }
-                }
-                conds.push(so.cond);
-                rss_sum += so.rss;
-                rhs_sum += bnorm2;
-                diag.rows = nrows;
-            }
-            conds.sort_by(f64::total_cmp);
-            diag.cond = conds.get(conds.len() / 2).copied().unwrap_or(f64::NAN);
-            diag.rms_residual = (rss_sum / rhs_sum.max(f64::MIN_POSITIVE)).sqrt();
-            diag.rms_rhs = rhs_sum;
+            self.record_group(g, sols, absolute, &mut cov_diag, &mut cov_lin, &mut diag);
             groups.push(diag);
         }
         Ok(Fit {
@@ -219,6 +181,60 @@ impl Problem {
             cov_lin,
             groups,
         })
+    }
+
+    /// Records each shot's solution of group `g` (`sols[shot]`: solution, rows, `‖b‖²`,
+    /// whether whitened): the unknowns' variances into `cov_diag` and each mode's (ω², γ)
+    /// covariance into `cov_lin`, and the group's diagnostics (median condition number, relative residual, rows,
+    /// every shot's status) into `diag`.
+    fn record_group(
+        &self,
+        g: &FitGroup,
+        sols: Vec<Option<(LsSolution, usize, f64, bool)>>,
+        absolute: bool,
+        cov_diag: &mut [Vec<f64>],
+        cov_lin: &mut [BTreeMap<usize, [f64; 4]>],
+        diag: &mut GroupDiagnostics,
+    ) {
+        let mut conds = Vec::new();
+        let (mut rss_sum, mut rhs_sum) = (0.0, 0.0);
+        for (s, sol) in sols.into_iter().enumerate() {
+            let Some((so, nrows, bnorm2, whitened)) = sol else {
+                continue;
+            };
+            diag.status[s] = so.status;
+            if so.status != FitStatus::Solved {
+                diag.status_bounds += 1;
+            }
+            // With known data noise the whitened problem has unit variance; otherwise the
+            // scale comes from the residuals.
+            let scale = if whitened && absolute { 1.0 } else { so.sigma2 };
+            let k = g.unknowns.len();
+            for (j, &u) in g.unknowns.iter().enumerate() {
+                cov_diag[s][u] = so.cov_unit[j * k + j] * scale;
+            }
+            // ω², γ covariance per mode, for f and Q errors.
+            for (j, &u) in g.unknowns.iter().enumerate() {
+                if let Unknown::OmegaSq(n) = self.table.unknowns()[u] {
+                    if let Some(j2) = g
+                        .unknowns
+                        .iter()
+                        .position(|&v| self.table.unknowns()[v] == Unknown::Gamma(n))
+                    {
+                        let c = |x: usize, y: usize| so.cov_unit[x * k + y] * scale;
+                        cov_lin[s].insert(n, [c(j, j), c(j, j2), c(j2, j), c(j2, j2)]);
+                    }
+                }
+            }
+            conds.push(so.cond);
+            rss_sum += so.rss;
+            rhs_sum += bnorm2;
+            diag.rows = nrows;
+        }
+        conds.sort_by(f64::total_cmp);
+        diag.cond = conds.get(conds.len() / 2).copied().unwrap_or(f64::NAN);
+        diag.rms_residual = (rss_sum / rhs_sum.max(f64::MIN_POSITIVE)).sqrt();
+        diag.rms_rhs = rhs_sum;
     }
 }
 

@@ -3,7 +3,7 @@
 use super::{IdentError, Problem, Unknown};
 use crate::dataset::Dataset;
 use crate::solve::solve_ls;
-use nalgebra::DVector;
+use nalgebra::{DMatrix, DVector};
 
 /// A group of measurements fitted together, with its free unknowns.
 #[derive(Debug, Clone)]
@@ -123,35 +123,7 @@ impl Problem {
                             names: names.join(", "),
                         });
                     }
-                    let b = DVector::zeros(rows);
-                    let none = vec![None; unknowns.len()];
-                    let sol = solve_ls(&a, &b, &none, &none);
-                    let smax = sol.singular_values.first().copied().unwrap_or(0.0);
-                    let smin = sol.singular_values.last().copied().unwrap_or(0.0);
-                    let drop = if let Some(&z) = sol.zero_columns.first() {
-                        Some((
-                            z,
-                            "its regressor column is zero at the measured frequencies".to_string(),
-                        ))
-                    } else if smin <= settings.rank_tol * smax {
-                        let w = &sol.weakest_direction;
-                        let j = (0..w.len())
-                            .max_by(|&i, &k| w[i].abs().total_cmp(&w[k].abs()))
-                            .unwrap_or(0);
-                        let others: Vec<String> = (0..w.len())
-                            .filter(|&i| i != j && w[i].abs() > 0.1)
-                            .map(|i| self.label(unknowns[i]))
-                            .collect();
-                        Some((
-                            j,
-                            format!(
-                                "its regressor column is collinear with {} at the measured frequencies",
-                                if others.is_empty() { "the others".to_string() } else { others.join(", ") }
-                            ),
-                        ))
-                    } else {
-                        None
-                    };
+                    let drop = self.weakest_unknown(&a, &unknowns, settings.rank_tol);
                     match drop {
                         Some((j, why)) => {
                             let u = unknowns.remove(j);
@@ -198,6 +170,51 @@ impl Problem {
             }
         }
         Ok(())
+    }
+
+    /// The unknown to drop from a fit with matrix `a` over `unknowns` (none when its rank is
+    /// full): a zero column, or the unknown dominating the weakest direction when the smallest
+    /// singular value is below `rank_tol` of the largest; with why.
+    fn weakest_unknown(
+        &self,
+        a: &DMatrix<f64>,
+        unknowns: &[usize],
+        rank_tol: f64,
+    ) -> Option<(usize, String)> {
+        let rows = a.nrows();
+        let b = DVector::zeros(rows);
+        let none = vec![None; unknowns.len()];
+        let sol = solve_ls(a, &b, &none, &none);
+        let smax = sol.singular_values.first().copied().unwrap_or(0.0);
+        let smin = sol.singular_values.last().copied().unwrap_or(0.0);
+        if let Some(&z) = sol.zero_columns.first() {
+            Some((
+                z,
+                "its regressor column is zero at the measured frequencies".to_string(),
+            ))
+        } else if smin <= rank_tol * smax {
+            let w = &sol.weakest_direction;
+            let j = (0..w.len())
+                .max_by(|&i, &k| w[i].abs().total_cmp(&w[k].abs()))
+                .unwrap_or(0);
+            let others: Vec<String> = (0..w.len())
+                .filter(|&i| i != j && w[i].abs() > 0.1)
+                .map(|i| self.label(unknowns[i]))
+                .collect();
+            Some((
+                j,
+                format!(
+                    "its regressor column is collinear with {} at the measured frequencies",
+                    if others.is_empty() {
+                        "the others".to_string()
+                    } else {
+                        others.join(", ")
+                    }
+                ),
+            ))
+        } else {
+            None
+        }
     }
 
     pub(super) fn meas_names(&self, ds: &Dataset, ms: &[usize]) -> String {
