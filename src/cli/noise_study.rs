@@ -357,26 +357,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     if let Some(p) = &args.plot {
         super::figure::check(p, &input_files)?;
     }
-    if !(2..=MAX_REALISATIONS).contains(&args.realisations) {
-        return Err(miette!(
-            "--realisations {}: at least 2 are needed for a spread, at most {MAX_REALISATIONS}",
-            args.realisations
-        ));
-    }
-    let n_tasks = levels.len() * args.realisations;
-    if n_tasks > MAX_TASKS {
-        return Err(miette!(
-            "{} levels × {} realisations = {n_tasks} identifications; at most {MAX_TASKS}",
-            levels.len(),
-            args.realisations
-        ));
-    }
-    if !(args.window_s.is_finite() && args.window_s > 0.0 && args.window_s <= 1e4) {
-        return Err(miette!(
-            "--window-s {}: expected a positive time in seconds (at most 1e4)",
-            args.window_s
-        ));
-    }
+    let n_tasks = check_counts(&args, levels.len())?;
     let Inputs {
         model_origin,
         ast,
@@ -398,26 +379,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         ..Settings::default()
     };
     let clean = plan.simulate_numeric(&model, &clean_settings)?.dataset;
-    let f_hi = clean
-        .measurements
-        .iter()
-        .flat_map(|m| m.freqs_hz.iter().copied())
-        .fold(0.0, f64::max);
-    let fs = args.sample_rate_hz.unwrap_or(8.0 * f_hi);
-    if !(fs.is_finite() && fs > 2.0 * f_hi) {
-        return Err(miette!(
-            "--sample-rate-hz {fs}: the time signal must be sampled faster than twice the highest measured frequency ({:.6e} Hz)",
-            2.0 * f_hi
-        ));
-    }
-    let enbw = args.enbw_hz.unwrap_or(0.5 / args.window_s);
-    if !(enbw.is_finite() && enbw > 0.0) {
-        return Err(miette!(
-            "--enbw-hz {enbw}: expected a positive bandwidth in Hz"
-        ));
-    }
-    let n_samples = fs * args.window_s;
-    let sigmas: Vec<f64> = levels.iter().map(|l| l.sigma_m(enbw, n_samples)).collect();
+    let (enbw, n_samples, sigmas) = lock_in_sigmas(&args, &clean, &levels)?;
     let settings = IdentSettings {
         force_model: ForceModel::Auto,
         min_shots_for_weights: 0,
@@ -517,6 +479,63 @@ pub fn run(args: Args) -> miette::Result<()> {
         crate::cli::common::print_out(format_args!("wrote {}\n", path.display()));
     }
     Ok(())
+}
+
+/// The noise σ of each level per lock-in quadrature (m), with the equivalent noise bandwidth
+/// and samples per window it assumes (from `--sample-rate-hz`, `--window-s` and `--enbw-hz`,
+/// checked against the highest measured frequency of `clean`).
+fn lock_in_sigmas(
+    args: &Args,
+    clean: &Dataset,
+    levels: &[NoiseLevel],
+) -> miette::Result<(f64, f64, Vec<f64>)> {
+    let f_hi = clean
+        .measurements
+        .iter()
+        .flat_map(|m| m.freqs_hz.iter().copied())
+        .fold(0.0, f64::max);
+    let fs = args.sample_rate_hz.unwrap_or(8.0 * f_hi);
+    if !(fs.is_finite() && fs > 2.0 * f_hi) {
+        return Err(miette!(
+            "--sample-rate-hz {fs}: the time signal must be sampled faster than twice the highest measured frequency ({:.6e} Hz)",
+            2.0 * f_hi
+        ));
+    }
+    let enbw = args.enbw_hz.unwrap_or(0.5 / args.window_s);
+    if !(enbw.is_finite() && enbw > 0.0) {
+        return Err(miette!(
+            "--enbw-hz {enbw}: expected a positive bandwidth in Hz"
+        ));
+    }
+    let n_samples = fs * args.window_s;
+    let sigmas: Vec<f64> = levels.iter().map(|l| l.sigma_m(enbw, n_samples)).collect();
+    Ok((enbw, n_samples, sigmas))
+}
+
+/// Refuses a study too small or too large before any work: at least two realisations, at most
+/// [`MAX_TASKS`] identifications, a positive window. Returns the number of identifications.
+fn check_counts(args: &Args, n_levels: usize) -> miette::Result<usize> {
+    if !(2..=MAX_REALISATIONS).contains(&args.realisations) {
+        return Err(miette!(
+            "--realisations {}: at least 2 are needed for a spread, at most {MAX_REALISATIONS}",
+            args.realisations
+        ));
+    }
+    let n_tasks = n_levels * args.realisations;
+    if n_tasks > MAX_TASKS {
+        return Err(miette!(
+            "{} levels × {} realisations = {n_tasks} identifications; at most {MAX_TASKS}",
+            n_levels,
+            args.realisations
+        ));
+    }
+    if !(args.window_s.is_finite() && args.window_s > 0.0 && args.window_s <= 1e4) {
+        return Err(miette!(
+            "--window-s {}: expected a positive time in seconds (at most 1e4)",
+            args.window_s
+        ));
+    }
+    Ok(n_tasks)
 }
 
 /// Mean and spread of the finite values.
