@@ -38,6 +38,98 @@ fn mean_std(v: &[f64]) -> (f64, f64) {
     (m, s)
 }
 
+/// The histogram's bins over the inliers (`√n` of them, 5 to 30, offset by `off`), and the
+/// height of the normal fit's peak (`sd`: the inliers' spread) and of the axis.
+struct Bins {
+    blo: f64,
+    bw: f64,
+    counts: Vec<u32>,
+    pdf_peak: f64,
+    y_hi: f64,
+}
+
+impl Bins {
+    fn of(inl: &[f64], off: f64, (lo, hi): (f64, f64), sd: f64) -> Bins {
+        let n = inl.len();
+        let bins = ((n as f64).sqrt().ceil() as usize).clamp(5, 30);
+        let blo = inl.iter().copied().fold(f64::INFINITY, f64::min) - off;
+        let bhi = inl.iter().copied().fold(f64::NEG_INFINITY, f64::max) - off;
+        let (blo, bhi) = if bhi > blo {
+            (blo, bhi)
+        } else {
+            (blo - 0.01 * (hi - lo), blo + 0.01 * (hi - lo))
+        };
+        let bw = (bhi - blo) / bins as f64;
+        let mut counts = vec![0u32; bins];
+        for v in inl {
+            let k = (((v - off - blo) / bw).floor() as usize).min(bins - 1);
+            counts[k] += 1;
+        }
+        let pdf_peak = if sd > 0.0 {
+            n as f64 * bw / (sd * (2.0 * std::f64::consts::PI).sqrt())
+        } else {
+            0.0
+        };
+        let y_hi = (*counts.iter().max().unwrap_or(&1) as f64).max(pdf_peak) * 1.25;
+        Bins {
+            blo,
+            bw,
+            counts,
+            pdf_peak,
+            y_hi,
+        }
+    }
+}
+
+impl Histogram {
+    /// The unit as the title writes it (` (Hz)`, or nothing) and the x axis label (with the
+    /// offset `off` subtracted from the values, when there is one).
+    fn axis_text(&self, off: f64) -> (String, String) {
+        let unit = if self.unit.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", self.unit)
+        };
+        let x_label = if off != 0.0 {
+            format!("{} − {}{unit}", self.name, style::hz(off))
+        } else {
+            format!("{}{unit}", self.name)
+        };
+        (unit, x_label)
+    }
+
+    /// The legend: shots, the normal fit and value ± stderr always; truth and outliers when
+    /// drawn.
+    fn legend_entries(&self) -> Vec<(LegendMark, RGBColor, String)> {
+        let mut entries = vec![
+            (LegendMark::Band, style::SKY, "shots".to_string()),
+            (LegendMark::Line, style::BLACK, "normal fit".to_string()),
+            (LegendMark::Line, style::BLUE, "value ± stderr".to_string()),
+        ];
+        if self.truth.is_some() {
+            entries.push((LegendMark::Dashed, style::VERMILLION, "truth".into()));
+        }
+        if !self.outliers.is_empty() {
+            entries.push((LegendMark::Triangle, style::PURPLE, "outliers".into()));
+        }
+        entries
+    }
+
+    /// The title: the value ± stderr, the per-shot spread and how many shots were outliers
+    /// (`n` inliers).
+    fn title(&self, unit: &str, n: usize) -> String {
+        format!(
+            "{} = {}{}   (std {} · {} shots, {} outliers)",
+            self.name,
+            style::pm(self.value, self.stderr),
+            unit,
+            style::num(self.std, 2),
+            self.values.len(),
+            self.values.len() - n
+        )
+    }
+}
+
 impl Figure for Histogram {
     fn size(&self) -> (u32, u32) {
         (720, 480)
@@ -70,63 +162,22 @@ impl Figure for Histogram {
         pts.extend(self.truth);
         let (lo0, hi0) = style::range(pts).unwrap_or((mean - 1.0, mean + 1.0));
         let off = style::axis_offset(lo0, hi0);
-        let unit = if self.unit.is_empty() {
-            String::new()
-        } else {
-            format!(" ({})", self.unit)
-        };
-        let x_label = if off != 0.0 {
-            format!("{} − {}{unit}", self.name, style::hz(off))
-        } else {
-            format!("{}{unit}", self.name)
-        };
+        let (unit, x_label) = self.axis_text(off);
         let (lo, hi) = (lo0 - off, hi0 - off);
-        let n = inl.len();
-        let bins = ((n as f64).sqrt().ceil() as usize).clamp(5, 30);
-        let blo = inl.iter().copied().fold(f64::INFINITY, f64::min) - off;
-        let bhi = inl.iter().copied().fold(f64::NEG_INFINITY, f64::max) - off;
-        let (blo, bhi) = if bhi > blo {
-            (blo, bhi)
-        } else {
-            (blo - 0.01 * (hi - lo), blo + 0.01 * (hi - lo))
-        };
-        let bw = (bhi - blo) / bins as f64;
-        let mut counts = vec![0u32; bins];
-        for v in &inl {
-            let k = (((v - off - blo) / bw).floor() as usize).min(bins - 1);
-            counts[k] += 1;
-        }
-        let pdf_peak = if sd > 0.0 {
-            n as f64 * bw / (sd * (2.0 * std::f64::consts::PI).sqrt())
-        } else {
-            0.0
-        };
-        let y_hi = (*counts.iter().max().unwrap_or(&1) as f64).max(pdf_peak) * 1.25;
+        let Bins {
+            blo,
+            bw,
+            counts,
+            pdf_peak,
+            y_hi,
+        } = Bins::of(&inl, off, (lo, hi), sd);
 
-        let title = format!(
-            "{} = {}{}   (std {} · {} shots, {} outliers)",
-            self.name,
-            style::pm(self.value, self.stderr),
-            unit,
-            style::num(self.std, 2),
-            self.values.len(),
-            self.values.len() - n
-        );
+        let title = self.title(&unit, inl.len());
         let root = root
             .titled(&title, style::text(style::TITLE - 3.0))
             .drawn()?;
         let (legend_area, body) = root.split_vertically(26);
-        let mut entries = vec![
-            (LegendMark::Band, style::SKY, "shots".to_string()),
-            (LegendMark::Line, style::BLACK, "normal fit".to_string()),
-            (LegendMark::Line, style::BLUE, "value ± stderr".to_string()),
-        ];
-        if self.truth.is_some() {
-            entries.push((LegendMark::Dashed, style::VERMILLION, "truth".into()));
-        }
-        if !self.outliers.is_empty() {
-            entries.push((LegendMark::Triangle, style::PURPLE, "outliers".into()));
-        }
+        let entries = self.legend_entries();
         style::legend(&legend_area, &entries)?;
         let mut chart = ChartBuilder::on(&body)
             .margin(10)

@@ -49,36 +49,10 @@ pub struct ResponseCurve {
     pub measured: Vec<(f64, f64)>,
 }
 
-impl Figure for ResponseCurve {
-    fn size(&self) -> (u32, u32) {
-        (900, 540)
-    }
-
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), PlotError> {
-        let fs = self
-            .branches
-            .iter()
-            .flat_map(|b| b.f_hz.iter().copied())
-            .chain(self.measured.iter().map(|p| p.0));
-        let Some((f_lo, f_hi)) = style::range(fs) else {
-            return Err(PlotError::Empty {
-                what: self.title.clone(),
-            });
-        };
-        let off = style::axis_offset(f_lo, f_hi);
-        let a_hi = self
-            .branches
-            .iter()
-            .flat_map(|b| b.amp.iter().copied())
-            .chain(self.measured.iter().map(|p| p.1))
-            .filter(|a| a.is_finite())
-            .fold(0.0f64, f64::max)
-            * 1.1;
-        let a_hi = if a_hi > 0.0 { a_hi } else { 1.0 };
-        let root = root
-            .titled(&self.title, style::text(style::TITLE))
-            .drawn()?;
-        let (legend_area, body) = root.split_vertically(26);
+impl ResponseCurve {
+    /// The legend: the stability line styles (in the branch's colour, or black with one entry
+    /// per branch colour), jumps, backbone and measured points when drawn.
+    fn legend_entries(&self) -> Vec<(LegendMark, RGBColor, String)> {
         // One branch: its colour in the stable/unstable entries; several: black entries for the
         // line styles and one entry per branch colour.
         let ink = if self.branches.len() > 1 {
@@ -113,6 +87,41 @@ impl Figure for ResponseCurve {
         if !self.measured.is_empty() {
             entries.push((LegendMark::Dot, style::BLACK, "measured".into()));
         }
+        entries
+    }
+}
+
+impl Figure for ResponseCurve {
+    fn size(&self) -> (u32, u32) {
+        (900, 540)
+    }
+
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), PlotError> {
+        let fs = self
+            .branches
+            .iter()
+            .flat_map(|b| b.f_hz.iter().copied())
+            .chain(self.measured.iter().map(|p| p.0));
+        let Some((f_lo, f_hi)) = style::range(fs) else {
+            return Err(PlotError::Empty {
+                what: self.title.clone(),
+            });
+        };
+        let off = style::axis_offset(f_lo, f_hi);
+        let a_hi = self
+            .branches
+            .iter()
+            .flat_map(|b| b.amp.iter().copied())
+            .chain(self.measured.iter().map(|p| p.1))
+            .filter(|a| a.is_finite())
+            .fold(0.0f64, f64::max)
+            * 1.1;
+        let a_hi = if a_hi > 0.0 { a_hi } else { 1.0 };
+        let root = root
+            .titled(&self.title, style::text(style::TITLE))
+            .drawn()?;
+        let (legend_area, body) = root.split_vertically(26);
+        let entries = self.legend_entries();
         style::legend(&legend_area, &entries)?;
         let mut chart = ChartBuilder::on(&body)
             .margin(10)

@@ -80,6 +80,80 @@ pub(crate) fn clusters(lines: &[&SpectrumLine]) -> Vec<(usize, usize)> {
     out
 }
 
+impl Spectrum {
+    /// The legend: drive tones and sidebands always, mixing products, the reconstruction and
+    /// the noise floor when drawn.
+    fn legend_entries(&self, lines: &[&SpectrumLine]) -> Vec<(LegendMark, RGBColor, String)> {
+        let mut entries = vec![
+            (LegendMark::Dot, style::BLUE, "drive tone".to_string()),
+            (LegendMark::Dot, style::ORANGE, "sideband".to_string()),
+        ];
+        if lines.iter().any(|l| l.kind == LineKind::Mixing) {
+            entries.push((LegendMark::Dot, style::GREEN, "mixing product".into()));
+        }
+        if lines.iter().any(|l| l.reconstructed.is_some()) {
+            entries.push((
+                LegendMark::Open,
+                style::BLACK,
+                "harmonic balance, identified model".into(),
+            ));
+        }
+        if self.noise_floor.is_some() {
+            entries.push((LegendMark::Dashed, style::GREY, "noise floor".into()));
+        }
+        entries
+    }
+
+    /// The residual panel under one cluster of lines `grp` (around `centre`, Hz): each line's
+    /// |residual| as a cross, and the noise floor; `first`: the leftmost panel, which carries
+    /// the axis title.
+    fn draw_residuals<DB: DrawingBackend>(
+        &self,
+        area: &DrawingArea<DB, Shift>,
+        grp: &[&SpectrumLine],
+        centre: f64,
+        (x_lo, x_hi): (f64, f64),
+        (r_lo, r_hi): (f64, f64),
+        first: bool,
+    ) -> Result<(), PlotError> {
+        let mut rc = ChartBuilder::on(area)
+            .margin(8)
+            .margin_top(4)
+            .x_label_area_size(44)
+            .y_label_area_size(if first { 70 } else { 50 })
+            .build_cartesian_2d(x_lo..x_hi, (r_lo..r_hi).log_scale())
+            .drawn()?;
+        rc.configure_mesh()
+            .x_desc(format!("f − {} Hz (Hz)", style::hz(centre)))
+            .y_desc(if first { "|residual|" } else { "" })
+            .axis_desc_style(style::text(style::LABEL))
+            .label_style(style::text(style::TICK))
+            .light_line_style(WHITE)
+            .bold_line_style(style::GREY.mix(0.25))
+            .y_labels(4)
+            .y_label_formatter(&|v| style::tick(*v))
+            .x_label_formatter(&|v| style::tick(*v))
+            .draw()
+            .drawn()?;
+        if let Some(nf) = self.noise_floor.filter(|f| *f > 0.0) {
+            rc.draw_series(DashedLineSeries::new(
+                [(x_lo, nf), (x_hi, nf)],
+                6,
+                4,
+                style::GREY.stroke_width(2),
+            ))
+            .drawn()?;
+        }
+        rc.draw_series(grp.iter().filter_map(|l| {
+            l.residual
+                .filter(|r| *r > 0.0)
+                .map(|r| Cross::new((l.f_hz - centre, r), 5, l.kind.color().stroke_width(2)))
+        }))
+        .drawn()?;
+        Ok(())
+    }
+}
+
 impl Figure for Spectrum {
     fn size(&self) -> (u32, u32) {
         (960, 620)
@@ -122,23 +196,7 @@ impl Figure for Spectrum {
             .titled(&self.title, style::text(style::TITLE))
             .drawn()?;
         let (legend_area, body) = root.split_vertically(28);
-        let mut entries = vec![
-            (LegendMark::Dot, style::BLUE, "drive tone".to_string()),
-            (LegendMark::Dot, style::ORANGE, "sideband".to_string()),
-        ];
-        if lines.iter().any(|l| l.kind == LineKind::Mixing) {
-            entries.push((LegendMark::Dot, style::GREEN, "mixing product".into()));
-        }
-        if lines.iter().any(|l| l.reconstructed.is_some()) {
-            entries.push((
-                LegendMark::Open,
-                style::BLACK,
-                "harmonic balance, identified model".into(),
-            ));
-        }
-        if self.noise_floor.is_some() {
-            entries.push((LegendMark::Dashed, style::GREY, "noise floor".into()));
-        }
+        let entries = self.legend_entries(&lines);
         style::legend(&legend_area, &entries)?;
         let (top, bottom) = match residual_range {
             Some(_) => {
@@ -238,41 +296,8 @@ impl Figure for Spectrum {
                     )))
                     .drawn()?;
             }
-            if let Some((r_lo, r_hi)) = residual_range {
-                let mut rc = ChartBuilder::on(&bottoms[g])
-                    .margin(8)
-                    .margin_top(4)
-                    .x_label_area_size(44)
-                    .y_label_area_size(if g == 0 { 70 } else { 50 })
-                    .build_cartesian_2d(x_lo..x_hi, (r_lo..r_hi).log_scale())
-                    .drawn()?;
-                rc.configure_mesh()
-                    .x_desc(x_label)
-                    .y_desc(if g == 0 { "|residual|" } else { "" })
-                    .axis_desc_style(style::text(style::LABEL))
-                    .label_style(style::text(style::TICK))
-                    .light_line_style(WHITE)
-                    .bold_line_style(style::GREY.mix(0.25))
-                    .y_labels(4)
-                    .y_label_formatter(&|v| style::tick(*v))
-                    .x_label_formatter(&|v| style::tick(*v))
-                    .draw()
-                    .drawn()?;
-                if let Some(nf) = self.noise_floor.filter(|f| *f > 0.0) {
-                    rc.draw_series(DashedLineSeries::new(
-                        [(x_lo, nf), (x_hi, nf)],
-                        6,
-                        4,
-                        style::GREY.stroke_width(2),
-                    ))
-                    .drawn()?;
-                }
-                rc.draw_series(grp.iter().filter_map(|l| {
-                    l.residual.filter(|r| *r > 0.0).map(|r| {
-                        Cross::new((l.f_hz - centre, r), 5, l.kind.color().stroke_width(2))
-                    })
-                }))
-                .drawn()?;
+            if let Some(r_range) = residual_range {
+                self.draw_residuals(&bottoms[g], grp, centre, (x_lo, x_hi), r_range, g == 0)?;
             }
         }
         Ok(())
