@@ -160,64 +160,8 @@ pub(crate) fn lower(
     // Names of modes (one index, `q[3]` is `q3`) and parameters (family-wide spelling).
     let param_style = param_styles(&decls.params);
     let mut table: HashMap<String, (Sym, Span)> = HashMap::new();
-    let mut modes = Vec::new();
-    for (d, idx) in &decls.modes {
-        let name = match idx.as_slice() {
-            [] => d.name.base.clone(),
-            [i] => format!("{}{}", d.name.base, i),
-            _ => {
-                sink.push(ModelDiagnostic::new(
-                    Code::FamilyRange,
-                    d.name.span,
-                    format!(
-                        "a mode has one index, but {}[...] has {}",
-                        d.name.base,
-                        idx.len()
-                    ),
-                    "too many indices",
-                    "write modes as `q[i]` (which is `q1`, `q2`, ...)",
-                ));
-                continue;
-            }
-        };
-        if declare(
-            &mut table,
-            &mut sink,
-            &name,
-            Sym::Mode(modes.len() as u32),
-            d.name.span,
-        ) {
-            let nominal_hz = d.nominal_hz.map(|(v, _)| v).or(d.f_hz.map(|(v, _)| v));
-            modes.push(Mode {
-                name,
-                nominal_hz,
-                f_hz: d.f_hz.map_or(Linear::Unknown, |(v, _)| Linear::Fixed(v)),
-                q_factor: d
-                    .q_factor
-                    .map_or(Linear::Unknown, |(v, _)| Linear::Fixed(v)),
-            });
-        }
-    }
-    let mut params = Vec::new();
-    for (d, idx) in &decls.params {
-        let name = param_name(&d.name.base, idx, &param_style);
-        if declare(
-            &mut table,
-            &mut sink,
-            &name,
-            Sym::Param(params.len() as u32),
-            d.name.span,
-        ) {
-            params.push(Parameter {
-                name,
-                kind: d.value.map_or(ParamKind::Unknown, ParamKind::Fixed),
-                bounds: Bounds {
-                    lower: d.lower,
-                    upper: d.upper,
-                },
-            });
-        }
-    }
+    let modes = declare_modes(&decls.modes, &mut table, &mut sink);
+    let params = declare_params(&decls.params, &param_style, &mut table, &mut sink);
     if modes.is_empty() && sink.list.is_empty() {
         sink.push(ModelDiagnostic::new(
             Code::EmptyModel,
@@ -299,6 +243,85 @@ pub(crate) fn lower(
         eom,
         potential,
     })
+}
+
+/// The modes, in declaration order (one index: `q[3]` is `q3`), each name entered in `table`;
+/// a mode with more indices or a name taken is reported to `sink` and left out.
+fn declare_modes(
+    decls: &[(&ModeDecl, Vec<i64>)],
+    table: &mut HashMap<String, (Sym, Span)>,
+    sink: &mut Sink<'_>,
+) -> Vec<Mode> {
+    let mut modes = Vec::new();
+    for (d, idx) in decls {
+        let name = match idx.as_slice() {
+            [] => d.name.base.clone(),
+            [i] => format!("{}{}", d.name.base, i),
+            _ => {
+                sink.push(ModelDiagnostic::new(
+                    Code::FamilyRange,
+                    d.name.span,
+                    format!(
+                        "a mode has one index, but {}[...] has {}",
+                        d.name.base,
+                        idx.len()
+                    ),
+                    "too many indices",
+                    "write modes as `q[i]` (which is `q1`, `q2`, ...)",
+                ));
+                continue;
+            }
+        };
+        if declare(
+            table,
+            sink,
+            &name,
+            Sym::Mode(modes.len() as u32),
+            d.name.span,
+        ) {
+            let nominal_hz = d.nominal_hz.map(|(v, _)| v).or(d.f_hz.map(|(v, _)| v));
+            modes.push(Mode {
+                name,
+                nominal_hz,
+                f_hz: d.f_hz.map_or(Linear::Unknown, |(v, _)| Linear::Fixed(v)),
+                q_factor: d
+                    .q_factor
+                    .map_or(Linear::Unknown, |(v, _)| Linear::Fixed(v)),
+            });
+        }
+    }
+    modes
+}
+
+/// The parameters, in declaration order (a family's name in its `style`), each name entered
+/// in `table`; a name taken is reported to `sink` and left out.
+fn declare_params(
+    decls: &[(&ParamDecl, Vec<i64>)],
+    style: &Styles,
+    table: &mut HashMap<String, (Sym, Span)>,
+    sink: &mut Sink<'_>,
+) -> Vec<Parameter> {
+    let mut params = Vec::new();
+    for (d, idx) in decls {
+        let name = param_name(&d.name.base, idx, style);
+        if declare(
+            table,
+            sink,
+            &name,
+            Sym::Param(params.len() as u32),
+            d.name.span,
+        ) {
+            params.push(Parameter {
+                name,
+                kind: d.value.map_or(ParamKind::Unknown, ParamKind::Fixed),
+                bounds: Bounds {
+                    lower: d.lower,
+                    upper: d.upper,
+                },
+            });
+        }
+    }
+    params
 }
 
 fn overflow(sink: &mut Sink<'_>, span: Span) {
