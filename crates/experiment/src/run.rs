@@ -529,44 +529,11 @@ impl Plan {
                     notes.push(format!("widening the lattice beyond order {order} still changes the measured lines by {c:.2e} of the largest (written on request)"));
                 }
             }
-            let stability = if settings.check_stability {
-                let v = sim::check_stability(model, &drive, &st).map_err(|source| {
-                    ExperimentError::Sim {
-                        context: format!("measurement {}: stability check", pm.name),
-                        source,
-                    }
-                })?;
-                if !v.stable {
-                    if !settings.allow_unstable {
-                        return Err(ExperimentError::Unstable {
-                            measurement: pm.name.clone(),
-                            growth_rate: v.growth_rate,
-                            linear_decay_rate: v.linear_decay_rate,
-                        });
-                    }
-                    notes.push(format!("the steady state is unstable (perturbations grow at {:.3e} 1/s): written on request", v.growth_rate));
-                }
-                Some(v)
-            } else {
-                None
-            };
+            let stability = pm.stability(model, &drive, &st, settings, &mut notes)?;
             let mut freqs =
                 pm.measured_hz(model, &drive, &st, HbSettings::default().lattice.window_rel);
             if pm.measure_hz.is_none() && settings.min_line_rel > 0.0 {
-                let size = |f: f64| {
-                    shapes
-                        .iter()
-                        .map(|s| st.at_point(s, f).norm())
-                        .fold(0.0, f64::max)
-                };
-                let big = freqs.iter().map(|&f| size(f)).fold(0.0, f64::max);
-                freqs.retain(|&f| {
-                    drive
-                        .tones_hz
-                        .iter()
-                        .any(|&d| (d - f).abs() <= sim::LINE_TOL_HZ)
-                        || size(f) > settings.min_line_rel * big
-                });
+                keep_visible_lines(&mut freqs, &shapes, &st, &drive, settings.min_line_rel);
             }
             let mut td_info = None;
             let per_run: Vec<Vec<Vec<Complex64>>> = match &settings.engine {
@@ -629,19 +596,7 @@ impl Plan {
                 });
             }
             measurements.push(meas);
-            let mut per_mode = BTreeMap::new();
-            for (n, name) in model.mode_names.iter().enumerate() {
-                if drive.force[n].iter().any(|z| z.norm() > 0.0) {
-                    per_mode.insert(
-                        name.clone(),
-                        TruthForce {
-                            amplitude: drive.force[n].iter().map(|z| z.norm()).collect(),
-                            phase_rad: drive.force[n].iter().map(|z| z.arg()).collect(),
-                        },
-                    );
-                }
-            }
-            forces.insert(pm.name.clone(), per_mode);
+            forces.insert(pm.name.clone(), truth_forces(model, &drive));
             reports.push(MeasurementReport {
                 name: pm.name.clone(),
                 order,
@@ -655,34 +610,12 @@ impl Plan {
                 notes,
             });
         }
-        let truth = Truth {
-            modes: model
-                .mode_names
-                .iter()
-                .enumerate()
-                .map(|(n, name)| {
-                    (
-                        name.clone(),
-                        TruthMode {
-                            f_hz: model.f_hz[n],
-                            q: model.q_factor[n],
-                        },
-                    )
-                })
-                .collect(),
-            eom: (0..model.n_modes())
-                .map(|n| (model.mode_names[n].clone(), model.eom_map(n)))
-                .collect(),
-            forces,
-            noise: Some(TruthNoise {
-                sigma_per_quadrature: if settings.noise {
-                    self.noise.sigma_per_quadrature
-                } else {
-                    0.0
-                },
-                shots: Some(shots),
-            }),
+        let sigma = if settings.noise {
+            self.noise.sigma_per_quadrature
+        } else {
+            0.0
         };
+        let truth = truth(model, forces, sigma, shots);
         Ok(Simulation {
             dataset: Dataset {
                 dir: std::path::PathBuf::from("simulated"),
@@ -693,4 +626,114 @@ impl Plan {
             reports,
         })
     }
+}
+
+/// Each driven mode's true forces of `drive` (amplitude and phase per tone), for `truth.toml`.
+fn truth_forces(model: &NumericModel, drive: &Excitation) -> BTreeMap<String, TruthForce> {
+    let mut per_mode = BTreeMap::new();
+    for (n, name) in model.mode_names.iter().enumerate() {
+        if drive.force[n].iter().any(|z| z.norm() > 0.0) {
+            per_mode.insert(
+                name.clone(),
+                TruthForce {
+                    amplitude: drive.force[n].iter().map(|z| z.norm()).collect(),
+                    phase_rad: drive.force[n].iter().map(|z| z.arg()).collect(),
+                },
+            );
+        }
+    }
+    per_mode
+}
+
+/// The truth of a simulation: `model`'s frequencies, Q and equations, the forces per
+/// measurement, and the noise (σ per quadrature, m, over `shots` shots).
+fn truth(
+    model: &NumericModel,
+    forces: BTreeMap<String, BTreeMap<String, TruthForce>>,
+    sigma: f64,
+    shots: usize,
+) -> Truth {
+    Truth {
+        modes: model
+            .mode_names
+            .iter()
+            .enumerate()
+            .map(|(n, name)| {
+                (
+                    name.clone(),
+                    TruthMode {
+                        f_hz: model.f_hz[n],
+                        q: model.q_factor[n],
+                    },
+                )
+            })
+            .collect(),
+        eom: (0..model.n_modes())
+            .map(|n| (model.mode_names[n].clone(), model.eom_map(n)))
+            .collect(),
+        forces,
+        noise: Some(TruthNoise {
+            sigma_per_quadrature: sigma,
+            shots: Some(shots),
+        }),
+    }
+}
+
+impl PlanMeasurement {
+    /// The steady state's stability when `settings.check_stability`: an unstable state is an
+    /// error unless `settings.allow_unstable`, then a note in `notes`.
+    fn stability(
+        &self,
+        model: &NumericModel,
+        drive: &Excitation,
+        st: &SteadyState,
+        settings: &Settings,
+        notes: &mut Vec<String>,
+    ) -> Result<Option<Stability>, ExperimentError> {
+        Ok(if settings.check_stability {
+            let v =
+                sim::check_stability(model, drive, st).map_err(|source| ExperimentError::Sim {
+                    context: format!("measurement {}: stability check", self.name),
+                    source,
+                })?;
+            if !v.stable {
+                if !settings.allow_unstable {
+                    return Err(ExperimentError::Unstable {
+                        measurement: self.name.clone(),
+                        growth_rate: v.growth_rate,
+                        linear_decay_rate: v.linear_decay_rate,
+                    });
+                }
+                notes.push(format!("the steady state is unstable (perturbations grow at {:.3e} 1/s): written on request", v.growth_rate));
+            }
+            Some(v)
+        } else {
+            None
+        })
+    }
+}
+
+/// Keeps the drive tones and the lines whose amplitude at some point exceeds `min_line_rel`
+/// of the largest line's (the sideband clusters a lock-in would record).
+fn keep_visible_lines(
+    freqs: &mut Vec<f64>,
+    shapes: &[Vec<f64>],
+    st: &SteadyState,
+    drive: &Excitation,
+    min_line_rel: f64,
+) {
+    let size = |f: f64| {
+        shapes
+            .iter()
+            .map(|s| st.at_point(s, f).norm())
+            .fold(0.0, f64::max)
+    };
+    let big = freqs.iter().map(|&f| size(f)).fold(0.0, f64::max);
+    freqs.retain(|&f| {
+        drive
+            .tones_hz
+            .iter()
+            .any(|&d| (d - f).abs() <= sim::LINE_TOL_HZ)
+            || size(f) > min_line_rel * big
+    });
 }
