@@ -55,6 +55,116 @@ pub(super) fn read_csv<R: std::io::Read>(
         row,
         message,
     };
+    let mut cells = read_cells(reader, path, manifest, scale)?;
+    if cells.is_empty() {
+        return Err(DatasetError::Inconsistent {
+            path: path.to_path_buf(),
+            message: format!("measurement \"{}\" has no data rows", spec.name),
+        });
+    }
+    cells.sort_unstable_by(|a, b| {
+        (a.shot, a.point)
+            .cmp(&(b.shot, b.point))
+            .then(a.freq_hz.total_cmp(&b.freq_hz))
+    });
+    let group_of = |c: &Cell| (c.shot, c.point);
+    let groups: Vec<&[Cell]> = cells.chunk_by(|a, b| group_of(a) == group_of(b)).collect();
+
+    let mut shots: Vec<u32> = groups.iter().map(|g| g[0].shot).collect();
+    shots.dedup();
+    if shots
+        .iter()
+        .enumerate()
+        .any(|(i, &s)| i as u64 != u64::from(s))
+    {
+        let listed: Vec<String> = shots.iter().take(10).map(|s| s.to_string()).collect();
+        return Err(DatasetError::Inconsistent {
+            path: path.to_path_buf(),
+            message: format!(
+                "shots must be numbered 0..S-1 without gaps; found {}{}",
+                listed.join(", "),
+                if shots.len() > 10 { ", ..." } else { "" }
+            ),
+        });
+    }
+    let n_shots = shots.len();
+    let mut points: Vec<usize> = groups.iter().map(|g| g[0].point as usize).collect();
+    points.sort_unstable();
+    points.dedup();
+    let pname = |p: usize| {
+        manifest
+            .points
+            .get(p)
+            .map(|q| q.name.clone())
+            .unwrap_or_else(|| "(modal)".into())
+    };
+    for g in &groups {
+        for w in g.windows(2) {
+            if (w[1].freq_hz - w[0].freq_hz).abs() <= FREQ_REL_TOL * w[1].freq_hz {
+                return Err(row_err(
+                    w[1].row as usize,
+                    format!(
+                        "frequency {} Hz appears twice in the same shot and point (also row {})",
+                        w[1].freq_hz, w[0].row
+                    ),
+                ));
+            }
+        }
+    }
+    if groups.len() != n_shots * points.len() {
+        for &s in &shots {
+            for &p in &points {
+                if !groups
+                    .iter()
+                    .any(|g| g[0].shot == s && g[0].point as usize == p)
+                {
+                    return Err(DatasetError::Inconsistent {
+                        path: path.to_path_buf(),
+                        message: format!("shot {s} has no rows for point \"{}\"", pname(p)),
+                    });
+                }
+            }
+        }
+    }
+    let freqs: Vec<f64> = groups[0].iter().map(|c| c.freq_hz).collect();
+    same_frequencies(&groups, &freqs, path, &pname)?;
+    check_drives_measured(spec, &freqs, path)?;
+    let nf = freqs.len();
+    let np = points.len();
+    let mut data = vec![Complex64::new(0.0, 0.0); n_shots * nf * np];
+    for g in &groups {
+        let s = g[0].shot as usize;
+        let pl = points.binary_search(&(g[0].point as usize)).unwrap_or(0);
+        for (f, c) in g.iter().enumerate() {
+            data[(s * nf + f) * np + pl] = c.x;
+        }
+    }
+    drop(groups);
+    drop(cells);
+    Ok(Measurement {
+        spec: spec.clone(),
+        freqs_hz: freqs,
+        points,
+        n_shots,
+        data,
+    })
+}
+
+/// Every row of a measurement's CSV as a [`Cell`], in file order: the header's columns found
+/// (`shot`, `freq_hz`, `re`, `im`, optional `point`), each value parsed and checked (a
+/// positive, finite frequency below [`MAX_FREQ_HZ`], amplitudes times `scale` below
+/// [`MAX_AMPLITUDE_M`], a declared point).
+fn read_cells<R: std::io::Read>(
+    reader: R,
+    path: &Path,
+    manifest: &Manifest,
+    scale: f64,
+) -> Result<Vec<Cell>, DatasetError> {
+    let row_err = |row: usize, message: String| DatasetError::Row {
+        path: path.to_path_buf(),
+        row,
+        message,
+    };
     let mut rdr = csv::ReaderBuilder::new()
         .has_headers(true)
         .trim(csv::Trim::All)
@@ -174,24 +284,7 @@ pub(super) fn read_csv<R: std::io::Read>(
         }
         let p = match c_point {
             Some(c) if !field(c, "point")?.is_empty() => {
-                let name = field(c, "point")?;
-                *point_index.get(name).ok_or_else(|| {
-                    row_err(
-                        row,
-                        format!(
-                            "point \"{}\" is not declared in dataset.toml (declared: {})",
-                            shown(name),
-                            shown(
-                                &manifest
-                                    .points
-                                    .iter()
-                                    .map(|p| p.name.as_str())
-                                    .collect::<Vec<_>>()
-                                    .join(", ")
-                            )
-                        ),
-                    )
-                })?
+                point_of(field(c, "point")?, &point_index, manifest).map_err(|m| row_err(row, m))?
             }
             _ => 0,
         };
@@ -204,83 +297,22 @@ pub(super) fn read_csv<R: std::io::Read>(
             row: row32,
         });
     }
-    if cells.is_empty() {
-        return Err(DatasetError::Inconsistent {
-            path: path.to_path_buf(),
-            message: format!("measurement \"{}\" has no data rows", spec.name),
-        });
-    }
-    cells.sort_unstable_by(|a, b| {
-        (a.shot, a.point)
-            .cmp(&(b.shot, b.point))
-            .then(a.freq_hz.total_cmp(&b.freq_hz))
-    });
-    let group_of = |c: &Cell| (c.shot, c.point);
-    let groups: Vec<&[Cell]> = cells.chunk_by(|a, b| group_of(a) == group_of(b)).collect();
+    Ok(cells)
+}
 
-    let mut shots: Vec<u32> = groups.iter().map(|g| g[0].shot).collect();
-    shots.dedup();
-    if shots
-        .iter()
-        .enumerate()
-        .any(|(i, &s)| i as u64 != u64::from(s))
-    {
-        let listed: Vec<String> = shots.iter().take(10).map(|s| s.to_string()).collect();
-        return Err(DatasetError::Inconsistent {
-            path: path.to_path_buf(),
-            message: format!(
-                "shots must be numbered 0..S-1 without gaps; found {}{}",
-                listed.join(", "),
-                if shots.len() > 10 { ", ..." } else { "" }
-            ),
-        });
-    }
-    let n_shots = shots.len();
-    let mut points: Vec<usize> = groups.iter().map(|g| g[0].point as usize).collect();
-    points.sort_unstable();
-    points.dedup();
-    let pname = |p: usize| {
-        manifest
-            .points
-            .get(p)
-            .map(|q| q.name.clone())
-            .unwrap_or_else(|| "(modal)".into())
-    };
-    for g in &groups {
-        for w in g.windows(2) {
-            if (w[1].freq_hz - w[0].freq_hz).abs() <= FREQ_REL_TOL * w[1].freq_hz {
-                return Err(row_err(
-                    w[1].row as usize,
-                    format!(
-                        "frequency {} Hz appears twice in the same shot and point (also row {})",
-                        w[1].freq_hz, w[0].row
-                    ),
-                ));
-            }
-        }
-    }
-    if groups.len() != n_shots * points.len() {
-        for &s in &shots {
-            for &p in &points {
-                if !groups
-                    .iter()
-                    .any(|g| g[0].shot == s && g[0].point as usize == p)
-                {
-                    return Err(DatasetError::Inconsistent {
-                        path: path.to_path_buf(),
-                        message: format!("shot {s} has no rows for point \"{}\"", pname(p)),
-                    });
-                }
-            }
-        }
-    }
-    let reference = groups[0];
-    let (s0, p0) = (reference[0].shot, reference[0].point as usize);
-    let freqs: Vec<f64> = reference.iter().map(|c| c.freq_hz).collect();
-    for g in &groups {
+/// Every (shot, point) group lists the frequencies `freqs` of the first group (to
+/// [`FREQ_REL_TOL`]); else an error naming the first that does not and the line that differs.
+fn same_frequencies(
+    groups: &[&[Cell]],
+    freqs: &[f64],
+    path: &Path,
+    pname: &dyn Fn(usize) -> String,
+) -> Result<(), DatasetError> {
+    let (s0, p0) = (groups[0][0].shot, groups[0][0].point as usize);
+    for g in groups {
         let same = g.len() == freqs.len()
             && g.iter()
-                .zip(&freqs)
+                .zip(freqs)
                 .all(|(c, f)| (c.freq_hz - f).abs() <= FREQ_REL_TOL * f);
         if !same {
             let (s, p) = (g[0].shot, g[0].point as usize);
@@ -310,24 +342,28 @@ pub(super) fn read_csv<R: std::io::Read>(
             });
         }
     }
-    check_drives_measured(spec, &freqs, path)?;
-    let nf = freqs.len();
-    let np = points.len();
-    let mut data = vec![Complex64::new(0.0, 0.0); n_shots * nf * np];
-    for g in &groups {
-        let s = g[0].shot as usize;
-        let pl = points.binary_search(&(g[0].point as usize)).unwrap_or(0);
-        for (f, c) in g.iter().enumerate() {
-            data[(s * nf + f) * np + pl] = c.x;
-        }
-    }
-    drop(groups);
-    drop(cells);
-    Ok(Measurement {
-        spec: spec.clone(),
-        freqs_hz: freqs,
-        points,
-        n_shots,
-        data,
+    Ok(())
+}
+
+/// The index of the point called `name` (from `point_index`), or the message that it is not
+/// declared, listing those that are.
+fn point_of(
+    name: &str,
+    point_index: &HashMap<&str, usize>,
+    manifest: &Manifest,
+) -> Result<usize, String> {
+    point_index.get(name).copied().ok_or_else(|| {
+        format!(
+            "point \"{}\" is not declared in dataset.toml (declared: {})",
+            shown(name),
+            shown(
+                &manifest
+                    .points
+                    .iter()
+                    .map(|p| p.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )
+        )
     })
 }
