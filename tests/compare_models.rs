@@ -7,7 +7,7 @@
 use harmonid_testgen as gen;
 
 use gen::{nanostring_2mode_fold_plan, simulate, Values};
-use harmonid_ident::{compare, CompareError, Settings};
+use harmonid_ident::{compare, CompareError, ModelComparison, NestedTest, Settings};
 use std::process::Command;
 
 const POTENTIAL: &str = "mode q1 at 207.58 kHz\nmode q2 at 415.84 kHz\nparam beta1, beta2, g12\n\
@@ -17,6 +17,14 @@ const PER_EQUATION: &str =
     potential: beta1/4*q1^4 + beta2/4*q2^4\neom q1 += g1*q1*q2^2\neom q2 += g2*q1^2*q2\n";
 const UNCOUPLED: &str = "mode q1 at 207.58 kHz\nmode q2 at 415.84 kHz\nparam beta1, beta2\n\
     potential: beta1/4*q1^4 + beta2/4*q2^4\n";
+
+/// The likelihood-ratio test of `simpler` within `richer`.
+fn nested<'c>(c: &'c ModelComparison, simpler: &str, richer: &str) -> &'c NestedTest {
+    c.nested
+        .iter()
+        .find(|t| t.simpler == simpler && t.richer == richer)
+        .unwrap_or_else(|| panic!("{simpler} within {richer}: {:?}", c.nested))
+}
 
 fn models() -> Vec<(String, harmonid_model::Model)> {
     [
@@ -51,18 +59,10 @@ fn the_potential_wins_on_potential_data() {
     assert_eq!(c.models[1].unknowns, c.models[0].unknowns + 1);
     // The uncoupled model is nested in both and misses the coupling by far.
     assert_eq!(c.models[2].fits, Some(false));
-    let t = c
-        .nested
-        .iter()
-        .find(|t| t.simpler == "uncoupled" && t.richer == "potential")
-        .expect("uncoupled within potential");
+    let t = nested(&c, "uncoupled", "potential");
     assert!(t.p_value < 1e-12, "{t:?}");
     // potential within per_equation: the extra freedom is not needed.
-    let t = c
-        .nested
-        .iter()
-        .find(|t| t.simpler == "potential" && t.richer == "per_equation")
-        .expect("potential within per_equation");
+    let t = nested(&c, "potential", "per_equation");
     assert!(t.p_value > 1e-3, "{t:?}");
     assert!(c.verdict.starts_with("the data"), "{}", c.verdict);
 }
@@ -79,11 +79,7 @@ fn per_equation_couplings_win_on_non_potential_data() {
     eprintln!("{}", c.table());
     assert_eq!(c.models[c.best].model, "per_equation", "{}", c.verdict);
     assert_eq!(c.models[1].fits, Some(true));
-    let t = c
-        .nested
-        .iter()
-        .find(|t| t.simpler == "potential" && t.richer == "per_equation")
-        .expect("potential within per_equation");
+    let t = nested(&c, "potential", "per_equation");
     assert!(t.p_value < 1e-6, "{t:?}");
     assert!(
         c.verdict.contains("very strongly support per_equation"),
@@ -208,10 +204,6 @@ fn five_modes_per_equation_against_the_potential() {
     let c = compare(&models, &ds, &Settings::default()).expect("compare");
     eprintln!("{}", c.table());
     assert_eq!(c.models[c.best].model, "per_equation", "{}", c.verdict);
-    let t = c
-        .nested
-        .iter()
-        .find(|t| t.simpler == "potential" && t.richer == "per_equation")
-        .expect("potential within per_equation");
+    let t = nested(&c, "potential", "per_equation");
     assert!(t.p_value < 1e-6, "{t:?}");
 }

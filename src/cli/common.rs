@@ -25,6 +25,33 @@ pub fn write_output(path: &Path, bytes: &[u8], inputs: &[&Path]) -> miette::Resu
     harmonid_files::write_file(path, bytes, inputs).map_err(miette::Report::new)
 }
 
+/// The force-model flags of the commands that identify (`identify`, `compare`).
+#[derive(Debug, Clone, Copy, clap::Args)]
+pub struct ForceArgs {
+    /// Leave every drive tone's force a free complex unknown (the paper's model), even when the
+    /// manifest gives drive levels and phases.
+    #[arg(long, conflicts_with = "gain_per_mode")]
+    pub free_forces: bool,
+    /// With drive levels: one actuator gain per mode for the whole dataset (default: one per
+    /// mode and measurement).
+    #[arg(long)]
+    pub gain_per_mode: bool,
+}
+
+impl ForceArgs {
+    /// The force model the flags ask for (`Auto` without one).
+    pub fn force_model(self) -> harmonid_ident::ForceModel {
+        use harmonid_ident::ForceModel;
+        if self.free_forces {
+            ForceModel::Free
+        } else if self.gain_per_mode {
+            ForceModel::GainPerMode
+        } else {
+            ForceModel::Auto
+        }
+    }
+}
+
 /// Checks, before any work, that every one of `outputs` can be written as a file: its folder
 /// exists, nothing but a regular file is at the path, and it is none of `inputs`.
 pub fn check_outputs(outputs: &[&Path], inputs: &[&Path]) -> miette::Result<()> {

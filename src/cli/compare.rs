@@ -2,8 +2,8 @@
 //! by information criteria, with a likelihood-ratio test for every nested pair
 //! (`harmonid_ident::compare`).
 
-use crate::cli::common::{check_outputs, print_out, write_output};
-use harmonid_ident::{compare, Dataset, ForceModel, Settings};
+use crate::cli::common::{check_outputs, print_out, write_output, ForceArgs};
+use harmonid_ident::{compare, Dataset, Settings};
 use std::path::PathBuf;
 
 /// Arguments of `harmonid compare`.
@@ -20,12 +20,8 @@ pub struct Args {
     /// Also write the JSON to this file (written atomically).
     #[arg(long, value_name = "FILE.json")]
     pub out: Option<PathBuf>,
-    /// Leave every drive tone's force a free complex unknown.
-    #[arg(long, conflicts_with = "gain_per_mode")]
-    pub free_forces: bool,
-    /// With drive levels: one actuator gain per mode for the whole dataset.
-    #[arg(long)]
-    pub gain_per_mode: bool,
+    #[command(flatten)]
+    pub forces: ForceArgs,
 }
 
 /// Runs the subcommand.
@@ -43,13 +39,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         check_outputs(&[out.as_path()], &inputs)?;
     }
     let settings = Settings {
-        force_model: if args.free_forces {
-            ForceModel::Free
-        } else if args.gain_per_mode {
-            ForceModel::GainPerMode
-        } else {
-            ForceModel::Auto
-        },
+        force_model: args.forces.force_model(),
         ..Settings::default()
     };
     let pb = super::progress::spinner(&format!("fitting {} models", models.len()));

@@ -1,8 +1,8 @@
 //! `harmonid identify MODEL DATASET --out result.json`: identify the model's unknowns from a
 //! measured dataset (sequential stages by default), print a summary table, write the result.
 
-use crate::cli::common::{check_outputs, print_out, write_output};
-use harmonid_ident::{identify, identify_with_holdout, Dataset, Estimator, ForceModel, Settings};
+use crate::cli::common::{check_outputs, print_out, write_output, ForceArgs};
+use harmonid_ident::{identify, identify_with_holdout, Dataset, Estimator, Settings};
 use miette::miette;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -23,14 +23,8 @@ pub struct Args {
     /// Fit everything in one problem instead of the sequential stages (for comparison).
     #[arg(long)]
     pub joint: bool,
-    /// Leave every drive tone's force a free complex unknown (the paper's model), even when the
-    /// manifest gives drive levels and phases.
-    #[arg(long, conflicts_with = "gain_per_mode")]
-    pub free_forces: bool,
-    /// With drive levels: one actuator gain per mode for the whole dataset (default: one per
-    /// mode and measurement).
-    #[arg(long)]
-    pub gain_per_mode: bool,
+    #[command(flatten)]
+    pub forces: ForceArgs,
     /// Nominal resonance frequency of a mode, overriding the dataset's and the model's:
     /// `--nominal q1=207.58e3` (Hz). Repeatable.
     #[arg(long, value_name = "MODE=HZ")]
@@ -107,13 +101,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         nominal_hz.insert(name.trim().to_string(), hz);
     }
     let settings = Settings {
-        force_model: if args.free_forces {
-            ForceModel::Free
-        } else if args.gain_per_mode {
-            ForceModel::GainPerMode
-        } else {
-            ForceModel::Auto
-        },
+        force_model: args.forces.force_model(),
         joint: args.joint,
         nominal_hz,
         near_rel: args.near_rel,
