@@ -225,3 +225,15 @@ fn held_out_measurements_are_predicted_by_a_correct_model_only() {
     let e = identify_with_holdout(&truth, &ds, &all, &Settings::default()).expect_err("all");
     assert!(e.to_string().contains("every measurement"), "{e}");
 }
+
+/// A `Q` the model fixes is reported as the model's value exactly, also when `f` is identified
+/// by the output-error fit (before: `√ω²_ml / γ_linear`, about 1e-7 off).
+#[test]
+fn a_fixed_q_is_reported_exactly() {
+    let m = model("examples/cubic_3mode/model.hb");
+    let (v, d) = gen::cubic_3mode_plan();
+    let clean = simulate_clean(&m, &v, &d, &[0.5, 0.5, 0.5], 20);
+    let rep = identify(&m, &add_noise(&clean, 5e-11, 3), &Settings::default()).expect("identify");
+    assert_eq!(rep.estimator, "ml");
+    assert_eq!(rep.modes["q1"].q.value, 2e4, "{:?}", rep.modes["q1"].q);
+}

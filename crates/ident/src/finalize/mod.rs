@@ -214,14 +214,25 @@ fn rejected_warning(
 }
 
 /// The reported values: the output-error estimate `ml` where it is identified, the
-/// equation-error `linear` elsewhere (fixed values, and `γ` of a mode whose `Q` is fixed,
-/// which the linear fit derived from its `ω²`). Both are in the layout of `prob.table`.
+/// equation-error `linear` elsewhere (fixed values), and `γ = √ω²/Q` of a mode whose `Q` is
+/// fixed from the reported `ω²` (the linear fit's `γ` came from its own `ω²`, which put the
+/// reported `Q` about 1e-7 off the model's). Both are in the layout of `prob.table`.
 fn ml_values(prob: &Problem, ml: &[f64], linear: &[f64]) -> Vec<f64> {
     let mut out = linear.to_vec();
     for (k, v) in out.iter_mut().enumerate() {
         if prob.table.is_free(k) && !prob.not_identifiable.iter().any(|x| x.unknown == k) {
             *v = ml[k];
         }
+    }
+    for n in 0..prob.mode_names.len() {
+        let (Some(q), Some(iw), Some(ig)) = (
+            prob.table.fixed_q(n),
+            prob.index_of(&Unknown::OmegaSq(n)),
+            prob.index_of(&Unknown::Gamma(n)),
+        ) else {
+            continue;
+        };
+        out[ig] = out[iw].sqrt() / q;
     }
     out
 }
