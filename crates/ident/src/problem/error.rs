@@ -65,7 +65,10 @@ pub enum IdentError {
     },
     /// Fewer real equations than unknowns in a fit.
     #[error("{file}: {what} has {rows} real equations (2 per measured frequency) for {unknowns} unknowns ({names}); measure more frequencies (sidebands) or fix some parameters")]
-    #[diagnostic(code(harmonid::ident::too_few_frequencies))]
+    #[diagnostic(
+        code(harmonid::ident::too_few_frequencies),
+        help("with drive levels, one gain per measurement adds two unknowns to every measurement: a stepped sweep with one line per step needs --gain-per-mode (one gain for the whole dataset)")
+    )]
     TooFewFrequencies {
         /// Manifest path.
         file: String,
@@ -75,7 +78,7 @@ pub enum IdentError {
         rows: usize,
         /// Unknowns.
         unknowns: usize,
-        /// Names of the unknowns.
+        /// Names of the unknowns (the first eight, then how many more).
         names: String,
     },
     /// Unsupported model feature.

@@ -114,10 +114,14 @@ impl Problem {
                     let (a, _, _) = self.assemble(&shot0, &measurements, &unknowns, &values, None);
                     let rows = a.nrows();
                     if rows < unknowns.len() {
-                        let names: Vec<String> = unknowns.iter().map(|&u| self.label(u)).collect();
+                        let mut names: Vec<String> =
+                            unknowns.iter().take(8).map(|&u| self.label(u)).collect();
+                        if unknowns.len() > 8 {
+                            names.push(format!("{} more", unknowns.len() - 8));
+                        }
                         return Err(IdentError::TooFewFrequencies {
                             file: self.manifest_path.clone(),
-                            what: self.meas_names(ds, &measurements),
+                            what: measurement_list(ds, &measurements),
                             rows,
                             unknowns: unknowns.len(),
                             names: names.join(", "),
@@ -131,7 +135,7 @@ impl Problem {
                                 unknown: u,
                                 reason: format!(
                                     "not identifiable from {}: {why}; it needs a measurement whose sidebands it shapes independently (other drive levels or detunings)",
-                                    self.meas_names(ds, &measurements)
+                                    measurement_list(ds, &measurements)
                                 ),
                             });
                         }
@@ -216,15 +220,24 @@ impl Problem {
             None
         }
     }
-
-    pub(super) fn meas_names(&self, ds: &Dataset, ms: &[usize]) -> String {
-        let names: Vec<String> = ms
-            .iter()
-            .map(|&m| format!("\"{}\"", ds.measurements[m].spec.name))
-            .collect();
-        format!("measurement {}", names.join(" + "))
-    }
 }
+
+/// The measurements `ms` for a message: `measurement "a" + "b"`, at most
+/// [`NAMES_SHOWN`] names and then how many more (a stepped sweep fits hundreds together).
+pub(super) fn measurement_list(ds: &Dataset, ms: &[usize]) -> String {
+    let mut names: Vec<String> = ms
+        .iter()
+        .take(NAMES_SHOWN)
+        .map(|&m| format!("\"{}\"", ds.measurements[m].spec.name))
+        .collect();
+    if ms.len() > NAMES_SHOWN {
+        names.push(format!("{} more", ms.len() - NAMES_SHOWN));
+    }
+    format!("measurement {}", names.join(" + "))
+}
+
+/// At most this many measurement names are quoted in one message.
+const NAMES_SHOWN: usize = 5;
 
 /// The mode sets an unknown couples, as `a+b or a+c`: each set once, in first-seen order.
 fn mode_sets_text(sets: &[Vec<usize>], mode_names: &[String]) -> String {
@@ -248,8 +261,28 @@ fn mode_sets_text(sets: &[Vec<usize>], mode_names: &[String]) -> String {
 #[cfg(test)]
 mod tests {
     use super::super::testkit;
+    use crate::dataset::{Dataset, Manifest, Measurement, MeasurementSpec};
+
+    #[test]
+    fn long_measurement_lists_are_cut_with_a_count() {
+        let ms = (0..7)
+            .map(|i| {
+                let spec = MeasurementSpec::new(format!("s{i}"), vec![1000.0]);
+                Measurement::zeros(spec, vec![1000.0], vec![], 1)
+            })
+            .collect();
+        let ds = Dataset::from_parts("d", Manifest::new("t"), ms, None).expect("dataset");
+        assert_eq!(
+            measurement_list(&ds, &[0, 1, 2, 3, 4, 5, 6]),
+            "measurement \"s0\" + \"s1\" + \"s2\" + \"s3\" + \"s4\" + 2 more"
+        );
+        assert_eq!(
+            measurement_list(&ds, &[2, 5]),
+            "measurement \"s2\" + \"s5\""
+        );
+    }
     use super::super::{Problem, Settings, Unknown};
-    use super::mode_sets_text;
+    use super::{measurement_list, mode_sets_text};
 
     #[test]
     fn single_mode_measurements_come_first_and_the_pair_fits_the_coupling() {
