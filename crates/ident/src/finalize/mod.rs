@@ -118,8 +118,17 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
     }
     let fits = tables::fit_reports(ds, prob, &per_shot.groups);
     let mut rejected_shots = BTreeMap::new();
+    let goodness_of_fit = fo
+        .as_ref()
+        .filter(|_| estimator == Estimator::Ml)
+        .map(|f| f.goodness.clone());
+    let ml_fits = goodness_of_fit
+        .as_ref()
+        .is_some_and(|g| g.converged && g.fits == Some(true));
+    let (start_warnings, start_notes) =
+        start_diagnostics(tables::conditioning_warnings(&fits), ml_fits);
     let mut warnings = prob.warnings.clone();
-    warnings.extend(tables::conditioning_warnings(&fits));
+    warnings.extend(start_warnings);
     warnings.extend(tables::force_warnings(prob));
     for (mi, bad) in pooled.rejected.iter().enumerate() {
         if !bad.is_empty() {
@@ -134,10 +143,6 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
     }
     warnings.extend(tables::undetermined_warnings(&modes, &parameters));
     warnings.extend(jackknife_warnings);
-    let goodness_of_fit = fo
-        .as_ref()
-        .filter(|_| estimator == Estimator::Ml)
-        .map(|f| f.goodness.clone());
     if let Some(text) = goodness_of_fit.as_ref().and_then(|g| g.headline()) {
         warnings.insert(0, text);
     }
@@ -150,6 +155,7 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
         consistency = f.consistency.clone();
     }
     all_notes.extend(notes);
+    all_notes.extend(start_notes);
     let one = [values];
     Report {
         format: RESULT_FORMAT.to_string(),
@@ -171,6 +177,24 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
         fits,
         warnings,
         consistency,
+    }
+}
+
+/// The equation-error fits' conditioning warnings: warnings when their estimate is reported or
+/// the output-error fit does not fit, notes otherwise (`ml_fits`: the output-error fit
+/// converged and fits the data; the equation-error fits were only its start, and their
+/// troubles must not drown the warnings a user acts on).
+fn start_diagnostics(conditioning: Vec<String>, ml_fits: bool) -> (Vec<String>, Vec<String>) {
+    if ml_fits {
+        let notes = conditioning
+            .into_iter()
+            .map(|w| {
+                format!("equation-error start: {w} (the output-error fit started from it fits the data)")
+            })
+            .collect();
+        (Vec::new(), notes)
+    } else {
+        (conditioning, Vec::new())
     }
 }
 
@@ -344,6 +368,18 @@ impl Judge<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn start_diagnostics_are_notes_when_the_output_error_fit_fits() {
+        let w = vec!["fit of \"a\" (stage 2): condition number ...".to_string()];
+        let (warnings, notes) = start_diagnostics(w.clone(), true);
+        assert!(warnings.is_empty());
+        assert!(
+            notes[0].starts_with("equation-error start: fit of \"a\""),
+            "{notes:?}"
+        );
+        assert_eq!(start_diagnostics(w.clone(), false), (w, Vec::new()));
+    }
 
     #[test]
     fn rejected_shots_are_one_warning_grouped_by_shots() {
