@@ -24,10 +24,9 @@ use crate::finalize::Report;
 use crate::identify::identify;
 use crate::problem::IdentError;
 use crate::settings::Settings;
-use crate::uncertainty::p_text;
+use crate::uncertainty::{chi2_tail, p_text};
 use harmonid_model::Model;
 use serde::Serialize;
-use statrs::distribution::{ChiSquared, ContinuousCDF};
 use std::collections::BTreeSet;
 
 /// One model's fit in a comparison.
@@ -186,36 +185,33 @@ pub fn compare(
             _ => {}
         }
         let k = n - g.dof;
-        fits.push((
-            ModelFit {
-                model: name.clone(),
-                unknowns: k,
-                chi2: g.chi2,
-                dof: g.dof,
-                chi2_per_dof: g.chi2_per_dof,
-                fits: g.fits,
-                p_value: g.p_value,
-                log_likelihood: -0.5 * g.chi2,
-                aic: g.chi2 + 2.0 * k as f64,
-                bic: g.chi2 + k as f64 * (n as f64).ln(),
-                delta_aic: 0.0,
-                delta_bic: 0.0,
-                result,
-            },
-            g.expected_chi2_per_dof,
-        ));
+        fits.push(ModelFit {
+            model: name.clone(),
+            unknowns: k,
+            chi2: g.chi2,
+            dof: g.dof,
+            chi2_per_dof: g.chi2_per_dof,
+            fits: g.fits,
+            p_value: g.p_value,
+            log_likelihood: -0.5 * g.chi2,
+            aic: g.chi2 + 2.0 * k as f64,
+            bic: g.chi2 + k as f64 * (n as f64).ln(),
+            delta_aic: 0.0,
+            delta_bic: 0.0,
+            result,
+        });
     }
     let n = observations.map_or(0, |o| o.1);
-    let min_aic = fits.iter().map(|f| f.0.aic).fold(f64::INFINITY, f64::min);
-    let min_bic = fits.iter().map(|f| f.0.bic).fold(f64::INFINITY, f64::min);
-    for (f, _) in &mut fits {
+    let min_aic = fits.iter().map(|f| f.aic).fold(f64::INFINITY, f64::min);
+    let min_bic = fits.iter().map(|f| f.bic).fold(f64::INFINITY, f64::min);
+    for f in &mut fits {
         f.delta_aic = f.aic - min_aic;
         f.delta_bic = f.bic - min_bic;
     }
-    let terms: Vec<BTreeSet<(String, String)>> = fits.iter().map(|f| terms(&f.0.result)).collect();
+    let terms: Vec<BTreeSet<(String, String)>> = fits.iter().map(|f| terms(&f.result)).collect();
     let mut nested = Vec::new();
-    for (i, (a, _)) in fits.iter().enumerate() {
-        for (j, (b, e0)) in fits.iter().enumerate() {
+    for (i, a) in fits.iter().enumerate() {
+        for (j, b) in fits.iter().enumerate() {
             if i != j && a.unknowns < b.unknowns && terms[i].is_subset(&terms[j]) {
                 let dk = b.unknowns - a.unknowns;
                 let d = a.chi2 - b.chi2;
@@ -224,12 +220,12 @@ pub fn compare(
                     richer: b.model.clone(),
                     delta_chi2: d,
                     delta_unknowns: dk,
-                    p_value: chi2_tail(d / e0, dk),
+                    p_value: chi2_tail(d / b.expected_chi2_per_dof(), dk as f64),
                 });
             }
         }
     }
-    let models: Vec<ModelFit> = fits.into_iter().map(|f| f.0).collect();
+    let models = fits;
     let best = (0..models.len())
         .min_by(|&a, &b| models[a].bic.total_cmp(&models[b].bic))
         .unwrap_or(0);
@@ -241,15 +237,6 @@ pub fn compare(
         best,
         verdict,
     })
-}
-
-/// `P(χ²_k ≥ x)` (1 for `x ≤ 0`).
-fn chi2_tail(x: f64, k: usize) -> f64 {
-    match ChiSquared::new(k as f64) {
-        Ok(d) if x > 0.0 => d.sf(x),
-        Ok(_) => 1.0,
-        Err(_) => f64::NAN,
-    }
 }
 
 /// Every (equation, monomial) of a result's model.
@@ -307,6 +294,16 @@ fn verdict(models: &[ModelFit], best: usize) -> String {
         ));
     }
     s
+}
+
+impl ModelFit {
+    /// A correct model's `χ²/dof` with the noise the fit used (its goodness of fit's).
+    fn expected_chi2_per_dof(&self) -> f64 {
+        self.result
+            .goodness_of_fit
+            .as_ref()
+            .map_or(1.0, |g| g.expected_chi2_per_dof)
+    }
 }
 
 impl ModelComparison {
@@ -391,8 +388,8 @@ mod tests {
     #[test]
     fn chi2_tail_and_strength() {
         // χ²₂: P(≥ x) = e^{−x/2}.
-        assert!((chi2_tail(6.0, 2) - (-3.0f64).exp()).abs() < 1e-12);
-        assert_eq!(chi2_tail(-1.0, 3), 1.0);
+        assert!((chi2_tail(6.0, 2.0) - (-3.0f64).exp()).abs() < 1e-12);
+        assert_eq!(chi2_tail(-1.0, 3.0), 1.0);
         assert_eq!(strength(12.0), "very strongly");
         assert_eq!(strength(1.0), "barely");
     }

@@ -193,16 +193,15 @@ pub(crate) fn goodness_of_fit(
 }
 
 /// The first three cumulants of one line's `t = |X̄ − X|²/s² = 2·F(2, ν)`: from the raw
-/// moments `E[tʲ] = νʲ j! / Π_{i ≤ j} (ν/2 − i)`. The mean uses `ν` where it is finite
-/// (`ν > 4`; 2, as `χ²₂`, below, like [`super::expected_reduced_chi2`]), the others
-/// `max(ν, MIN_NU)`.
+/// moments `E[tʲ] = νʲ j! / Π_{i ≤ j} (ν/2 − i)`. The mean is two real residuals'
+/// [`super::expected_per_real_dof`], the others use `max(ν, MIN_NU)`.
 fn line_cumulants(nu: f64) -> [f64; 3] {
     let raw = |nu: f64, j: i32| {
         (1..=j).fold(1.0, |acc, i| {
             acc * nu * f64::from(i) / (nu / 2.0 - f64::from(i))
         })
     };
-    let mean = if nu > 4.0 { raw(nu, 1) } else { 2.0 };
+    let mean = 2.0 * super::expected_per_real_dof(nu);
     let nu = nu.max(MIN_NU);
     let (m1, m2, m3) = (raw(nu, 1), raw(nu, 2), raw(nu, 3));
     [mean, m2 - m1 * m1, m3 - 3.0 * m1 * m2 + 2.0 * m1.powi(3)]
@@ -214,9 +213,18 @@ fn survival(t: f64, [k1, k2, k3]: [f64; 3]) -> f64 {
     let c = k3 / (4.0 * k2);
     let k = 8.0 * k2.powi(3) / (k3 * k3);
     let a = k1 - c * k;
+    if t.is_finite() && c > 0.0 {
+        chi2_tail((t - a) / c, k)
+    } else {
+        f64::NAN
+    }
+}
+
+/// `P(χ²_k ≥ x)`, 1 for `x ≤ 0` (NaN for `k` that is no degrees of freedom).
+pub(crate) fn chi2_tail(x: f64, k: f64) -> f64 {
     match ChiSquared::new(k) {
-        Ok(d) if t.is_finite() && c > 0.0 => d.sf(((t - a) / c).max(0.0)),
-        _ => f64::NAN,
+        Ok(d) => d.sf(x.max(0.0)),
+        Err(_) => f64::NAN,
     }
 }
 

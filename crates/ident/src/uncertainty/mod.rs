@@ -16,7 +16,7 @@ pub use fisher::{
     bounds_from_information, crlb, crlb_from_jacobian, information, Bound, Bounds, FisherError,
     Noise, Unidentifiable,
 };
-pub(crate) use goodness::{goodness_of_fit, p_text};
+pub(crate) use goodness::{chi2_tail, goodness_of_fit, p_text};
 pub use goodness::{GoodnessOfFit, LineResidual, MeasurementFit, P_DOES_NOT_FIT};
 pub(crate) use jackknife::jackknife;
 
@@ -37,6 +37,18 @@ pub(crate) struct AtEstimate<'a> {
     pub at_bound: &'a [usize],
 }
 
+/// `E[σ²/σ̂²] = ν/(ν − 2)` of one real residual whose noise `σ̂` is estimated with `ν` degrees
+/// of freedom (1 where `ν ≤ 4`, whose expectation is unbounded or large): a correct model's
+/// `χ²` per real degree of freedom. [`expected_reduced_chi2`] averages it, and the
+/// goodness-of-fit law takes it as its mean.
+pub(crate) fn expected_per_real_dof(nu: f64) -> f64 {
+    if nu > 4.0 {
+        nu / (nu - 2.0)
+    } else {
+        1.0
+    }
+}
+
 /// `E₀`, the expected `χ²/dof` of a correct model when every line's noise is its sample
 /// standard deviation over the kept shots (as [`crate::shots::pool`] estimates it): `σ̂²` has
 /// `ν = 2(n − 1)` degrees of freedom (real and imaginary parts of `n` shots) and is
@@ -49,8 +61,7 @@ pub(crate) fn expected_reduced_chi2(ds: &Dataset, pooled: &Pooled) -> f64 {
     let (mut sum, mut count) = (0.0, 0.0);
     for (m, &n) in ds.measurements.iter().zip(&pooled.used) {
         let obs = (m.freqs_hz.len() * m.points.len()) as f64;
-        let nu = 2.0 * (n as f64 - 1.0);
-        sum += obs * if nu > 4.0 { nu / (nu - 2.0) } else { 1.0 };
+        sum += obs * expected_per_real_dof(2.0 * (n as f64 - 1.0));
         count += obs;
     }
     if count > 0.0 {
