@@ -224,6 +224,10 @@ fn held_out_measurements_are_predicted_by_a_correct_model_only() {
         .collect();
     let e = identify_with_holdout(&truth, &ds, &all, &Settings::default()).expect_err("all");
     assert!(e.to_string().contains("every measurement"), "{e}");
+    // A name given twice is one measurement held out, not two.
+    let twice = vec!["single_q1".to_string(); 3];
+    let rep = identify_with_holdout(&truth, &ds, &twice, &Settings::default()).expect("twice");
+    assert_eq!(rep.holdout.len(), 1);
 }
 
 /// A `Q` the model fixes is reported as the model's value exactly, also when `f` is identified

@@ -65,7 +65,7 @@ pub fn identify_with_holdout(
             ds.truth.clone(),
         )?)
     };
-    if held.len() >= ds.measurements.len() {
+    if ds.measurements.iter().all(|m| held.contains(&m.spec.name)) {
         return Err(IdentError::Holdout(format!(
             "--holdout {}: that is every measurement of the dataset; hold out fewer so some are left to fit",
             held.join(",")
@@ -75,11 +75,9 @@ pub fn identify_with_holdout(
     let held_ds = split(true)?;
     let mut report = identify(model, &fit_ds, settings)?;
     let undetermined: Vec<(String, String)> = report
-        .modes
-        .iter()
-        .flat_map(|(n, m)| [(format!("f_hz:{n}"), &m.f_hz), (format!("Q:{n}"), &m.q)])
-        .chain(report.parameters.iter().map(|(p, e)| (p.clone(), e)))
-        .filter(|(_, e)| !e.identifiable && e.reason.as_deref() != Some(FIXED))
+        .estimates()
+        .into_iter()
+        .filter(|(_, e)| !e.identifiable)
         .map(|(name, e)| (name, e.reason.clone().unwrap_or_default()))
         .collect();
     if !undetermined.is_empty() {
@@ -115,9 +113,6 @@ pub fn identify_with_holdout(
     };
     Ok(report)
 }
-
-/// The reason a quantity the model fixes carries in the result.
-const FIXED: &str = crate::finalize::FIXED_BY_THE_MODEL;
 
 /// `model` with every mode's `f`, `Q` and every parameter fixed at `report`'s values.
 fn fixed_at(model: &Model, report: &Report) -> Model {

@@ -155,13 +155,14 @@ fn write_head(p: &PageInputs, s: &mut String) {
     );
     // The verdict first: values of a model that does not fit are the best it can do, not the
     // device's, and their error bars say less than they seem to.
+    let verdict = r.goodness_of_fit.as_ref().and_then(|g| g.headline());
     if let Some(g) = &r.goodness_of_fit {
-        match g.headline() {
+        match &verdict {
             Some(v) => {
                 let _ = writeln!(
                     s,
                     "<div class=\"verdict\"><strong>{}</strong></div>",
-                    esc(&v)
+                    esc(v)
                 );
             }
             None => {
@@ -187,14 +188,15 @@ fn write_head(p: &PageInputs, s: &mut String) {
         s.push_str("<a href=\"#potential\">potential</a>");
     }
     s.push_str("</nav>\n");
-    let verdict = r
-        .goodness_of_fit
-        .as_ref()
-        .and_then(|g| g.headline())
-        .unwrap_or_default();
-    if p.warnings.iter().any(|w| w.as_str() != verdict) {
+    // The verdict is the first warning too: not twice on the page.
+    let listed: Vec<&String> = p
+        .warnings
+        .iter()
+        .filter(|w| Some(*w) != verdict.as_ref())
+        .collect();
+    if !listed.is_empty() {
         s.push_str("<h2 id=\"warnings\">Warnings</h2>\n<div class=\"warn\"><ul>\n");
-        for w in p.warnings.iter().filter(|w| w.as_str() != verdict) {
+        for w in listed {
             let _ = writeln!(s, "<li>{}</li>", esc(w));
         }
         s.push_str("</ul></div>\n");

@@ -634,6 +634,17 @@ pub(crate) fn index_list(xs: &[usize]) -> String {
         .join(", ")
 }
 
+/// The first `shown` of `items`, then `"N more"` for the rest, so that a message about a
+/// stepped sweep's hundreds of measurements (or unknowns) stays readable.
+pub(crate) fn first_and_more(mut items: Vec<String>, shown: usize) -> Vec<String> {
+    if items.len() > shown {
+        let more = items.len() - shown;
+        items.truncate(shown);
+        items.push(format!("{more} more"));
+    }
+    items
+}
+
 mod csv_read;
 mod parts;
 #[cfg(test)]

@@ -9,7 +9,7 @@ mod tables;
 
 pub use result::{Estimate, FitReport, ForceResult, GainResult, ModeResult, Report, RESULT_FORMAT};
 
-use crate::dataset::{index_list, Dataset};
+use crate::dataset::{first_and_more, index_list, Dataset};
 use crate::layout::{Quantity, Unknown};
 use crate::output_error::{OutputError, OutputErrorFailure};
 use crate::problem::{Fit, Problem};
@@ -17,7 +17,7 @@ use crate::settings::{Estimator, Settings};
 use crate::shots::Pooled;
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
-pub(crate) use tables::FIXED_BY_THE_MODEL;
+use tables::FIXED_BY_THE_MODEL;
 
 /// Relative standard error above which a quantity is reported as not determined.
 pub const MAX_REL_STDERR: f64 = 0.3;
@@ -217,11 +217,7 @@ fn rejected_warning(
             let which = if names.len() == measurements && measurements > 1 {
                 format!("all {measurements} measurements")
             } else {
-                let mut s: Vec<String> = names.iter().take(5).map(|n| format!("\"{n}\"")).collect();
-                if names.len() > 5 {
-                    s.push(format!("{} more", names.len() - 5));
-                }
-                s.join(", ")
+                first_and_more(names.iter().map(|n| format!("\"{n}\"")).collect(), 5).join(", ")
             };
             format!(
                 "shot{} {} in {which}",

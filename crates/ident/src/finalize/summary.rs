@@ -6,16 +6,23 @@ use crate::settings::Estimator;
 use std::fmt::Write as _;
 
 impl Report {
-    /// Every shot's estimates as CSV: `shot`, `f_hz:<mode>`, `Q:<mode>`, parameters, `outlier`.
-    pub fn per_shot_csv(&self) -> String {
-        let mut cols: Vec<(String, &Estimate)> = Vec::new();
+    /// Every estimate with its key, in the result's order: `f_hz:<mode>` and `Q:<mode>` per
+    /// mode, then the parameters by name.
+    pub fn estimates(&self) -> Vec<(String, &Estimate)> {
+        let mut out: Vec<(String, &Estimate)> = Vec::new();
         for (n, m) in &self.modes {
-            cols.push((format!("f_hz:{n}"), &m.f_hz));
-            cols.push((format!("Q:{n}"), &m.q));
+            out.push((format!("f_hz:{n}"), &m.f_hz));
+            out.push((format!("Q:{n}"), &m.q));
         }
         for (p, e) in &self.parameters {
-            cols.push((p.clone(), e));
+            out.push((p.clone(), e));
         }
+        out
+    }
+
+    /// Every shot's estimates as CSV: `shot`, `f_hz:<mode>`, `Q:<mode>`, parameters, `outlier`.
+    pub fn per_shot_csv(&self) -> String {
+        let cols = self.estimates();
         let mut s = String::from("shot");
         for (c, _) in &cols {
             s.push(',');

@@ -47,7 +47,7 @@ pub(super) fn estimate(per_shot: Vec<f64>, single_var: f64) -> Estimate {
 }
 
 /// The reason of a quantity the model fixes.
-pub(crate) const FIXED_BY_THE_MODEL: &str = "fixed by the model";
+pub(super) const FIXED_BY_THE_MODEL: &str = "fixed by the model";
 
 fn mark_fixed(e: &mut Estimate) {
     e.std = 0.0;

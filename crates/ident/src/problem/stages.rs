@@ -1,7 +1,7 @@
 //! Stages: which measurements determine which unknowns, fitted in which order.
 
 use super::{IdentError, Problem, Unknown};
-use crate::dataset::Dataset;
+use crate::dataset::{first_and_more, Dataset};
 use crate::solve::solve_ls;
 use nalgebra::{DMatrix, DVector};
 
@@ -114,11 +114,8 @@ impl Problem {
                     let (a, _, _) = self.assemble(&shot0, &measurements, &unknowns, &values, None);
                     let rows = a.nrows();
                     if rows < unknowns.len() {
-                        let mut names: Vec<String> =
-                            unknowns.iter().take(8).map(|&u| self.label(u)).collect();
-                        if unknowns.len() > 8 {
-                            names.push(format!("{} more", unknowns.len() - 8));
-                        }
+                        let names =
+                            first_and_more(unknowns.iter().map(|&u| self.label(u)).collect(), 8);
                         return Err(IdentError::TooFewFrequencies {
                             file: self.manifest_path.clone(),
                             what: measurement_list(ds, &measurements),
@@ -225,15 +222,14 @@ impl Problem {
 /// The measurements `ms` for a message: `measurement "a" + "b"`, at most
 /// [`NAMES_SHOWN`] names and then how many more (a stepped sweep fits hundreds together).
 pub(super) fn measurement_list(ds: &Dataset, ms: &[usize]) -> String {
-    let mut names: Vec<String> = ms
+    let names = ms
         .iter()
-        .take(NAMES_SHOWN)
         .map(|&m| format!("\"{}\"", ds.measurements[m].spec.name))
         .collect();
-    if ms.len() > NAMES_SHOWN {
-        names.push(format!("{} more", ms.len() - NAMES_SHOWN));
-    }
-    format!("measurement {}", names.join(" + "))
+    format!(
+        "measurement {}",
+        first_and_more(names, NAMES_SHOWN).join(" + ")
+    )
 }
 
 /// At most this many measurement names are quoted in one message.
