@@ -25,32 +25,26 @@
 
 mod error;
 mod excitation;
-mod hb;
 mod lattice;
 mod linalg;
 mod noise;
 mod numeric;
 pub mod sensitivity;
-mod sweep;
-mod sweep_two_tone;
+mod steady;
+
 mod time_domain;
 
 pub use error::SimError;
 pub use excitation::{common_grid, linear_response, Excitation};
-pub use hb::{
-    check_stability, convergence_report, steady_state, ConvergenceReport, HbSettings, HbSolver,
-    HbStatus, Stability, SteadyState, MAX_MODES,
-};
 pub use lattice::{choose_lattice, measured_lines, LatticeSettings, LINE_TOL_HZ};
 pub use noise::{lockin_noise_sigma, NoiseGen};
 pub use numeric::{parse_monomial, ModeValues, ModelValues, NumericModel, Term};
 pub use sensitivity::{Observation, SensParam, Sensitivity};
-pub use sweep::{
-    backbone, sweep, Fold, SweepPoint, SweepResult, SweepSettings, MAX_SWEEP_HARMONICS,
-    MAX_SWEEP_HZ, MAX_SWEEP_POINTS,
-};
-pub use sweep_two_tone::{
-    sweep_two_tone, ModeLine, TwoToneCurve, TwoToneJump, TwoTonePoint, TwoToneSettings,
-    TwoToneStatus, TwoToneSweep,
+pub use steady::{
+    backbone, check_stability, convergence_report, steady_state, sweep, sweep_two_tone,
+    ConvergenceReport, Fold, HbSettings, HbSolver, HbStatus, ModeLine, Stability, SteadyState,
+    SweepPoint, SweepResult, SweepSettings, TwoToneCurve, TwoToneJump, TwoTonePoint,
+    TwoToneSettings, TwoToneStatus, TwoToneSweep, MAX_MODES, MAX_SWEEP_HARMONICS, MAX_SWEEP_HZ,
+    MAX_SWEEP_POINTS,
 };
 pub use time_domain::{simulate_lockin, LockinResult, Start, TdSettings};

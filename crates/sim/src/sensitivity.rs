@@ -23,9 +23,9 @@
 //! monomial on the lattice. The outputs are the complex amplitudes of the measured signal
 //! `x = Σ_n shape_n q_n` at chosen lattice lines, so a line two modes contribute to is exact.
 
-use crate::hb::{HbSolver, SteadyState};
 use crate::lattice::LINE_TOL_HZ;
 use crate::linalg::ColumnScratch;
+use crate::steady::{HbSolver, SteadyState};
 use crate::SimError;
 use harmonid_poly::PowerProduct;
 use harmonid_spectral::{SystemPlan, SystemScratch};

@@ -16,6 +16,7 @@
 //! minimum step a jump is recorded and the solver lands on the state Newton reached, or, when
 //! Newton failed, on the state a fresh drive ramp reaches at that centre.
 
+use super::Step;
 use crate::lattice::{enumerate, LINE_TOL_HZ};
 use crate::{Excitation, HbSettings, HbSolver, NumericModel, SimError, SteadyState};
 use num_complex::Complex64;
@@ -358,38 +359,19 @@ impl Problem<'_> {
         }
     }
 
+    /// One direction of the sweep: [`CentreSteps`] from one end of the range to the other.
     fn sweep(&self, up: bool) -> Result<TwoToneCurve, SimError> {
-        let set = self.set;
-        let (lo, hi) = (
-            set.c_start_hz.min(set.c_end_hz),
-            set.c_start_hz.max(set.c_end_hz),
-        );
-        let points = set.points.max(1);
-        let h0 = (hi - lo) / points as f64;
-        let h_min = h0 * set.min_step_rel;
-        let sign = if up { 1.0 } else { -1.0 };
-        let c_first = if up { lo } else { hi };
-        let grid = |i: usize| {
-            if i >= points {
-                if up {
-                    hi
-                } else {
-                    lo
-                }
-            } else {
-                c_first + sign * h0 * i as f64
-            }
-        };
         let mut curve = TwoToneCurve {
             up,
             points: Vec::new(),
             jumps: Vec::new(),
             status: TwoToneStatus::Complete,
         };
-        let first = self.solve(c_first, None)?;
+        let mut steps = CentreSteps::new(self.set, up);
+        let first = self.solve(steps.c, None)?;
         if !first.converged {
             curve.status = TwoToneStatus::Stopped {
-                at_hz: c_first,
+                at_hz: steps.c,
                 why: format!(
                     "the drive ramp did not converge at the start (residual {:.2e}); try a smaller force or a wider lattice",
                     first.residual
@@ -397,81 +379,172 @@ impl Problem<'_> {
             };
             return Ok(curve);
         }
-        curve.points.push(self.point(c_first, &first));
-        let mut c = c_first;
-        let mut prev: Option<(f64, Vec<Vec<Complex64>>)> = None;
-        let mut cur = first.x;
-        let mut next = 1usize;
-        let mut h = h0;
-        let tol_c = 1e-12 * hi.abs().max(1.0);
-        while next <= points && h0 > 0.0 {
-            let target = grid(next);
+        curve.points.push(self.point(steps.c, &first));
+        steps.cur = first.x;
+        loop {
+            let (step, point) = steps.step(self)?;
+            match step {
+                Step::Reached => return Ok(curve),
+                Step::Advanced => {}
+                Step::Jump { at } => curve.jumps.push(TwoToneJump {
+                    from_hz: at,
+                    to_hz: steps.c,
+                    index: curve.points.len(),
+                    rel_change: steps.jump_change,
+                }),
+                Step::Stuck | Step::Fold { .. } => {
+                    curve.status = TwoToneStatus::Stopped {
+                        at_hz: steps.c_failed,
+                        why: format!(
+                            "continuation failed and neither a fresh drive ramp nor Newton from scaled states converged (residual {:.2e}); try a smaller force, a wider lattice (order, window) or more points",
+                            steps.residual_failed
+                        ),
+                    };
+                    return Ok(curve);
+                }
+            }
+            curve.points.extend(point);
+        }
+    }
+}
+
+/// Natural-parameter continuation in the centre frequency (see the module docs): the grid
+/// of centres every direction visits, the step between them, and the branch's last states.
+struct CentreSteps {
+    up: bool,
+    lo: f64,
+    hi: f64,
+    /// Grid intervals, the grid spacing `h₀` and the smallest step.
+    points: usize,
+    h0: f64,
+    h_min: f64,
+    /// Centres closer than this are the same.
+    tol_c: f64,
+    /// The current centre, the next grid index, the step.
+    c: f64,
+    next: usize,
+    h: f64,
+    /// The state at `c` (line order) and the previous one on the same branch, for the secant.
+    cur: Vec<Vec<Complex64>>,
+    prev: Option<(f64, Vec<Vec<Complex64>>)>,
+    /// After a [`Step::Jump`]: the relative change of the state.
+    jump_change: f64,
+    /// After a [`Step::Stuck`]: where, and the residual of the best attempt.
+    c_failed: f64,
+    residual_failed: f64,
+}
+
+impl CentreSteps {
+    fn new(set: &TwoToneSettings, up: bool) -> Self {
+        let (lo, hi) = (
+            set.c_start_hz.min(set.c_end_hz),
+            set.c_start_hz.max(set.c_end_hz),
+        );
+        let points = set.points.max(1);
+        let h0 = (hi - lo) / points as f64;
+        Self {
+            up,
+            lo,
+            hi,
+            points,
+            h0,
+            h_min: h0 * set.min_step_rel,
+            tol_c: 1e-12 * hi.abs().max(1.0),
+            c: if up { lo } else { hi },
+            next: 1,
+            h: h0,
+            cur: Vec::new(),
+            prev: None,
+            jump_change: 0.0,
+            c_failed: f64::NAN,
+            residual_failed: f64::NAN,
+        }
+    }
+
+    /// Centre of grid point `i`.
+    fn grid(&self, i: usize) -> f64 {
+        match (i >= self.points, self.up) {
+            (true, true) => self.hi,
+            (true, false) => self.lo,
+            (false, true) => self.lo + self.h0 * i as f64,
+            (false, false) => self.hi - self.h0 * i as f64,
+        }
+    }
+
+    /// One step towards the next grid centre, halved (down to the minimum step) while Newton
+    /// fails or the state changes by more than `max_rel_change`; at the minimum step the state
+    /// lands ([`Problem::land`]): [`Step::Jump`] when it changed that much, else
+    /// [`Step::Advanced`]; [`Step::Stuck`] when nothing converged. The point reached comes
+    /// with the step. [`Step::Reached`] past the last grid centre.
+    fn step(&mut self, p: &Problem) -> Result<(Step, Option<TwoTonePoint>), SimError> {
+        let set = p.set;
+        let sign = if self.up { 1.0 } else { -1.0 };
+        loop {
+            if self.next > self.points || self.h0 <= 0.0 {
+                return Ok((Step::Reached, None));
+            }
+            let c = self.c;
+            let target = self.grid(self.next);
             let dist = (target - c).abs();
-            let h_eff = h.min(dist);
-            let c_new = if h_eff >= dist - tol_c {
+            let h_eff = self.h.min(dist);
+            let c_new = if h_eff >= dist - self.tol_c {
                 target
             } else {
                 c + sign * h_eff
             };
             // Secant predictor from the previous point on the same branch.
-            let guess: Vec<Vec<Complex64>> = match &prev {
+            let guess: Vec<Vec<Complex64>> = match &self.prev {
                 Some((cp, xp)) if (c - cp).abs() > 0.0 => {
                     let t = (c_new - c) / (c - cp);
-                    cur.iter()
+                    self.cur
+                        .iter()
                         .zip(xp)
                         .map(|(a, b)| a.iter().zip(b).map(|(a, b)| a + (a - b) * t).collect())
                         .collect()
                 }
-                _ => cur.clone(),
+                _ => self.cur.clone(),
             };
-            let s = self.solve(c_new, Some(&guess))?;
-            let change = rel_change(&cur, &s.x);
+            let s = p.solve(c_new, Some(&guess))?;
+            let change = rel_change(&self.cur, &s.x);
             let accept = s.converged && change <= set.max_rel_change;
-            if !accept && h_eff > h_min * 1.000001 {
-                h = (h_eff * 0.5).max(h_min);
+            if !accept && h_eff > self.h_min * 1.000001 {
+                self.h = (h_eff * 0.5).max(self.h_min);
                 continue;
             }
-            let landed = if accept {
-                s
-            } else {
-                // At the minimum step: a jump.
-                let land = self.land(c_new, &cur, s)?;
-                if !land.converged {
-                    curve.status = TwoToneStatus::Stopped {
-                        at_hz: c_new,
-                        why: format!(
-                            "continuation failed and neither a fresh drive ramp nor Newton from scaled states converged (residual {:.2e}); try a smaller force, a wider lattice (order, window) or more points",
-                            land.residual
-                        ),
-                    };
-                    return Ok(curve);
-                }
-                let ch = rel_change(&cur, &land.x);
-                if ch > set.max_rel_change {
-                    curve.jumps.push(TwoToneJump {
-                        from_hz: c,
-                        to_hz: c_new,
-                        index: curve.points.len(),
-                        rel_change: ch,
-                    });
-                    prev = None;
-                }
-                h = h0;
-                land
-            };
-            curve.points.push(self.point(c_new, &landed));
-            if accept {
-                prev = Some((c, std::mem::replace(&mut cur, landed.x)));
-                h = (h * 2.0).min(h0);
-            } else {
-                cur = landed.x;
-            }
-            c = c_new;
             if c_new == target {
-                next += 1;
+                self.next += 1;
             }
+            if accept {
+                let point = p.point(c_new, &s);
+                self.prev = Some((c, std::mem::replace(&mut self.cur, s.x)));
+                self.h = (self.h * 2.0).min(self.h0);
+                self.c = c_new;
+                return Ok((Step::Advanced, Some(point)));
+            }
+            // At the minimum step: the state lands where the slow flow takes it.
+            let land = p.land(c_new, &self.cur, s)?;
+            if !land.converged {
+                self.c_failed = c_new;
+                self.residual_failed = land.residual;
+                return Ok((Step::Stuck, None));
+            }
+            let ch = rel_change(&self.cur, &land.x);
+            let jumped = ch > set.max_rel_change;
+            if jumped {
+                self.jump_change = ch;
+                self.prev = None;
+            }
+            self.h = self.h0;
+            let point = p.point(c_new, &land);
+            self.cur = land.x;
+            self.c = c_new;
+            let step = if jumped {
+                Step::Jump { at: c }
+            } else {
+                Step::Advanced
+            };
+            return Ok((step, Some(point)));
         }
-        Ok(curve)
     }
 }
 

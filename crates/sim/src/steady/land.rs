@@ -1,0 +1,67 @@
+//! Landing beyond a fold: the slow flow integrated until it settles on a steady state.
+
+use super::HbSolver;
+use num_complex::Complex64;
+use std::f64::consts::TAU;
+
+/// Most pseudo-time steps of a landing.
+const LAND_MAX_STEPS: usize = 400;
+
+impl HbSolver {
+    /// Lands at drive fraction `s` from the current state (beyond a fold, off any branch) the
+    /// way the resonator does: the slow flow `(2iΩ_r + γ_n) Ẋ = −R(X)` (see
+    /// [`HbSolver::stability`]) integrated by linearly implicit Euler,
+    /// `(C/Δt + J) ΔX = −R`, from `Δt` a tenth of the fastest decay time, growing as the
+    /// residual falls (switched evolution relaxation) until it is Newton. Small steps first
+    /// keep the trajectory, so the state ends in the basin the physical transient reaches.
+    /// Returns whether the residual met `tol`.
+    pub(super) fn land(&mut self, s: f64, tol: f64) -> bool {
+        let nm = self.model.n_modes();
+        let nr = self.lattice.len();
+        let nu = self.unknowns();
+        let g_max = (0..nm).map(|n| self.model.gamma(n)).fold(0.0, f64::max);
+        let mut dt = 0.1 * 2.0 / g_max;
+        let mut r0 = self.residual(false, s);
+        for _ in 0..LAND_MAX_STEPS {
+            if r0 <= tol {
+                self.have_lu = false;
+                return true;
+            }
+            self.assemble_jacobian();
+            for n in 0..nm {
+                let g = self.model.gamma(n);
+                for (r, &f) in self.lattice.iter().enumerate() {
+                    let c = Complex64::new(g, 2.0 * TAU * f) / dt;
+                    let k = 2 * (n * nr + r);
+                    self.jac[k * nu + k] += c.re;
+                    self.jac[k * nu + k + 1] -= c.im;
+                    self.jac[(k + 1) * nu + k] += c.im;
+                    self.jac[(k + 1) * nu + k + 1] += c.re;
+                }
+            }
+            if !self.lu.factor(&self.jac) {
+                dt *= 0.25;
+                continue;
+            }
+            for i in 0..nu / 2 {
+                self.step[2 * i] = -self.res[i].re;
+                self.step[2 * i + 1] = -self.res[i].im;
+            }
+            self.lu.solve(&mut self.step);
+            for i in 0..nu / 2 {
+                self.x_try[i] = self.x[i] + Complex64::new(self.step[2 * i], self.step[2 * i + 1]);
+            }
+            let r1 = self.residual(true, s);
+            if r1.is_finite() {
+                std::mem::swap(&mut self.x, &mut self.x_try);
+                dt *= (r0 / r1).clamp(1.0, 2.0);
+                r0 = r1;
+            } else {
+                self.residual(false, s);
+                dt *= 0.25;
+            }
+        }
+        self.have_lu = false;
+        false
+    }
+}

@@ -1,0 +1,428 @@
+//! The problem on one lattice: set-up, residual and analytic Jacobian, and the state returned.
+
+use super::ramp::{RAMP_MAX_TONES, RAMP_MIN_SAVING, RAMP_ORDER};
+use super::{HbSettings, HbStatus, SteadyState, Z};
+use crate::lattice::{choose_lattice, low_order_lines, LatticeSettings, LINE_TOL_HZ};
+use crate::linalg::DenseLu;
+use crate::{Excitation, NumericModel, SimError};
+use harmonid_poly::PowerProduct;
+use harmonid_spectral::{ProductPlan, SystemPlan, SystemScratch};
+use num_complex::Complex64;
+use std::f64::consts::TAU;
+
+/// Most modes a harmonic-balance problem handles (fixed-size slice tables, no allocation).
+pub const MAX_MODES: usize = 32;
+
+/// A harmonic-balance problem on a fixed lattice, with every table and buffer allocated once;
+/// [`HbSolver::solve`] can then run many times (drive levels, noise studies) without allocating.
+#[derive(Debug, Clone)]
+pub struct HbSolver {
+    pub(super) model: NumericModel,
+    pub(super) lattice: Vec<f64>,
+    /// The nonlinear forces of all equations, sharing partial products.
+    pub(super) system: SystemPlan,
+    pub(super) scratch: SystemScratch,
+    /// `lin[n*R + r] = ω_n² − Ω_r² + iΩ_r γ_n`.
+    pub(super) lin: Vec<Complex64>,
+    /// Full-drive forces on the lattice, `[n*R + r]`.
+    pub(super) force: Vec<Complex64>,
+    pub(super) force_max: f64,
+    // Buffers.
+    pub(super) x: Vec<Complex64>,
+    pub(super) res: Vec<Complex64>,
+    pub(super) out: Vec<Complex64>,
+    pub(super) jre: Vec<Complex64>,
+    pub(super) jim: Vec<Complex64>,
+    pub(super) jac: Vec<f64>,
+    pub(super) lu: DenseLu,
+    /// `[e·N + v]`: the Jacobian's block of equation `e`, mode `v` is not zero (assembly).
+    pub(super) coupled: Vec<bool>,
+    pub(super) step: Vec<f64>,
+    pub(super) x_try: Vec<Complex64>,
+    /// `lu` holds a factorised Jacobian (of some earlier state).
+    pub(super) have_lu: bool,
+    /// The factorised Jacobian is that of the current `x`.
+    pub(super) fresh: bool,
+    /// The same problem on the lines of intermodulation order ≤ [`RAMP_ORDER`], where the drive
+    /// ramp runs, and the index of each of its lines in `lattice`.
+    pub(super) coarse: Option<(Box<HbSolver>, Vec<usize>)>,
+}
+
+/// What the values of a problem (coefficients, `f`, `Q`, forces) set on a planned lattice.
+struct Operators {
+    system: SystemPlan,
+    lin: Vec<Complex64>,
+    force: Vec<Complex64>,
+    force_max: f64,
+}
+
+impl Operators {
+    fn new(
+        model: &NumericModel,
+        drive: &Excitation,
+        lattice: &[f64],
+        plan: ProductPlan,
+    ) -> Result<Self, SimError> {
+        let nm = model.n_modes();
+        let nr = lattice.len();
+        let terms: Vec<_> = model
+            .terms()
+            .iter()
+            .map(|t| {
+                let mut e = vec![0u32; nm];
+                for &(m, k) in &t.factors {
+                    e[m] += k;
+                }
+                (t.eq, PowerProduct::from_exponents(&e), t.coef)
+            })
+            .collect();
+        let system = SystemPlan::new(plan, nm, nm, &terms)?;
+        let mut lin = vec![Z; nm * nr];
+        for n in 0..nm {
+            let (w, g) = (model.omega(n), model.gamma(n));
+            for (r, &f) in lattice.iter().enumerate() {
+                let o = TAU * f;
+                lin[n * nr + r] = Complex64::new(w * w - o * o, o * g);
+            }
+        }
+        let mut force = vec![Z; nm * nr];
+        for (d, &f) in drive.tones_hz.iter().enumerate() {
+            let i = lattice.partition_point(|&x| x < f - LINE_TOL_HZ);
+            if lattice.get(i).is_none_or(|&x| (x - f).abs() > LINE_TOL_HZ) {
+                return Err(SimError::NotOnLattice { hz: f });
+            }
+            for n in 0..nm {
+                force[n * nr + i] += drive.force[n][d];
+            }
+        }
+        let force_max = force.iter().map(|z| z.norm()).fold(0.0, f64::max);
+        Ok(Self {
+            system,
+            lin,
+            force,
+            force_max,
+        })
+    }
+}
+
+impl HbSolver {
+    /// Sets the problem up: lattice from `settings.lattice`, product plan, linear operators and
+    /// forces. Errors: bad drive shapes, too many modes, a lattice too large for the plan.
+    pub fn new(
+        model: &NumericModel,
+        drive: &Excitation,
+        settings: &LatticeSettings,
+    ) -> Result<Self, SimError> {
+        let lattice = choose_lattice(model, drive, settings)?;
+        Self::with_lattice(model, drive, lattice)
+    }
+
+    /// As [`HbSolver::new`] with a given lattice (sorted distinct frequencies ≥ 0, Hz, holding
+    /// every drive tone; a 0 Hz line is the static offset).
+    pub fn with_lattice(
+        model: &NumericModel,
+        drive: &Excitation,
+        lattice: Vec<f64>,
+    ) -> Result<Self, SimError> {
+        let mut solver = Self::single(model, drive, lattice)?;
+        if drive.tones_hz.len() <= RAMP_MAX_TONES {
+            let lines = low_order_lines(drive, &solver.lattice, RAMP_ORDER);
+            let nr = solver.lattice.len();
+            if (lines.len() as f64) <= (1.0 - RAMP_MIN_SAVING) * nr as f64 {
+                let sub = lines.iter().map(|&i| solver.lattice[i]).collect();
+                let coarse = Self::single(model, drive, sub)?;
+                solver.coarse = Some((Box::new(coarse), lines));
+            }
+        }
+        Ok(solver)
+    }
+
+    /// Sets new values of the same problem: `model` with the terms (equations and factors) of
+    /// the set-up's, other coefficients, `f` and `Q`, and `drive` with the same tones and other
+    /// forces. Keeps the lattice, its product plan and every buffer, so that a caller that
+    /// re-solves one experiment at many parameter values (a fit, a planner) does not plan the
+    /// lattice again. The next solve starts from the state given to it; a factorised Jacobian
+    /// is kept only for [`HbSolver::solve_continued`]. Errors: another number of modes, other terms, other tones.
+    pub fn set_values(&mut self, model: &NumericModel, drive: &Excitation) -> Result<(), SimError> {
+        let nm = model.n_modes();
+        let same_terms = nm == self.model.n_modes()
+            && model.terms().len() == self.model.terms().len()
+            && model
+                .terms()
+                .iter()
+                .zip(self.model.terms())
+                .all(|(a, b)| a.eq == b.eq && a.factors == b.factors);
+        if !same_terms {
+            return Err(SimError::SetUpFor { what: "set_values" });
+        }
+        drive.check(nm)?;
+        let ops = Operators::new(model, drive, &self.lattice, self.system.plan().clone())?;
+        self.model = model.clone();
+        self.scratch = ops.system.scratch();
+        self.system = ops.system;
+        self.lin = ops.lin;
+        self.force = ops.force;
+        self.force_max = ops.force_max;
+        // A factorised Jacobian stays for [`HbSolver::solve_continued`] (chord steps check
+        // that it still contracts); it is no longer that of the current state.
+        self.fresh = false;
+        if let Some((coarse, _)) = self.coarse.as_mut() {
+            coarse.set_values(model, drive)?;
+        }
+        Ok(())
+    }
+
+    /// The solver on exactly `lattice`, without a coarse ramp lattice.
+    pub(super) fn single(
+        model: &NumericModel,
+        drive: &Excitation,
+        lattice: Vec<f64>,
+    ) -> Result<Self, SimError> {
+        let nm = model.n_modes();
+        drive.check(nm)?;
+        if nm > MAX_MODES {
+            return Err(SimError::TooLarge {
+                what: "modes",
+                count: nm,
+                limit: MAX_MODES,
+                help: "split the model or keep the modes the measurement sees",
+            });
+        }
+        let mut degrees: Vec<usize> = model.terms().iter().map(|t| t.degree() as usize).collect();
+        degrees.sort_unstable();
+        degrees.dedup();
+        let plan = ProductPlan::for_degrees(&lattice, &lattice, &degrees)?;
+        let nr = lattice.len();
+        let ops = Operators::new(model, drive, &lattice, plan)?;
+        let nu = 2 * nm * nr;
+        Ok(Self {
+            model: model.clone(),
+            scratch: ops.system.scratch(),
+            system: ops.system,
+            lin: ops.lin,
+            force: ops.force,
+            force_max: ops.force_max,
+            x: vec![Z; nm * nr],
+            res: vec![Z; nm * nr],
+            out: vec![Z; nm * nr],
+            jre: vec![Z; nr * nr],
+            jim: vec![Z; nr * nr],
+            jac: vec![0.0; nu * nu],
+            // A mode's lines are one group: modes the state does not couple factorise apart.
+            lu: DenseLu::with_blocks(nu, 2 * nr),
+            coupled: vec![true; nm * nm],
+            step: vec![0.0; nu],
+            x_try: vec![Z; nm * nr],
+            have_lu: false,
+            fresh: false,
+            coarse: None,
+            lattice,
+        })
+    }
+
+    /// The lattice, Hz.
+    pub fn lattice(&self) -> &[f64] {
+        &self.lattice
+    }
+
+    /// Number of real unknowns.
+    pub fn unknowns(&self) -> usize {
+        2 * self.x.len()
+    }
+
+    /// Residual at `x` with drive fraction `s` into `res`; returns `max |R| / max |s F|`.
+    pub(super) fn residual(&mut self, use_try: bool, s: f64) -> f64 {
+        let nm = self.model.n_modes();
+        let nr = self.lattice.len();
+        let x = if use_try { &self.x_try } else { &self.x };
+        let mut refs: [&[Complex64]; MAX_MODES] = [&[]; MAX_MODES];
+        for n in 0..nm {
+            refs[n] = &x[n * nr..(n + 1) * nr];
+        }
+        self.system
+            .forces(&refs[..nm], &mut self.out, &mut self.scratch);
+        for i in 0..nm * nr {
+            self.res[i] = self.lin[i] * x[i] - self.force[i] * s + self.out[i];
+        }
+        let fm = (self.force_max * s).max(f64::MIN_POSITIVE);
+        let mut m: f64 = 0.0;
+        for r in &self.res {
+            let a = r.norm();
+            if !a.is_finite() {
+                return f64::INFINITY;
+            }
+            m = m.max(a);
+        }
+        m / fm
+    }
+
+    /// Assembles the real Jacobian at `self.x` and factorises it. `false` when singular.
+    pub(super) fn jacobian(&mut self) -> bool {
+        self.assemble_jacobian();
+        self.lu.factor_coupled(&self.jac, &self.coupled)
+    }
+
+    /// Assembles the real Jacobian `∂(Re R, Im R)/∂(Re X, Im X)` at `self.x` into `self.jac`
+    /// (row-major, unknowns interleaved re/im).
+    pub(super) fn assemble_jacobian(&mut self) {
+        let nm = self.model.n_modes();
+        let nr = self.lattice.len();
+        let nu = 2 * nm * nr;
+        self.jac.iter_mut().for_each(|v| *v = 0.0);
+        for i in 0..nm * nr {
+            let l = self.lin[i];
+            self.jac[(2 * i) * nu + 2 * i] = l.re;
+            self.jac[(2 * i) * nu + 2 * i + 1] = -l.im;
+            self.jac[(2 * i + 1) * nu + 2 * i] = l.im;
+            self.jac[(2 * i + 1) * nu + 2 * i + 1] = l.re;
+        }
+        let mut refs: [&[Complex64]; MAX_MODES] = [&[]; MAX_MODES];
+        for n in 0..nm {
+            refs[n] = &self.x[n * nr..(n + 1) * nr];
+        }
+        let jac = &mut self.jac;
+        let coupled = &mut self.coupled;
+        for (i, c) in coupled.iter_mut().enumerate() {
+            *c = i / nm == i % nm;
+        }
+        self.system.jacobian(
+            &refs[..nm],
+            &mut self.jre,
+            &mut self.jim,
+            &mut self.scratch,
+            |eq, j, jre, jim| {
+                // A zero block (a factor of the derivative vanishes in this state: an undriven
+                // mode) is skipped and leaves the modes uncoupled for the factorisation.
+                if jre.iter().chain(jim).all(|z| *z == Z) {
+                    return;
+                }
+                coupled[eq * nm + j] = true;
+                for o in 0..nr {
+                    let row0 = 2 * (eq * nr + o);
+                    let (top, bottom) = jac[row0 * nu..(row0 + 2) * nu].split_at_mut(nu);
+                    for r in 0..nr {
+                        let col0 = 2 * (j * nr + r);
+                        let (a, c) = (jre[o * nr + r], jim[o * nr + r]);
+                        top[col0] += a.re;
+                        bottom[col0] += a.im;
+                        top[col0 + 1] += c.re;
+                        bottom[col0 + 1] += c.im;
+                    }
+                }
+            },
+        );
+    }
+
+    /// Copies `state` (solved on this lattice) into the current amplitudes.
+    pub(super) fn load_state(&mut self, state: &SteadyState) -> Result<(), SimError> {
+        let nm = self.model.n_modes();
+        let nr = self.lattice.len();
+        if state.amplitudes.len() != nm
+            || state.amplitudes.iter().any(|row| row.len() != nr)
+            || state.lattice_hz.len() != nr
+            || state
+                .lattice_hz
+                .iter()
+                .zip(&self.lattice)
+                .any(|(a, b)| (a - b).abs() > LINE_TOL_HZ)
+        {
+            return Err(SimError::OtherLattice);
+        }
+        for n in 0..nm {
+            self.x[n * nr..(n + 1) * nr].copy_from_slice(&state.amplitudes[n]);
+        }
+        Ok(())
+    }
+
+    /// Loads `state` and factorises the Jacobian `∂(Re R, Im R)/∂(Re X, Im X)` there (unknowns
+    /// interleaved re/im, `[n·R + r]` order), for [`HbSolver::solve_factored_columns`]. Errors: a
+    /// state of another lattice, a singular Jacobian (a fold or bifurcation point).
+    pub(crate) fn factor_at(&mut self, state: &SteadyState) -> Result<(), SimError> {
+        self.load_state(state)?;
+        self.have_lu = false;
+        if !self.jacobian() {
+            return Err(SimError::SingularJacobian);
+        }
+        self.have_lu = true;
+        self.fresh = true;
+        Ok(())
+    }
+
+    /// Scratch for [`HbSolver::solve_factored_columns`] with `k` right-hand sides.
+    pub(crate) fn columns_scratch(&self, k: usize) -> crate::linalg::ColumnScratch {
+        self.lu.columns_scratch(k)
+    }
+
+    /// Solves `J Y = B` in place for every column of `b` with the Jacobian factorised by
+    /// [`HbSolver::factor_at`] (one blocked solve).
+    pub(crate) fn solve_factored_columns(
+        &self,
+        b: faer::MatMut<'_, f64>,
+        buf: &mut crate::linalg::ColumnScratch,
+    ) {
+        self.lu.solve_columns(b, buf);
+    }
+
+    /// The numeric model being solved.
+    pub fn model(&self) -> &NumericModel {
+        &self.model
+    }
+
+    /// The product plan of the lattice (input = output = the lattice).
+    pub(crate) fn product_plan(&self) -> &ProductPlan {
+        self.system.plan()
+    }
+
+    pub(super) fn finish(
+        &mut self,
+        status: HbStatus,
+        residual: f64,
+        steps: usize,
+        zero: bool,
+        drive_jumps: Vec<f64>,
+    ) -> SteadyState {
+        let nm = self.model.n_modes();
+        let nr = self.lattice.len();
+        let lattice = &self.lattice;
+        let amplitudes = (0..nm)
+            .map(|n| {
+                self.x[n * nr..(n + 1) * nr]
+                    .iter()
+                    .zip(lattice)
+                    .map(|(&z, &f)| {
+                        if zero || !(z.re.is_finite() && z.im.is_finite()) {
+                            Z
+                        } else if f <= LINE_TOL_HZ {
+                            // The static offset is real.
+                            Complex64::new(z.re, 0.0)
+                        } else {
+                            z
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        SteadyState {
+            lattice_hz: self.lattice.clone(),
+            amplitudes,
+            status,
+            residual: if residual.is_finite() {
+                residual
+            } else {
+                f64::MAX
+            },
+            ramp_steps: steps,
+            drive_jumps,
+        }
+    }
+}
+
+/// Solves the steady state under `drive` with the lattice chosen by `settings.lattice`.
+pub fn steady_state(
+    model: &NumericModel,
+    drive: &Excitation,
+    settings: &HbSettings,
+) -> Result<SteadyState, SimError> {
+    let mut solver = HbSolver::new(model, drive, &settings.lattice)?;
+    Ok(solver.solve(settings))
+}

@@ -1,0 +1,284 @@
+use super::*;
+use crate::{linear_response, Excitation, NumericModel, Term};
+use num_complex::Complex64;
+use std::f64::consts::TAU;
+
+fn duffing(beta: f64) -> NumericModel {
+    NumericModel::new(
+        vec!["q".into()],
+        vec![1000.0],
+        vec![100.0],
+        vec![Term {
+            eq: 0,
+            coef: beta,
+            factors: vec![(0, 3)],
+        }],
+    )
+    .expect("model")
+}
+
+#[test]
+fn status_reads_as_words() {
+    let s = HbStatus::NotConverged {
+        drive_fraction: 0.8996,
+    };
+    assert_eq!(s.to_string(), "stopped at 90.0 % of the drive");
+    assert!(!s.to_string().contains('{'));
+}
+
+#[test]
+fn vanishing_drive_is_linear_frf() {
+    let m = duffing(1e12);
+    let drive = Excitation {
+        tones_hz: vec![995.0, 1005.0],
+        force: vec![vec![Complex64::new(1e-6, 0.0), Complex64::new(0.0, 2e-6)]],
+    };
+    let st = steady_state(&m, &drive, &HbSettings::default()).expect("solve");
+    assert!(st.converged(), "{:?}", st.status);
+    for (d, &f) in drive.tones_hz.iter().enumerate() {
+        let want = linear_response(m.omega(0), m.gamma(0), f, drive.force[0][d]);
+        let got = st.amplitude(0, f);
+        assert!((got - want).norm() <= 1e-9 * want.norm(), "{got} vs {want}");
+    }
+}
+
+#[test]
+fn single_tone_matches_cubic_balance() {
+    // One harmonic: (ω² − Ω² + iΩγ) X + 3/4 β |X|² X = F, checked on the solution.
+    let beta = 4e13;
+    let m = duffing(beta);
+    let drive = Excitation {
+        tones_hz: vec![1003.0],
+        force: vec![vec![Complex64::new(30.0, 0.0)]],
+    };
+    let mut s = HbSettings::default();
+    s.lattice.window_rel = 0.01; // only the fundamental (3f is far)
+    let st = steady_state(&m, &drive, &s).expect("solve");
+    assert!(st.converged());
+    assert_eq!(st.lattice_hz, vec![1003.0]);
+    let x = st.amplitude(0, 1003.0);
+    let o = TAU * 1003.0;
+    let l = Complex64::new(m.omega(0).powi(2) - o * o, o * m.gamma(0));
+    let r = l * x + x * x.norm_sqr() * 0.75 * beta - 30.0;
+    assert!(r.norm() < 1e-9 * 30.0, "{r}");
+    // Nonlinear: differs clearly from the linear response.
+    let lin = linear_response(m.omega(0), m.gamma(0), 1003.0, Complex64::new(30.0, 0.0));
+    assert!((x - lin).norm() > 0.05 * lin.norm());
+}
+
+/// Positive roots `a = |X|²` of the one-harmonic Duffing balance
+/// `k² a³ + 2pk a² + (p² + q²) a − |F|² = 0` (`L = p + iq`, `k = 3β/4`).
+fn duffing_roots(l: Complex64, k: f64, f: f64) -> Vec<f64> {
+    let g = |a: f64| k * k * a * a * a + 2.0 * l.re * k * a * a + l.norm_sqr() * a - f * f;
+    let grid: Vec<f64> = (0..4000)
+        .map(|i| 1e-16 * 10f64.powf(i as f64 / 250.0))
+        .collect();
+    let mut out = Vec::new();
+    for w in grid.windows(2) {
+        let (mut lo, mut hi) = (w[0], w[1]);
+        if g(lo).signum() == g(hi).signum() {
+            continue;
+        }
+        for _ in 0..200 {
+            let mid = 0.5 * (lo + hi);
+            if g(mid).signum() == g(lo).signum() {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        out.push(0.5 * (lo + hi));
+    }
+    out
+}
+
+#[test]
+fn duffing_branches_stability() {
+    // Hardening Duffing, f0 = 1 kHz, Q = 100, strongly driven: three branches above resonance.
+    let beta = 4e13;
+    let m = duffing(beta);
+    let force = 300.0;
+    let k = 0.75 * beta;
+    let (w, g) = (m.omega(0), m.gamma(0));
+    let mut found = None;
+    for i in 0..400 {
+        let f = 1000.0 + 0.5 * i as f64;
+        let o = TAU * f;
+        let l = Complex64::new(w * w - o * o, o * g);
+        let roots = duffing_roots(l, k, force);
+        if roots.len() == 3 {
+            found = Some((f, l, roots));
+            break;
+        }
+    }
+    let (f, l, roots) = found.expect("a frequency with three branches");
+    let drive = Excitation {
+        tones_hz: vec![f],
+        force: vec![vec![Complex64::new(force, 0.0)]],
+    };
+    let mut solver = HbSolver::with_lattice(&m, &drive, vec![f]).expect("solver");
+    let mut verdicts = Vec::new();
+    for &a in &roots {
+        let x = Complex64::new(force, 0.0) / (l + k * a);
+        let st = solver.solve_from(&[vec![x]], &HbSettings::default());
+        assert!(st.converged());
+        assert!((st.amplitudes[0][0] - x).norm() < 1e-8 * x.norm());
+        let v = solver.stability(&st).expect("verdict");
+        verdicts.push((v, st));
+    }
+    // Lower and upper branches stable, the middle one a saddle.
+    assert!(verdicts[0].0.stable && verdicts[2].0.stable, "{verdicts:?}");
+    assert!(!verdicts[1].0.stable, "{:?}", verdicts[1].0);
+    assert!(verdicts[1].0.growth_rate > 1e-3 * verdicts[1].0.linear_decay_rate);
+    // Stable branches decay no faster than the linear resonator (rate γ/2).
+    for i in [0, 2] {
+        let v = verdicts[i].0;
+        assert!(
+            v.growth_rate < 0.0 && v.growth_rate >= -1.1 * v.linear_decay_rate,
+            "{v:?}"
+        );
+    }
+    // check_stability agrees, and a linear-regime state is stable at rate ≈ γ/2.
+    let v = check_stability(&m, &drive, &verdicts[1].1).expect("verdict");
+    assert!(!v.stable);
+    let weak = Excitation {
+        tones_hz: vec![1000.0],
+        force: vec![vec![Complex64::new(1e-3, 0.0)]],
+    };
+    let st = steady_state(&m, &weak, &HbSettings::default()).expect("solve");
+    let v = check_stability(&m, &weak, &st).expect("verdict");
+    assert!(v.stable);
+    assert!((v.growth_rate + 0.5 * g).abs() < 1e-3 * g, "{v:?}");
+}
+
+/// The nanostring of the method's paper (two coupled Duffing modes).
+fn nanostring() -> NumericModel {
+    let t = |eq, coef, factors: Vec<(usize, u32)>| Term { eq, coef, factors };
+    NumericModel::new(
+        vec!["q1".into(), "q2".into()],
+        vec![207582.0, 415842.0],
+        vec![116232.0, 599173.0],
+        vec![
+            t(0, 2.68e22, vec![(0, 3)]),
+            t(0, 8.57e22, vec![(0, 1), (1, 2)]),
+            t(1, 8.57e22, vec![(0, 2), (1, 1)]),
+            t(1, 3.70e23, vec![(1, 3)]),
+        ],
+    )
+    .expect("model")
+}
+
+/// Largest amplitude difference relative to the largest amplitude.
+fn rel_change(a: &SteadyState, b: &SteadyState) -> f64 {
+    let big = a
+        .amplitudes
+        .iter()
+        .flatten()
+        .map(|z| z.norm())
+        .fold(0.0, f64::max);
+    let diff = a
+        .amplitudes
+        .iter()
+        .flatten()
+        .zip(b.amplitudes.iter().flatten())
+        .map(|(x, y)| (x - y).norm())
+        .fold(0.0, f64::max);
+    diff / big
+}
+
+#[test]
+fn coarse_ramp_lands_where_the_full_ramp_does() {
+    let c = |x: f64| Complex64::new(x, 0.0);
+    let model = nanostring();
+    let three_tone = Excitation {
+        tones_hz: vec![207572.5, 207592.5, 415841.5],
+        force: vec![vec![c(3.5), c(3.5), c(0.0)], vec![c(0.0), c(0.0), c(1.81)]],
+    };
+    // Two tones above resonance, strong enough for the two-tone response to be bistable:
+    // the drive-up branch is the low one, which a direct solve at full drive can miss.
+    let bistable = Excitation {
+        tones_hz: vec![207590.0, 207600.0],
+        force: vec![vec![c(4.0), c(0.4)], vec![c(0.0), c(0.0)]],
+    };
+    let settings = HbSettings::default();
+    for drive in [three_tone, bistable] {
+        let mut solver = HbSolver::new(&model, &drive, &settings.lattice).expect("solver");
+        let (coarse, lines) = solver.coarse.as_ref().expect("a coarse ramp lattice");
+        assert!(lines.len() < solver.lattice.len() && coarse.lattice.len() == lines.len());
+        let fast = solver.solve(&settings);
+        let full = solver.solve_ramp(&settings);
+        assert!(fast.converged() && full.converged(), "{fast:?} {full:?}");
+        assert!(fast.residual <= settings.tol, "{}", fast.residual);
+        let d = rel_change(&fast, &full);
+        assert!(d < 1e-9, "coarse and full ramps differ by {d:e}");
+        if drive.tones_hz[1] - drive.tones_hz[0] < 15.0 {
+            // Bistable indeed: from a large guess Newton finds another steady state.
+            let mut guess = fast.amplitudes.clone();
+            guess[0].iter_mut().for_each(|z| *z *= 2.5);
+            let other = solver.solve_from(&guess, &settings);
+            assert!(other.converged() && rel_change(&fast, &other) > 0.1);
+        }
+    }
+}
+
+#[test]
+fn drive_ramp_jumps_at_a_fold_like_the_experiment() {
+    // Hardening Duffing above resonance: driven up at a fixed frequency, the low branch
+    // ends at a fold in the force and the state jumps to the high branch, which is the
+    // only state left beyond the fold.
+    let beta = 4e13;
+    let m = duffing(beta);
+    let k = 0.75 * beta;
+    let (w, g) = (m.omega(0), m.gamma(0));
+    let f = 1030.0;
+    let o = TAU * f;
+    let l = Complex64::new(w * w - o * o, o * g);
+    // The fold: the largest force with three branches.
+    let fold = (1..4000)
+        .map(|i| 0.5 * i as f64)
+        .filter(|&force| duffing_roots(l, k, force).len() == 3)
+        .fold(0.0, f64::max);
+    assert!(fold > 0.0, "no bistable range at {f} Hz");
+    let force = 1.25 * fold;
+    let roots = duffing_roots(l, k, force);
+    assert_eq!(
+        roots.len(),
+        1,
+        "beyond the fold only the high branch is left"
+    );
+    let want = Complex64::new(force, 0.0) / (l + k * roots[0]);
+    let drive = Excitation {
+        tones_hz: vec![f],
+        force: vec![vec![Complex64::new(force, 0.0)]],
+    };
+    let st = steady_state(&m, &drive, &HbSettings::default()).expect("solve");
+    assert!(st.converged(), "{:?}", st.status);
+    let got = st.amplitude(0, f);
+    assert!((got - want).norm() < 1e-8 * want.norm(), "{got} vs {want}");
+    // One jump, where the low branch ends (fold / force), located to the ramp's step.
+    assert_eq!(st.drive_jumps.len(), 1, "{:?}", st.drive_jumps);
+    let at = st.drive_jumps[0] * force;
+    assert!(
+        (at - fold).abs() < 0.01 * fold,
+        "jump at {at}, fold at {fold}"
+    );
+    assert!(check_stability(&m, &drive, &st).expect("verdict").stable);
+}
+
+#[test]
+fn convergence_report_sees_the_far_harmonics() {
+    // single_q1 of the nanostring: the lines near resonance are converged in the order
+    // (1e-9), but the third harmonics near 623 kHz, outside the window, change them by
+    // 1.2e-7 of the largest amplitude, 1.2e-6 relative on the sidebands (the time domain
+    // agrees with the widened lattice to 2e-8).
+    let c = |x: f64| Complex64::new(x, 0.0);
+    let drive = Excitation {
+        tones_hz: vec![207572.5, 207592.5],
+        force: vec![vec![c(3.5), c(3.5)], vec![c(0.0), c(0.0)]],
+    };
+    let rep =
+        convergence_report(&nanostring(), &drive, &HbSettings::default(), &[]).expect("report");
+    assert!(rep.state.converged());
+    assert!(rep.lattice_sizes.1 > rep.lattice_sizes.0);
+    assert!(rep.change > 3e-8 && rep.change < 1e-5, "{:e}", rep.change);
+}
