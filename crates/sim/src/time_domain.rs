@@ -266,6 +266,122 @@ fn run(
     st: &TdSettings,
     abandon_when_coarse: bool,
 ) -> Result<Run, SimError> {
+    check_inputs(model, drive, measure_hz, shapes, start)?;
+    let nm = model.n_modes();
+    let clock = Clock::new(drive, measure_hz, st)?;
+    let h = clock.h;
+    let lin = LinearDrive::new(model, drive);
+    let mut stepper = Stepper::new(model, &lin, &clock, start);
+    let mut lockin = LockIn::new(&clock, nm, shapes.len(), st)?;
+
+    let tau_max = (0..nm).map(|n| 2.0 / model.gamma(n)).fold(0.0, f64::max);
+    let settle_tau = st.settle_tau.unwrap_or(match start {
+        Start::Rest => 12.0,
+        Start::State { .. } => 1.0,
+    });
+    // Windows need not start at multiples of the window length: every frequency has whole
+    // periods in any `n_win` consecutive steps. The first demodulated window ends at the
+    // settling time (it is compared with the next one), after a pre-roll of `pre` steps.
+    let settle_steps = (settle_tau * tau_max / h).ceil().max(0.0) as u64;
+    let pre = settle_steps.saturating_sub(clock.n_win);
+    let err_tol: Vec<f64> = lin.scale.iter().map(|&s| st.rtol * s).collect();
+
+    let mut step: u64 = 0;
+    let mut max_err: f64 = 0.0;
+    let mut win: u64 = 0;
+    let mut demod_windows: usize = 0;
+    let mut prev_modal: Option<Vec<Complex64>> = None;
+    let mut settle_change = f64::INFINITY;
+    loop {
+        let (demod, len) = if win == 0 && pre > 0 {
+            (false, pre)
+        } else {
+            (true, clock.n_win)
+        };
+        if demod {
+            lockin.start_window(&clock, step);
+        }
+        for j in 0..len {
+            let err = stepper.stages(model, &lin, &err_tol);
+            if err > max_err {
+                max_err = err;
+            }
+            if demod && abandon_when_coarse && max_err > 1.0 {
+                return Ok(Run::TooCoarse {
+                    error_ratio: max_err,
+                });
+            }
+            step += 1;
+            let n_in = step % clock.n_win;
+            stepper.commit(&clock, n_in);
+            stepper.check_blow_up(&lin.scale, step as f64 * h)?;
+            if demod && (j + 1) % clock.m_dec == 0 {
+                // Sample at the end of this step: t = (win * n_win + j + 1) h; the phasor zk
+                // refers to that time.
+                lin.q_total(&stepper.z, &stepper.u, &mut stepper.qtot);
+                lockin.sample(&clock, (j + 1) / clock.m_dec, n_in, &stepper.qtot);
+            }
+        }
+        win += 1;
+        if demod {
+            let cur = lockin.modal(measure_hz, clock.n_samp);
+            let biggest = cur.iter().map(|z| z.norm()).fold(0.0, f64::max).max(1e-300);
+            if let Some(prev) = &prev_modal {
+                settle_change = cur
+                    .iter()
+                    .zip(prev)
+                    .map(|(a, b)| (a - b).norm())
+                    .fold(0.0, f64::max)
+                    / biggest;
+            }
+            let start_step = step - clock.n_win;
+            let done = start_step >= settle_steps && settle_change <= st.settle_tol;
+            if start_step >= settle_steps {
+                demod_windows += 1;
+            }
+            if done {
+                let nk = measure_hz.len();
+                return Ok(Run::Done(LockinResult {
+                    freqs_hz: measure_hz.to_vec(),
+                    modal: (0..nm)
+                        .map(|n| cur[n * nk..(n + 1) * nk].to_vec())
+                        .collect(),
+                    points: lockin.points(&cur, shapes, measure_hz, clock.n_samp),
+                    window_s: clock.window_s,
+                    window_start_s: start_step as f64 * h,
+                    settle_change,
+                    steps_per_period: st.steps_per_period,
+                    samples: clock.n_samp,
+                    steps: step,
+                    max_error_ratio: max_err,
+                }));
+            }
+            if demod_windows > st.max_windows {
+                return Err(SimError::NotSettled {
+                    t_s: step as f64 * h,
+                    change: settle_change,
+                    tol: st.settle_tol,
+                });
+            }
+            prev_modal = Some(cur);
+            lockin.clear();
+        }
+        // Max error counts only over the windows that matter (after the first transient).
+        if !demod {
+            max_err = 0.0;
+        }
+    }
+}
+
+/// Checks what a run cannot repair: the drive's shapes, one mode-shape entry per mode,
+/// finite measured frequencies ≥ 0, a finite start state of one entry per mode.
+fn check_inputs(
+    model: &NumericModel,
+    drive: &Excitation,
+    measure_hz: &[f64],
+    shapes: &[Vec<f64>],
+    start: &Start,
+) -> Result<(), SimError> {
     let nm = model.n_modes();
     drive.check(nm)?;
     if let Some(s) = shapes.iter().find(|s| s.len() != nm) {
@@ -300,347 +416,441 @@ fn run(
             });
         }
     }
-    let nd = drive.tones_hz.len();
-    let nk = measure_hz.len();
-    let np = shapes.len();
-    // Window: integer periods of every tone and measured frequency.
-    let max_window_s = 100.0;
-    let all: Vec<f64> = drive
-        .tones_hz
-        .iter()
-        .chain(measure_hz.iter().filter(|&&f| f > 0.0))
-        .copied()
-        .collect();
-    let grid = common_grid(&all, 1e-7, 1.0 / max_window_s).ok_or(SimError::NoCommonPeriod {
-        max_s: max_window_s,
-    })?;
-    let window_s = st.window_periods.max(1) as f64 / grid;
-    // The linear part is exact, so the step only has to resolve the response's frequencies
-    // (combinations of the tones, which the measured frequencies cover), not every mode's.
-    let f_hi = all.iter().copied().fold(0.0, f64::max);
-    let spp = st.steps_per_period.max(4);
-    let m_dec = (spp / st.samples_per_period.max(4)).max(1);
-    let n_samp = ((window_s * f_hi * spp as f64 / m_dec as f64).ceil() as u64).max(16);
-    let n_win = n_samp * m_dec as u64; // steps per window
-    let h = window_s / n_win as f64;
-    // Integer cycles per window, for exact phases.
-    let cyc = |f: f64| (f * window_s).round() as u64;
-    let tone_cyc: Vec<u64> = drive.tones_hz.iter().map(|&f| cyc(f)).collect();
-    let meas_cyc: Vec<u64> = measure_hz.iter().map(|&f| cyc(f)).collect();
-    let phasor = |c: u64, n: u64| {
-        let ph = ((c as u128 * n as u128) % n_win as u128) as f64 / n_win as f64;
-        let (s, c) = (TAU * ph).sin_cos();
-        Complex64::new(c, s)
-    };
+    Ok(())
+}
 
-    // Linear steady-state response `y[n·nd + d]` and the scale of each mode.
-    let y: Vec<Complex64> = (0..nm)
-        .flat_map(|n| {
-            (0..nd).map(move |d| {
-                linear_response(
-                    model.omega(n),
-                    model.gamma(n),
-                    drive.tones_hz[d],
-                    drive.force[n][d],
-                )
-            })
-        })
-        .collect();
-    let y_scale: Vec<f64> = (0..nm)
-        .map(|n| {
-            y[n * nd..(n + 1) * nd]
-                .iter()
-                .map(|z| z.norm())
-                .sum::<f64>()
-        })
-        .collect();
-    let all_scale = y_scale
-        .iter()
-        .copied()
-        .fold(0.0, f64::max)
-        .max(f64::MIN_POSITIVE);
-    let scale: Vec<f64> = y_scale.iter().map(|&s| s.max(1e-3 * all_scale)).collect();
-    let wdr: Vec<f64> = drive.tones_hz.iter().map(|&f| TAU * f).collect();
-    // Stage rotations e^{i ω_d c_i h}, `rot[i·nd + d]`.
-    let rot: Vec<Complex64> = (0..7)
-        .flat_map(|i| {
-            wdr.iter()
-                .map(move |&w| Complex64::from_polar(1.0, w * C[i] * h))
-        })
-        .collect();
-    let lw = Lawson::new(model, h);
+/// The run's time base: a lock-in window holding whole periods of every tone and measured
+/// frequency, the step, and exact phasors from integer cycle counts per window.
+struct Clock {
+    /// Window length, s.
+    window_s: f64,
+    /// Lock-in samples per window, steps per sample, steps per window.
+    n_samp: u64,
+    m_dec: u64,
+    n_win: u64,
+    /// Integration step, s.
+    h: f64,
+    /// Cycles per window of each tone and each measured frequency.
+    tone_cyc: Vec<u64>,
+    meas_cyc: Vec<u64>,
+}
 
-    // State w = q − q_lin, per mode (w, ẇ).
-    let q_lin_at = |z: &[Complex64], n: usize| -> (f64, f64) {
-        let mut q = 0.0;
-        let mut v = 0.0;
-        for d in 0..nd {
-            let a = y[n * nd + d] * z[d];
-            q += a.re;
-            v -= wdr[d] * a.im;
-        }
-        (q, v)
-    };
-    let mut z: Vec<Complex64> = tone_cyc.iter().map(|&c| phasor(c, 0)).collect();
-    let mut u = vec![[0.0f64; 2]; nm];
-    for n in 0..nm {
-        let (ql, vl) = q_lin_at(&z, n);
-        let (q0, v0) = match start {
-            Start::Rest => (0.0, 0.0),
-            Start::State { q, v } => (q[n], v[n]),
-        };
-        u[n] = [q0 - ql, v0 - vl];
+impl Clock {
+    fn new(drive: &Excitation, measure_hz: &[f64], st: &TdSettings) -> Result<Self, SimError> {
+        // Window: integer periods of every tone and measured frequency.
+        let max_window_s = 100.0;
+        let all: Vec<f64> = drive
+            .tones_hz
+            .iter()
+            .chain(measure_hz.iter().filter(|&&f| f > 0.0))
+            .copied()
+            .collect();
+        let grid = common_grid(&all, 1e-7, 1.0 / max_window_s).ok_or(SimError::NoCommonPeriod {
+            max_s: max_window_s,
+        })?;
+        let window_s = st.window_periods.max(1) as f64 / grid;
+        // The linear part is exact, so the step only has to resolve the response's
+        // frequencies (combinations of the tones, which the measured frequencies cover), not
+        // every mode's.
+        let f_hi = all.iter().copied().fold(0.0, f64::max);
+        let spp = st.steps_per_period.max(4);
+        let m_dec = (spp / st.samples_per_period.max(4)).max(1);
+        let n_samp = ((window_s * f_hi * spp as f64 / m_dec as f64).ceil() as u64).max(16);
+        let n_win = n_samp * m_dec as u64;
+        let cyc = |f: f64| (f * window_s).round() as u64;
+        Ok(Self {
+            window_s,
+            n_samp,
+            m_dec: m_dec as u64,
+            n_win,
+            h: window_s / n_win as f64,
+            tone_cyc: drive.tones_hz.iter().map(|&f| cyc(f)).collect(),
+            meas_cyc: measure_hz.iter().map(|&f| cyc(f)).collect(),
+        })
     }
 
-    // Scratch.
-    // Stage forces, `g[j·nm + n]`.
-    let mut g = vec![0.0f64; 7 * nm];
-    let mut ust = vec![[0.0f64; 2]; nm];
-    let mut qtot = vec![0.0f64; nm];
-    let mut pows = vec![0.0f64; model.pow_len()];
-    let mut zst = vec![Complex64::new(0.0, 0.0); nd];
-    let mut acc_modal = vec![Complex64::new(0.0, 0.0); nm * nk];
-    let mut acc_point = vec![Complex64::new(0.0, 0.0); np * nk];
-    let mut prev_modal: Option<Vec<Complex64>> = None;
-    let mut zk: Vec<Complex64> = meas_cyc.iter().map(|&c| phasor(c, 0).conj()).collect();
-    let rot_k: Vec<Complex64> = meas_cyc
-        .iter()
-        .map(|&c| phasor(c, m_dec as u64).conj())
-        .collect();
-    let zstep: Vec<Complex64> = tone_cyc.iter().map(|&c| phasor(c, 1)).collect();
-    let noise = if st.noise_rms > 0.0 {
-        Some(
-            Normal::new(0.0, st.noise_rms).map_err(|_| SimError::BadValue {
-                what: "noise RMS".into(),
-                value: st.noise_rms,
-                why: "it must be finite and ≥ 0".into(),
-            })?,
-        )
-    } else {
-        None
-    };
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(st.seed);
+    /// `e^{i 2π c n / n_win}`: the phase after `n` steps of a frequency of `c` cycles per
+    /// window, exact (integer arithmetic modulo the window).
+    fn phasor(&self, c: u64, n: u64) -> Complex64 {
+        let ph = ((c as u128 * n as u128) % self.n_win as u128) as f64 / self.n_win as f64;
+        let (s, c) = (TAU * ph).sin_cos();
+        Complex64::new(c, s)
+    }
+}
 
-    let tau_max = (0..nm).map(|n| 2.0 / model.gamma(n)).fold(0.0, f64::max);
-    let settle_tau = st.settle_tau.unwrap_or(match start {
-        Start::Rest => 12.0,
-        Start::State { .. } => 1.0,
-    });
-    // Windows need not start at multiples of the window length: every frequency has whole
-    // periods in any `n_win` consecutive steps. The first demodulated window ends at the
-    // settling time (it is compared with the next one), after a pre-roll of `pre` steps.
-    let settle_steps = (settle_tau * tau_max / h).ceil().max(0.0) as u64;
-    let pre = settle_steps.saturating_sub(n_win);
-    let err_tol: Vec<f64> = scale.iter().map(|&s| st.rtol * s).collect();
-    let blow = 1e3;
+/// The drive's linear steady-state response, which the integrator leaves out: it propagates
+/// only the deviation `w = q − q_lin`, driven by the nonlinear forces.
+struct LinearDrive {
+    nd: usize,
+    /// `y[n·nd + d]`: linear response of mode `n` to tone `d`.
+    y: Vec<Complex64>,
+    /// Angular frequencies of the tones.
+    wdr: Vec<f64>,
+    /// Amplitude scale of each mode (its linear response, at least 1e-3 of the largest): the
+    /// error tolerance and the blow-up check are relative to it.
+    scale: Vec<f64>,
+}
 
-    // Total displacement: the linear response at tone phasors `t_z` plus the state `us`.
-    let q_total = |t_z: &[Complex64], us: &[[f64; 2]], qtot: &mut [f64]| {
+impl LinearDrive {
+    fn new(model: &NumericModel, drive: &Excitation) -> Self {
+        let nm = model.n_modes();
+        let nd = drive.tones_hz.len();
+        let y: Vec<Complex64> = (0..nm)
+            .flat_map(|n| {
+                (0..nd).map(move |d| {
+                    linear_response(
+                        model.omega(n),
+                        model.gamma(n),
+                        drive.tones_hz[d],
+                        drive.force[n][d],
+                    )
+                })
+            })
+            .collect();
+        let y_scale: Vec<f64> = (0..nm)
+            .map(|n| {
+                y[n * nd..(n + 1) * nd]
+                    .iter()
+                    .map(|z| z.norm())
+                    .sum::<f64>()
+            })
+            .collect();
+        let all_scale = y_scale
+            .iter()
+            .copied()
+            .fold(0.0, f64::max)
+            .max(f64::MIN_POSITIVE);
+        Self {
+            nd,
+            scale: y_scale.iter().map(|&s| s.max(1e-3 * all_scale)).collect(),
+            y,
+            wdr: drive.tones_hz.iter().map(|&f| TAU * f).collect(),
+        }
+    }
+
+    /// Linear displacement and velocity of mode `n` at tone phasors `z`.
+    fn at(&self, z: &[Complex64], n: usize) -> (f64, f64) {
+        let mut q = 0.0;
+        let mut v = 0.0;
+        for d in 0..self.nd {
+            let a = self.y[n * self.nd + d] * z[d];
+            q += a.re;
+            v -= self.wdr[d] * a.im;
+        }
+        (q, v)
+    }
+
+    /// Total displacements into `qtot`: the linear response at tone phasors `t_z` plus the
+    /// deviations `us`.
+    fn q_total(&self, t_z: &[Complex64], us: &[[f64; 2]], qtot: &mut [f64]) {
         let mut k = 0;
         for (q, un) in qtot.iter_mut().zip(us) {
             let mut ql = un[0];
             for b in t_z {
-                let a = y[k];
+                let a = self.y[k];
                 ql += a.re * b.re - a.im * b.im;
                 k += 1;
             }
             *q = ql;
         }
-    };
-    let eval_g = |t_z: &[Complex64],
-                  us: &[[f64; 2]],
-                  qtot: &mut [f64],
-                  pows: &mut [f64],
-                  out: &mut [f64]| {
-        q_total(t_z, us, qtot);
-        model.forces(qtot, pows, out);
-        out.iter_mut().for_each(|v| *v = -*v);
-    };
+    }
+}
 
-    let mut step: u64 = 0;
-    let mut max_err: f64 = 0.0;
-    let mut win: u64 = 0;
-    let mut demod_windows: usize = 0;
-    eval_g(&z, &u, &mut qtot, &mut pows, &mut g[..nm]);
-    let mut settle_change = f64::INFINITY;
-    loop {
-        let (demod, len) = if win == 0 && pre > 0 {
-            (false, pre)
-        } else {
-            (true, n_win)
+/// The Lawson Dormand–Prince stepper: the deviation `u[n] = (w, ẇ)`, the tone phasors `z` at
+/// the current step, the stage forces (first same as last), and scratch.
+struct Stepper {
+    lw: Lawson,
+    /// Stage rotations `e^{i ω_d c_i h}`, `[i·nd + d]`, and the one-step rotation of each tone.
+    rot: Vec<Complex64>,
+    zstep: Vec<Complex64>,
+    u: Vec<[f64; 2]>,
+    z: Vec<Complex64>,
+    /// Stage forces `g[j·nm + n]`.
+    g: Vec<f64>,
+    ust: Vec<[f64; 2]>,
+    zst: Vec<Complex64>,
+    qtot: Vec<f64>,
+    pows: Vec<f64>,
+}
+
+impl Stepper {
+    fn new(model: &NumericModel, lin: &LinearDrive, clock: &Clock, start: &Start) -> Self {
+        let nm = model.n_modes();
+        let h = clock.h;
+        let rot = (0..7)
+            .flat_map(|i| {
+                lin.wdr
+                    .iter()
+                    .map(move |&w| Complex64::from_polar(1.0, w * C[i] * h))
+            })
+            .collect();
+        let z: Vec<Complex64> = clock.tone_cyc.iter().map(|&c| clock.phasor(c, 0)).collect();
+        let mut u = vec![[0.0f64; 2]; nm];
+        for n in 0..nm {
+            let (ql, vl) = lin.at(&z, n);
+            let (q0, v0) = match start {
+                Start::Rest => (0.0, 0.0),
+                Start::State { q, v } => (q[n], v[n]),
+            };
+            u[n] = [q0 - ql, v0 - vl];
+        }
+        let mut stepper = Self {
+            lw: Lawson::new(model, h),
+            rot,
+            zstep: clock.tone_cyc.iter().map(|&c| clock.phasor(c, 1)).collect(),
+            u,
+            zst: vec![Complex64::new(0.0, 0.0); z.len()],
+            z,
+            g: vec![0.0f64; 7 * nm],
+            ust: vec![[0.0f64; 2]; nm],
+            qtot: vec![0.0f64; nm],
+            pows: vec![0.0f64; model.pow_len()],
         };
-        if demod {
-            for (k, &c) in meas_cyc.iter().enumerate() {
-                zk[k] = phasor(c, step % n_win).conj();
+        let Self {
+            z,
+            u,
+            qtot,
+            pows,
+            g,
+            ..
+        } = &mut stepper;
+        stage_forces(model, lin, z, u, qtot, pows, &mut g[..nm]);
+        stepper
+    }
+
+    /// Stages 1..6 of the next step (stage 0 is the last step's stage 6) into `g` and the
+    /// step's end state into `ust`; returns the largest local error estimate of the step
+    /// relative to `err_tol` (per mode).
+    fn stages(&mut self, model: &NumericModel, lin: &LinearDrive, err_tol: &[f64]) -> f64 {
+        let nm = self.u.len();
+        let nd = self.z.len();
+        for i in 1..7 {
+            let (done, rest) = self.g.split_at_mut(i * nm);
+            let p = &self.lw.p[i * nm..(i + 1) * nm];
+            for (n, (us, un)) in self.ust.iter_mut().zip(&self.u).enumerate() {
+                let pn = &p[n];
+                let mut a = pn[0] * un[0] + pn[1] * un[1];
+                let mut b = pn[2] * un[0] + pn[3] * un[1];
+                for jj in 0..i {
+                    let c = &self.lw.acol[(i * 7 + jj) * nm + n];
+                    let gj = done[jj * nm + n];
+                    a += c[0] * gj;
+                    b += c[1] * gj;
+                }
+                *us = [a, b];
+            }
+            let rot = &self.rot[i * nd..(i + 1) * nd];
+            for ((zs, zd), r) in self.zst.iter_mut().zip(&self.z).zip(rot) {
+                *zs = zd * r;
+            }
+            let out = &mut rest[..nm];
+            stage_forces(
+                model,
+                lin,
+                &self.zst,
+                &self.ust,
+                &mut self.qtot,
+                &mut self.pows,
+                out,
+            );
+        }
+        let mut max_err: f64 = 0.0;
+        for n in 0..nm {
+            let mut e0 = 0.0;
+            for jj in 0..7 {
+                e0 += self.lw.ecol[jj * nm + n][0] * self.g[jj * nm + n];
+            }
+            let r = e0.abs() / err_tol[n];
+            if r > max_err {
+                max_err = r;
             }
         }
-        for j in 0..len {
-            // Stages 1..6 (stage 0 is FSAL).
-            for i in 1..7 {
-                let (done, rest) = g.split_at_mut(i * nm);
-                let p = &lw.p[i * nm..(i + 1) * nm];
-                for (n, (us, un)) in ust.iter_mut().zip(&u).enumerate() {
-                    let pn = &p[n];
-                    let mut a = pn[0] * un[0] + pn[1] * un[1];
-                    let mut b = pn[2] * un[0] + pn[3] * un[1];
-                    for jj in 0..i {
-                        let c = &lw.acol[(i * 7 + jj) * nm + n];
-                        let gj = done[jj * nm + n];
-                        a += c[0] * gj;
-                        b += c[1] * gj;
-                    }
-                    *us = [a, b];
-                }
-                for ((zs, zd), r) in zst.iter_mut().zip(&z).zip(&rot[i * nd..(i + 1) * nd]) {
-                    *zs = zd * r;
-                }
-                eval_g(&zst, &ust, &mut qtot, &mut pows, &mut rest[..nm]);
+        max_err
+    }
+
+    /// Takes the step computed by [`Stepper::stages`] and moves the tone phasors to step
+    /// `n_in` of the window (recomputed exactly every 256 steps, rotated in between).
+    fn commit(&mut self, clock: &Clock, n_in: u64) {
+        let nm = self.u.len();
+        self.u.copy_from_slice(&self.ust);
+        self.g.copy_within(6 * nm..7 * nm, 0);
+        if n_in % 256 == 0 {
+            for (z, &c) in self.z.iter_mut().zip(&clock.tone_cyc) {
+                *z = clock.phasor(c, n_in);
             }
-            // Error estimate.
-            for n in 0..nm {
-                let mut e0 = 0.0;
-                for jj in 0..7 {
-                    e0 += lw.ecol[jj * nm + n][0] * g[jj * nm + n];
-                }
-                let r = e0.abs() / err_tol[n];
-                if r > max_err {
-                    max_err = r;
-                }
+        } else {
+            for (z, r) in self.z.iter_mut().zip(&self.zstep) {
+                *z *= r;
             }
-            if demod && abandon_when_coarse && max_err > 1.0 {
-                return Ok(Run::TooCoarse {
-                    error_ratio: max_err,
+        }
+    }
+
+    /// Blow-up check on the total displacement of the last stage (the step's end).
+    fn check_blow_up(&self, scale: &[f64], t_s: f64) -> Result<(), SimError> {
+        let blow = 1e3;
+        for (&q, &s) in self.qtot.iter().zip(scale) {
+            if !q.is_finite() || q.abs() > blow * s.max(1e-30) * 1e3 {
+                return Err(SimError::BlowUp {
+                    t_s,
+                    amplitude: q.abs(),
+                    scale: s,
                 });
             }
-            u.copy_from_slice(&ust);
-            g.copy_within(6 * nm..7 * nm, 0);
-            step += 1;
-            let n_in = step % n_win;
-            if n_in % 256 == 0 {
-                for d in 0..nd {
-                    z[d] = phasor(tone_cyc[d], n_in);
-                }
-            } else {
-                for d in 0..nd {
-                    z[d] *= zstep[d];
-                }
+        }
+        Ok(())
+    }
+}
+
+/// The nonlinear forces, negated (they enter the right-hand side), at the total displacement
+/// of tone phasors `t_z` and deviations `us`.
+fn stage_forces(
+    model: &NumericModel,
+    lin: &LinearDrive,
+    t_z: &[Complex64],
+    us: &[[f64; 2]],
+    qtot: &mut [f64],
+    pows: &mut [f64],
+    out: &mut [f64],
+) {
+    lin.q_total(t_z, us, qtot);
+    model.forces(qtot, pows, out);
+    out.iter_mut().for_each(|v| *v = -*v);
+}
+
+/// The multi-frequency lock-in: the phasors `e^{−i2πf_k t}` of the measured frequencies,
+/// the sums over a window of the modal signals and of each point's noise, the noise source.
+struct LockIn {
+    zk: Vec<Complex64>,
+    /// Rotation of each `zk` over one sample.
+    rot_k: Vec<Complex64>,
+    /// `acc_modal[n·nk + k]`, `acc_point[p·nk + k]`.
+    acc_modal: Vec<Complex64>,
+    acc_point: Vec<Complex64>,
+    /// Measurement points.
+    np: usize,
+    noise: Option<Normal<f64>>,
+    rng: rand_chacha::ChaCha8Rng,
+}
+
+impl LockIn {
+    fn new(clock: &Clock, nm: usize, np: usize, st: &TdSettings) -> Result<Self, SimError> {
+        let nk = clock.meas_cyc.len();
+        let noise = if st.noise_rms > 0.0 {
+            Some(
+                Normal::new(0.0, st.noise_rms).map_err(|_| SimError::BadValue {
+                    what: "noise RMS".into(),
+                    value: st.noise_rms,
+                    why: "it must be finite and ≥ 0".into(),
+                })?,
+            )
+        } else {
+            None
+        };
+        Ok(Self {
+            zk: clock
+                .meas_cyc
+                .iter()
+                .map(|&c| clock.phasor(c, 0).conj())
+                .collect(),
+            rot_k: clock
+                .meas_cyc
+                .iter()
+                .map(|&c| clock.phasor(c, clock.m_dec).conj())
+                .collect(),
+            acc_modal: vec![Complex64::new(0.0, 0.0); nm * nk],
+            acc_point: vec![Complex64::new(0.0, 0.0); np * nk],
+            np,
+            noise,
+            rng: rand_chacha::ChaCha8Rng::seed_from_u64(st.seed),
+        })
+    }
+
+    /// Phasors for a window starting after `step` steps.
+    fn start_window(&mut self, clock: &Clock, step: u64) {
+        for (z, &c) in self.zk.iter_mut().zip(&clock.meas_cyc) {
+            *z = clock.phasor(c, step % clock.n_win).conj();
+        }
+    }
+
+    /// Adds sample `sidx` of the window (taken at step `n_in` of it) of the modal
+    /// displacements `q`, and a noise sample per point.
+    fn sample(&mut self, clock: &Clock, sidx: u64, n_in: u64, q: &[f64]) {
+        let nk = self.zk.len();
+        if sidx % 256 == 0 {
+            for (z, &c) in self.zk.iter_mut().zip(&clock.meas_cyc) {
+                *z = clock.phasor(c, n_in).conj();
             }
-            // Blow-up check on the total displacement.
-            for n in 0..nm {
-                let q = qtot[n];
-                if !q.is_finite() || q.abs() > blow * scale[n].max(1e-30) * 1e3 {
-                    return Err(SimError::BlowUp {
-                        t_s: step as f64 * h,
-                        amplitude: q.abs(),
-                        scale: scale[n],
-                    });
-                }
+        } else {
+            for k in 0..nk {
+                self.zk[k] *= self.rot_k[k];
             }
-            if demod && (j + 1) % m_dec as u64 == 0 {
-                // Sample at the end of this step: t = (win * n_win + j + 1) h; the phasor zk
-                // refers to that time.
-                q_total(&z, &u, &mut qtot);
-                let sidx = (j + 1) / m_dec as u64;
-                if sidx % 256 == 0 {
-                    for (k, &c) in meas_cyc.iter().enumerate() {
-                        zk[k] = phasor(c, n_in).conj();
-                    }
-                } else {
-                    for k in 0..nk {
-                        zk[k] *= rot_k[k];
-                    }
-                }
-                for n in 0..nm {
-                    let x = qtot[n];
-                    for k in 0..nk {
-                        acc_modal[n * nk + k] += zk[k] * x;
-                    }
-                }
-                // The points' signals are linear in the modal ones: only their noise needs
-                // its own demodulation (the rest is combined once per window).
-                if let Some(nz) = &noise {
-                    for p in 0..np {
-                        let x = nz.sample(&mut rng);
-                        for k in 0..nk {
-                            acc_point[p * nk + k] += zk[k] * x;
-                        }
-                    }
+        }
+        for (n, &x) in q.iter().enumerate() {
+            for k in 0..nk {
+                self.acc_modal[n * nk + k] += self.zk[k] * x;
+            }
+        }
+        // The points' signals are linear in the modal ones: only their noise needs its own
+        // demodulation (the rest is combined once per window).
+        if let Some(nz) = &self.noise {
+            for p in 0..self.np {
+                let x = nz.sample(&mut self.rng);
+                for k in 0..nk {
+                    self.acc_point[p * nk + k] += self.zk[k] * x;
                 }
             }
         }
-        win += 1;
-        if demod {
-            let norm = |f: f64| {
-                if f > 0.0 {
-                    2.0 / n_samp as f64
-                } else {
-                    1.0 / n_samp as f64
-                }
-            };
-            let cur: Vec<Complex64> = (0..nm * nk)
-                .map(|i| acc_modal[i] * norm(measure_hz[i % nk]))
-                .collect();
-            let biggest = cur.iter().map(|z| z.norm()).fold(0.0, f64::max).max(1e-300);
-            if let Some(prev) = &prev_modal {
-                settle_change = cur
-                    .iter()
-                    .zip(prev)
-                    .map(|(a, b)| (a - b).norm())
-                    .fold(0.0, f64::max)
-                    / biggest;
-            }
-            let start_step = step - n_win;
-            let done = start_step >= settle_steps && settle_change <= st.settle_tol;
-            if start_step >= settle_steps {
-                demod_windows += 1;
-            }
-            if done || demod_windows > st.max_windows {
-                if !done {
-                    return Err(SimError::NotSettled {
-                        t_s: step as f64 * h,
-                        change: settle_change,
-                        tol: st.settle_tol,
-                    });
-                }
-                let modal = (0..nm)
-                    .map(|n| cur[n * nk..(n + 1) * nk].to_vec())
-                    .collect();
-                let points = (0..np)
-                    .map(|p| {
-                        (0..nk)
-                            .map(|k| {
-                                let signal: Complex64 =
-                                    (0..nm).map(|n| cur[n * nk + k] * shapes[p][n]).sum();
-                                signal + acc_point[p * nk + k] * norm(measure_hz[k])
-                            })
-                            .collect()
+    }
+
+    /// The window's modal amplitudes `[n·nk + k]` (peak; a 0 Hz line is the mean).
+    fn modal(&self, measure_hz: &[f64], n_samp: u64) -> Vec<Complex64> {
+        let nk = measure_hz.len();
+        (0..self.acc_modal.len())
+            .map(|i| self.acc_modal[i] * window_norm(measure_hz[i % nk], n_samp))
+            .collect()
+    }
+
+    /// Each point's amplitudes: its mode-shape combination of `modal` plus its noise.
+    fn points(
+        &self,
+        modal: &[Complex64],
+        shapes: &[Vec<f64>],
+        measure_hz: &[f64],
+        n_samp: u64,
+    ) -> Vec<Vec<Complex64>> {
+        let nk = measure_hz.len();
+        shapes
+            .iter()
+            .enumerate()
+            .map(|(p, shape)| {
+                (0..nk)
+                    .map(|k| {
+                        let signal: Complex64 = shape
+                            .iter()
+                            .enumerate()
+                            .map(|(n, &s)| modal[n * nk + k] * s)
+                            .sum();
+                        signal + self.acc_point[p * nk + k] * window_norm(measure_hz[k], n_samp)
                     })
-                    .collect();
-                return Ok(Run::Done(LockinResult {
-                    freqs_hz: measure_hz.to_vec(),
-                    modal,
-                    points,
-                    window_s,
-                    window_start_s: start_step as f64 * h,
-                    settle_change,
-                    steps_per_period: st.steps_per_period,
-                    samples: n_samp,
-                    steps: step,
-                    max_error_ratio: max_err,
-                }));
-            }
-            prev_modal = Some(cur);
-            acc_modal
-                .iter_mut()
-                .for_each(|a| *a = Complex64::new(0.0, 0.0));
-            acc_point
-                .iter_mut()
-                .for_each(|a| *a = Complex64::new(0.0, 0.0));
-        }
-        // Max error counts only over the windows that matter (after the first transient).
-        if !demod {
-            max_err = 0.0;
-        }
+                    .collect()
+            })
+            .collect()
+    }
+
+    fn clear(&mut self) {
+        let zero = Complex64::new(0.0, 0.0);
+        self.acc_modal.iter_mut().for_each(|a| *a = zero);
+        self.acc_point.iter_mut().for_each(|a| *a = zero);
+    }
+}
+
+/// The lock-in's normalisation of a window of `n_samp` samples: `2/N` (peak amplitude), `1/N`
+/// at 0 Hz (the mean).
+fn window_norm(f: f64, n_samp: u64) -> f64 {
+    if f > 0.0 {
+        2.0 / n_samp as f64
+    } else {
+        1.0 / n_samp as f64
     }
 }
 
