@@ -54,7 +54,7 @@ impl Default for DesignSettings {
 
 /// A scored candidate measurement: worst bound, the measurement, its information, and its tone
 /// spacing, level and centre.
-type Candidate = (f64, PlanMeasurement, MeasInfo, (f64, f64, f64));
+type Candidate = (f64, PlanMeasurement, MeasInfo, Pair);
 
 /// Tone-pair spacings tried per mode, in linewidths, narrowest first.
 const SPACINGS: [f64; 3] = [3.0, 6.0, 12.0];
@@ -190,6 +190,105 @@ pub fn design_with_progress(
     progress: &mut dyn FnMut(DesignStep<'_>),
 ) -> Result<(Plan, Evaluation), PlanError> {
     let s = settings;
+    check_settings(s)?;
+    let num = NumericModel::from_model(model, values)?;
+    let names = num.mode_names.clone();
+    let mut base = Plan {
+        description: format!("designed by harmonid plan for {}", model.source),
+        displacement_unit: "m".into(),
+        points: s.points.clone(),
+        nominal_hz: names
+            .iter()
+            .cloned()
+            .zip(num.f_hz.iter().copied())
+            .collect(),
+        noise: PlanNoise {
+            sigma_per_quadrature: s.sigma_m,
+            shots: s.shots,
+        },
+        measurements: Vec::new(),
+    };
+    let stages = Stages::new(model, &names, s.max_measurements)?;
+    let needed = stages.needed();
+    let target = Target {
+        model,
+        num: &num,
+        values,
+        sigma_m: s.sigma_m,
+        shots: s.shots,
+    };
+    let designer = Designer {
+        model,
+        num: &num,
+        base: &base,
+        target: &target,
+        s,
+        names: &names,
+        limits: format!(
+            "forces ≤ {} N/kg per tone, {} lines per measurement, grid {} Hz, no jump while driving up, stable",
+            s.max_force, s.max_frequencies, s.grid_hz
+        ),
+    };
+    // Stage 1: a tone pair per mode.
+    let mut pairs: Vec<Option<Pair>> = vec![None; names.len()];
+    let mut infos: Vec<MeasInfo> = Vec::new();
+    let mut plan_ms: Vec<PlanMeasurement> = Vec::new();
+    for (k, &n) in stages.single.iter().enumerate() {
+        let name = format!("single_{}", names[n]);
+        progress(DesignStep {
+            done: k,
+            total: needed,
+            name: &name,
+        });
+        let (pm, info, pair) = designer.single(n, &stages.own[n], &name)?;
+        pairs[n] = Some(pair);
+        infos.push(info);
+        plan_ms.push(pm);
+    }
+    // Stage 2: couplings.
+    for (modes, unknowns) in &stages.groups {
+        let label = modes
+            .iter()
+            .map(|&n| names[n].as_str())
+            .collect::<Vec<_>>()
+            .join("_");
+        progress(DesignStep {
+            done: plan_ms.len(),
+            total: needed,
+            name: &format!("couple_{label}"),
+        });
+        let (pm, info) = designer.coupling(modes, unknowns, &label, &pairs, &infos)?;
+        infos.push(info);
+        plan_ms.push(pm);
+    }
+    // The bounds of the plan as `harmonid simulate --plan` will simulate it (the truncation
+    // check may raise the lattice order the search used).
+    let infos = plan_ms
+        .iter()
+        .map(|pm| measurement_info(&target, &base, pm, Fidelity::User))
+        .collect::<Result<Vec<_>, _>>()?;
+    progress(DesignStep {
+        done: needed,
+        total: needed,
+        name: "",
+    });
+    let limits = designer.limits;
+    base.measurements = plan_ms;
+    let refs: Vec<&MeasInfo> = infos.iter().collect();
+    let ev = joint_bounds(model, &refs, s.shots)?;
+    if let Some(f) = ev.findings.first() {
+        return Err(PlanError::Unidentifiable {
+            parameter: f.unknown.clone(),
+            reason: f.reason.clone(),
+            limits,
+        });
+    }
+    Ok((base, ev))
+}
+
+/// The settings a design cannot start without: a positive noise, shots, grid, and room for
+/// two lines per measurement.
+fn check_settings(s: &DesignSettings) -> Result<(), PlanError> {
     let setting = |what, found: String, expected| PlanError::Setting {
         what,
         found,
@@ -212,107 +311,129 @@ pub fn design_with_progress(
         let found = s.max_frequencies.to_string();
         return Err(setting("the lines per measurement", found, "at least 2"));
     }
-    let num = NumericModel::from_model(model, values)?;
-    let names = num.mode_names.clone();
-    let nm = names.len();
-    let limits = format!(
-        "forces ≤ {} N/kg per tone, {} lines per measurement, grid {} Hz, no jump while driving up, stable",
-        s.max_force, s.max_frequencies, s.grid_hz
-    );
-    let mut base = Plan {
-        description: format!("designed by harmonid plan for {}", model.source),
-        displacement_unit: "m".into(),
-        points: s.points.clone(),
-        nominal_hz: names
-            .iter()
-            .cloned()
-            .zip(num.f_hz.iter().copied())
-            .collect(),
-        noise: PlanNoise {
-            sigma_per_quadrature: s.sigma_m,
-            shots: s.shots,
-        },
-        measurements: Vec::new(),
-    };
-    // Unknowns per stage: a mode's own (f, Q, parameters of terms in it alone), then
-    // parameters by the set of modes they couple.
-    let mut own: Vec<Vec<Unknown>> = (0..nm)
-        .map(|n| vec![Unknown::OmegaSq(n), Unknown::Gamma(n)])
-        .collect();
-    let mut groups: BTreeMap<Vec<usize>, Vec<Unknown>> = BTreeMap::new();
-    for p in 0..model.params.len() {
-        let modes: Vec<usize> = param_modes(model, p).into_iter().collect();
-        match modes.len() {
-            0 => {}
-            1 => own[modes[0]].push(Unknown::Param(p)),
-            _ => groups.entry(modes).or_default().push(Unknown::Param(p)),
+    Ok(())
+}
+
+/// A mode's designed tone pair: centre (Hz), spacing (Hz), force per tone (N/kg).
+type Pair = (f64, f64, f64);
+
+/// The unknowns by stage: each mode's own (f, Q, parameters of terms in it alone), measured
+/// by a single-mode pair, then the parameters by the set of modes they couple.
+struct Stages {
+    own: Vec<Vec<Unknown>>,
+    groups: BTreeMap<Vec<usize>, Vec<Unknown>>,
+    /// The modes that get a single-mode measurement.
+    single: Vec<usize>,
+}
+
+impl Stages {
+    /// Errors: more measurements needed than `max_measurements` (listed by name).
+    fn new(
+        model: &Model,
+        names: &[String],
+        max_measurements: Option<usize>,
+    ) -> Result<Self, PlanError> {
+        let nm = names.len();
+        let mut own: Vec<Vec<Unknown>> = (0..nm)
+            .map(|n| vec![Unknown::OmegaSq(n), Unknown::Gamma(n)])
+            .collect();
+        let mut groups: BTreeMap<Vec<usize>, Vec<Unknown>> = BTreeMap::new();
+        for p in 0..model.params.len() {
+            let modes: Vec<usize> = param_modes(model, p).into_iter().collect();
+            match modes.len() {
+                0 => {}
+                1 => own[modes[0]].push(Unknown::Param(p)),
+                _ => groups.entry(modes).or_default().push(Unknown::Param(p)),
+            }
         }
-    }
-    let stage1: Vec<usize> = (0..nm)
-        .filter(|&n| {
-            !quantity_names(model, &own[n]).is_empty() || groups.keys().any(|k| k.contains(&n))
-        })
-        .collect();
-    let needed = stage1.len() + groups.len();
-    if let Some(limit) = s.max_measurements {
-        if needed > limit {
-            let list: Vec<String> = stage1
-                .iter()
-                .map(|&n| format!("single_{}", names[n]))
-                .chain(groups.keys().map(|k| {
-                    format!(
-                        "couple_{}",
-                        k.iter()
-                            .map(|&n| names[n].as_str())
-                            .collect::<Vec<_>>()
-                            .join("_")
-                    )
-                }))
-                .collect();
-            return Err(PlanError::Budget {
-                needed,
-                limit,
-                list: list.join(", "),
-            });
-        }
-    }
-    let target = Target {
-        model,
-        num: &num,
-        values,
-        sigma_m: s.sigma_m,
-        shots: s.shots,
-    };
-    // Every candidate: simulated once at search fidelity, its lines chosen, its information
-    // computed on those lines (infeasible drives: `None`).
-    let candidate =
-        |mut pm: PlanMeasurement| -> Result<Option<(PlanMeasurement, MeasInfo)>, PlanError> {
-            let Some((data, lattice)) = feasible(simulate(&num, &base, &pm, Fidelity::Search))?
-            else {
-                return Ok(None);
-            };
-            let keep = choose_lines(&pm, &data, s.max_frequencies);
-            let data = restrict_lines(&data, &pm, &keep);
-            pm.measure_hz = Some(keep);
-            let info = feasible(info_of(&target, &pm, &data, lattice))?;
-            Ok(info.map(|i| (pm, i)))
+        let single: Vec<usize> = (0..nm)
+            .filter(|&n| {
+                !quantity_names(model, &own[n]).is_empty() || groups.keys().any(|k| k.contains(&n))
+            })
+            .collect();
+        let stages = Self {
+            own,
+            groups,
+            single,
         };
-    // Stage 1: a tone pair per mode.
-    let mut pairs: Vec<Option<(f64, f64, f64)>> = vec![None; nm]; // (centre, spacing, force)
-    let mut infos: Vec<MeasInfo> = Vec::new();
-    let mut plan_ms: Vec<PlanMeasurement> = Vec::new();
-    for (k, &n) in stage1.iter().enumerate() {
-        progress(DesignStep {
-            done: k,
-            total: needed,
-            name: &format!("single_{}", names[n]),
-        });
+        let needed = stages.needed();
+        if let Some(limit) = max_measurements {
+            if needed > limit {
+                let list: Vec<String> = stages
+                    .single
+                    .iter()
+                    .map(|&n| format!("single_{}", names[n]))
+                    .chain(stages.groups.keys().map(|k| {
+                        format!(
+                            "couple_{}",
+                            k.iter()
+                                .map(|&n| names[n].as_str())
+                                .collect::<Vec<_>>()
+                                .join("_")
+                        )
+                    }))
+                    .collect();
+                return Err(PlanError::Budget {
+                    needed,
+                    limit,
+                    list: list.join(", "),
+                });
+            }
+        }
+        Ok(stages)
+    }
+
+    /// Measurements the plan needs.
+    fn needed(&self) -> usize {
+        self.single.len() + self.groups.len()
+    }
+}
+
+/// What every stage of a design reads: the model at the guessed values, the plan's frame
+/// (points, noise) and the instrument's limits.
+struct Designer<'a> {
+    model: &'a Model,
+    num: &'a NumericModel,
+    base: &'a Plan,
+    target: &'a Target<'a>,
+    s: &'a DesignSettings,
+    names: &'a [String],
+    /// The limits, for messages.
+    limits: String,
+}
+
+impl Designer<'_> {
+    /// A candidate measurement simulated once at search fidelity, its lines chosen, its
+    /// information computed on those lines; `None` for an infeasible drive.
+    fn candidate(
+        &self,
+        mut pm: PlanMeasurement,
+    ) -> Result<Option<(PlanMeasurement, MeasInfo)>, PlanError> {
+        let Some((data, lattice)) = feasible(simulate(self.num, self.base, &pm, Fidelity::Search))?
+        else {
+            return Ok(None);
+        };
+        let keep = choose_lines(&pm, &data, self.s.max_frequencies);
+        let data = restrict_lines(&data, &pm, &keep);
+        pm.measure_hz = Some(keep);
+        let info = feasible(info_of(self.target, &pm, &data, lattice))?;
+        Ok(info.map(|i| (pm, i)))
+    }
+
+    /// Stage 1 for mode `n`: the tone pair around its resonance, over the spacings, driven
+    /// as strongly as it can be without a jump, that bounds its own unknowns best.
+    fn single(
+        &self,
+        n: usize,
+        own: &[Unknown],
+        name: &str,
+    ) -> Result<(PlanMeasurement, MeasInfo, Pair), PlanError> {
+        let (s, num, names) = (self.s, self.num, self.names);
         let f = num.f_hz[n];
         let kappa = f / num.q_factor[n];
         let w2 = (std::f64::consts::TAU * f).powi(2);
         let centre = on_grid(f, s.grid_hz);
-        let wanted = quantity_names(model, &own[n]);
-        let name = format!("single_{}", names[n]);
+        let wanted = quantity_names(self.model, own);
         // The weakest useful drive: a linear peak response of 100 σ.
         let f_lin = (100.0 * s.sigma_m * w2 / num.q_factor[n]).min(s.max_force);
         let mut best: Option<Candidate> = None;
@@ -320,10 +441,10 @@ pub fn design_with_progress(
             let half = (on_grid(0.5 * mult * kappa, s.grid_hz)).max(s.grid_hz);
             let tones = |force: f64| [(centre - half, n, force), (centre + half, n, force)];
             let ok = |force: f64| -> Result<bool, PlanError> {
-                let pm = measurement(&name, &tones(force), &names);
-                Ok(feasible(simulate(&num, &base, &pm, Fidelity::Search))?.is_some())
+                let pm = measurement(name, &tones(force), names);
+                Ok(feasible(simulate(num, self.base, &pm, Fidelity::Search))?.is_some())
             };
-            let start = pair_fold_estimate(&num, n, 2.0 * half / kappa).unwrap_or(f_lin);
+            let start = pair_fold_estimate(num, n, 2.0 * half / kappa).unwrap_or(f_lin);
             let Some((good, folds)) = strongest(start, f_lin, s.max_force, &ok)? else {
                 continue;
             };
@@ -335,10 +456,10 @@ pub fn design_with_progress(
             if !(ok(0.25 * force)? && ok(0.5 * force)?) {
                 continue;
             }
-            let Some((pm, info)) = candidate(measurement(&name, &tones(force), &names))? else {
+            let Some((pm, info)) = self.candidate(measurement(name, &tones(force), names))? else {
                 continue;
             };
-            let ev = joint_bounds(model, &[&info], s.shots)?;
+            let ev = joint_bounds(self.model, &[&info], s.shots)?;
             let score = worst_of(&ev, &wanted);
             let best_score = best.as_ref().map_or(f64::INFINITY, |b| b.0);
             if score < best_score {
@@ -353,27 +474,25 @@ pub fn design_with_progress(
                 parameter: format!("the linear data of {}", names[n]),
                 reason: "no tone pair near its resonance has a stable steady state without a jump"
                     .into(),
-                limits,
+                limits: self.limits.clone(),
             });
         };
-        pairs[n] = Some(pair);
-        infos.push(info);
-        plan_ms.push(pm);
+        Ok((pm, info, pair))
     }
-    // Stage 2: couplings.
-    for (modes, unknowns) in &groups {
-        let wanted = quantity_names(model, unknowns);
-        let label = modes
-            .iter()
-            .map(|&n| names[n].as_str())
-            .collect::<Vec<_>>()
-            .join("_");
+
+    /// Stage 2 for the coupling of `modes`: the modes' stage-1 pairs combined (three tones
+    /// first, both pairs when those leave the unknowns poorly determined), scaled down until
+    /// feasible, the cheapest of the comparably good.
+    fn coupling(
+        &self,
+        modes: &[usize],
+        unknowns: &[Unknown],
+        label: &str,
+        pairs: &[Option<Pair>],
+        infos: &[MeasInfo],
+    ) -> Result<(PlanMeasurement, MeasInfo), PlanError> {
+        let wanted = quantity_names(self.model, unknowns);
         let name = format!("couple_{label}");
-        progress(DesignStep {
-            done: plan_ms.len(),
-            total: needed,
-            name: &name,
-        });
         // (score, lattice lines, measurement, information) of every feasible variant.
         let mut scored: Vec<(f64, usize, (PlanMeasurement, MeasInfo))> = Vec::new();
         let mut try_variant = |variant: &Variant| -> Result<f64, PlanError> {
@@ -393,10 +512,10 @@ pub fn design_with_progress(
                     }
                 }
                 tones.sort_by(|a, b| a.0.total_cmp(&b.0));
-                if let Some((pm, info)) = candidate(measurement(&name, &tones, &names))? {
+                if let Some((pm, info)) = self.candidate(measurement(&name, &tones, self.names))? {
                     let mut all: Vec<&MeasInfo> = infos.iter().collect();
                     all.push(&info);
-                    let ev = joint_bounds(model, &all, s.shots)?;
+                    let ev = joint_bounds(self.model, &all, self.s.shots)?;
                     let score = worst_of(&ev, &wanted);
                     scored.push((score, info.lattice_lines, (pm, info)));
                     return Ok(score);
@@ -405,7 +524,7 @@ pub fn design_with_progress(
             }
             Ok(f64::INFINITY)
         };
-        for set in coupled_variants(&num, modes) {
+        for set in coupled_variants(self.num, modes) {
             let mut best = f64::INFINITY;
             for v in &set.three_tone {
                 best = best.min(try_variant(v)?);
@@ -416,38 +535,12 @@ pub fn design_with_progress(
                 try_variant(&set.pairs)?;
             }
         }
-        let Some((pm, info)) = cheapest_comparable(scored) else {
-            return Err(PlanError::Unidentifiable {
-                parameter: wanted.join(", "),
-                reason: format!(
-                    "no drive of {label} together has a stable steady state without a jump"
-                ),
-                limits,
-            });
-        };
-        infos.push(info);
-        plan_ms.push(pm);
+        cheapest_comparable(scored).ok_or_else(|| PlanError::Unidentifiable {
+            parameter: wanted.join(", "),
+            reason: format!(
+                "no drive of {label} together has a stable steady state without a jump"
+            ),
+            limits: self.limits.clone(),
+        })
     }
-    // The bounds of the plan as `harmonid simulate --plan` will simulate it (the truncation
-    // check may raise the lattice order the search used).
-    let infos = plan_ms
-        .iter()
-        .map(|pm| measurement_info(&target, &base, pm, Fidelity::User))
-        .collect::<Result<Vec<_>, _>>()?;
-    progress(DesignStep {
-        done: needed,
-        total: needed,
-        name: "",
-    });
-    base.measurements = plan_ms;
-    let refs: Vec<&MeasInfo> = infos.iter().collect();
-    let ev = joint_bounds(model, &refs, s.shots)?;
-    if let Some(f) = ev.findings.first() {
-        return Err(PlanError::Unidentifiable {
-            parameter: f.unknown.clone(),
-            reason: f.reason.clone(),
-            limits,
-        });
-    }
-    Ok((base, ev))
 }
