@@ -7,7 +7,7 @@ use crate::finalize::{finalize, Found, Report};
 use crate::forward::{ForwardModel, ForwardSettings};
 use crate::output_error::{self, OutputErrorFailure, POOR_STAGE};
 use crate::problem::{IdentError, Problem};
-use crate::settings::{Estimator, Settings};
+use crate::settings::Settings;
 use crate::shots::pool;
 use harmonid_model::Model;
 
@@ -29,7 +29,7 @@ pub fn identify(model: &Model, ds: &Dataset, settings: &Settings) -> Result<Repo
         });
     }
     let linear = &start.values[0];
-    let output_error = (settings.estimator == Estimator::Ml || settings.crlb).then(|| {
+    let output_error = (settings.estimator.is_output_error() || settings.crlb).then(|| {
         let mut fwd = ForwardModel::with_table(
             model,
             &pooled.mean,

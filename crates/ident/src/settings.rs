@@ -31,6 +31,15 @@ impl Estimator {
         }
     }
 
+    /// Whether the estimate is an output-error (maximum-likelihood) fit through the forward
+    /// model: its values, bounds and goodness of fit come from that fit, not the linear one.
+    pub fn is_output_error(self) -> bool {
+        match self {
+            Estimator::Ml => true,
+            Estimator::Linear => false,
+        }
+    }
+
     /// What the estimator is, for the summary and the command line's help.
     pub fn description(self) -> &'static str {
         match self {

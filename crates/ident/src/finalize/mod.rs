@@ -68,7 +68,7 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
         None => (asked, None, None),
     };
     let values = match (&fo, estimator) {
-        (Some(f), Estimator::Ml) => ml_values(prob, &f.fit.theta, linear),
+        (Some(f), e) if e.is_output_error() => ml_values(prob, &f.fit.theta, linear),
         _ => linear.to_vec(),
     };
     let judge = Judge {
@@ -120,7 +120,7 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
     let mut rejected_shots = BTreeMap::new();
     let goodness_of_fit = fo
         .as_ref()
-        .filter(|_| estimator == Estimator::Ml)
+        .filter(|_| estimator.is_output_error())
         .map(|f| f.goodness.clone());
     let ml_fits = goodness_of_fit
         .as_ref()
@@ -305,7 +305,7 @@ impl Judge<'_> {
             e.stderr = f64::NAN;
             return;
         }
-        let ml = self.estimator == Estimator::Ml;
+        let ml = self.estimator.is_output_error();
         let bound = self.fo.and_then(|f| {
             f.bounds
                 .quantities

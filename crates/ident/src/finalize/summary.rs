@@ -176,7 +176,11 @@ impl Report {
                 Ok(e) => e.description(),
                 Err(_) => self.estimator.as_str(),
             },
-            if self.estimator == Estimator::Ml.name() {
+            if self
+                .estimator
+                .parse::<Estimator>()
+                .is_ok_and(Estimator::is_output_error)
+            {
                 " (Fisher information at the estimate)"
             } else {
                 ""
