@@ -32,6 +32,11 @@ pub fn mix<'py>(
     nominal_hz: Option<BTreeMap<String, f64>>,
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
     let m = &*model.inner;
+    if m.has_velocity_terms() {
+        return Err(HarmonidError::new_err(
+            "mix does not yet list the lines of velocity terms (d(q)); their lines are those of the same term without the d()",
+        ));
+    }
     let mode_names: Vec<String> = m.modes.iter().map(|x| x.name.clone()).collect();
     let mut nominal: Vec<Option<f64>> = m
         .modes

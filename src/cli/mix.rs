@@ -160,6 +160,13 @@ pub fn run(args: Args) -> miette::Result<()> {
 }
 
 fn build(args: &Args, model: &Model) -> miette::Result<Report> {
+    if model.has_velocity_terms() {
+        return Err(miette!(
+            help = "the lines of a velocity term are those of the same term without the d(): drop d() from a copy of the model to list them",
+            "{}: `mix` does not yet list the lines of velocity terms (d(q)); their coefficients carry a factor i·2πf per velocity",
+            args.model.display()
+        ));
+    }
     let mode_names: Vec<String> = model.modes.iter().map(|m| m.name.clone()).collect();
     // Nominal resonances: model, then dataset, then command line.
     let mut nominal: Vec<Option<f64>> = model

@@ -46,10 +46,11 @@ pub(crate) struct EomStmt {
     pub expr: Expr,
 }
 
-/// `potential: expr`.
+/// `potential: expr`, or `dissipation: expr` (a dissipation function of the velocities).
 #[derive(Debug, Clone)]
 pub(crate) struct PotentialStmt {
     pub expr: Expr,
+    pub dissipation: bool,
 }
 
 /// `for i<j in 1..5 { ... }`.
@@ -103,7 +104,8 @@ pub(crate) enum Index {
 pub(crate) enum Expr {
     Num(Rational, Span),
     Name(Name),
-    Call(String, Span),
+    /// `f(args)`: `d(q1)` is a velocity; other functions are refused.
+    Call(String, Vec<Expr>, Span),
     Neg(Box<Expr>, Span),
     /// `a + b - c`: terms with a flag "subtracted" (n-ary, so long sums do not nest).
     Sum(Vec<(bool, Expr)>, Span),
@@ -116,7 +118,7 @@ impl Expr {
     pub fn span(&self) -> Span {
         match self {
             Expr::Num(_, s)
-            | Expr::Call(_, s)
+            | Expr::Call(_, _, s)
             | Expr::Neg(_, s)
             | Expr::Sum(_, s)
             | Expr::Product(_, s)

@@ -70,6 +70,11 @@ pub enum Code {
     TooLarge,
     /// The file declares no mode.
     EmptyModel,
+    /// `d(...)` of something that is not one mode (`d(beta)`, `d(d(q1))`, `d(q1 + q2)`), or a
+    /// dissipation function without a velocity.
+    BadVelocity,
+    /// A velocity `d(q1)` in a potential (a potential depends on the positions only).
+    VelocityInPotential,
 }
 
 impl Code {
@@ -91,6 +96,8 @@ impl Code {
             Code::Overflow => "model::overflow",
             Code::TooLarge => "model::too-large",
             Code::EmptyModel => "model::empty-model",
+            Code::BadVelocity => "model::bad-velocity",
+            Code::VelocityInPotential => "model::velocity-in-potential",
         }
     }
 }

@@ -84,7 +84,8 @@ pub struct NonAffineTerm {
 pub struct Model {
     /// Where the model came from (file path or a label), for messages and result files.
     pub source: String,
-    /// Modes in declaration order; `VarId(m)` in a [`Poly`] is `modes[m]`.
+    /// Modes in declaration order; `VarId(m)` in a [`Poly`] is `modes[m]`, and
+    /// `VarId(modes.len() + m)` its velocity `d(q_m)`.
     pub modes: Vec<Mode>,
     /// Parameters in declaration order; `VarId(p)` in a coefficient is `params[p]`.
     pub params: Vec<Parameter>,
@@ -93,6 +94,9 @@ pub struct Model {
     pub eom: Vec<Poly>,
     /// The total interaction potential `U(q)` written in the file, if any (zero otherwise).
     pub potential: Poly,
+    /// The total dissipation function `D(q, q̇)` written in the file, if any (zero otherwise);
+    /// its derivatives `∂D/∂q̇_n` are in `eom` already.
+    pub dissipation: Poly,
 }
 
 impl Model {
@@ -116,15 +120,35 @@ impl Model {
         self.params.iter().position(|p| p.name == name)
     }
 
-    /// The canonical name (`DATA_FORMAT.md`) of a monomial in the modal coordinates.
+    /// The names of the variables of the equations: the modes, then their velocities
+    /// (`q1, q2, d(q1), d(q2)`), as monomial names spell them.
+    pub fn variable_names(&self) -> Vec<String> {
+        let modes = self.modes.iter().map(|m| m.name.clone());
+        let velocities = self.modes.iter().map(|m| format!("d({})", m.name));
+        modes.chain(velocities).collect()
+    }
+
+    /// Whether any equation term holds a velocity `d(q)` (nonlinear damping, velocity
+    /// couplings).
+    pub fn has_velocity_terms(&self) -> bool {
+        let nm = self.modes.len();
+        self.eom.iter().any(|eq| {
+            eq.terms()
+                .any(|(m, _)| m.factors().iter().any(|&(v, _)| v.index() >= nm))
+        })
+    }
+
+    /// The canonical name (`DATA_FORMAT.md`) of a monomial in the modal coordinates and
+    /// velocities (`q1^2*d(q1)`).
     pub fn monomial_name(&self, m: &PowerProduct) -> String {
-        m.name(&self.mode_names())
+        m.name(&self.variable_names())
     }
 
     /// Every term whose coefficient is not affine in the parameters; empty when the model can
     /// be identified by linear least squares.
     pub fn non_affine_terms(&self) -> Vec<NonAffineTerm> {
         let modes = self.mode_names();
+        let vars = self.variable_names();
         let params = self.param_names();
         let mut out = Vec::new();
         for (n, eq) in self.eom.iter().enumerate() {
@@ -135,7 +159,7 @@ impl Model {
                     .unwrap_or_default();
                 out.push(NonAffineTerm {
                     mode: modes[n].to_string(),
-                    monomial: m.name(&modes),
+                    monomial: m.name(&vars),
                     coefficient,
                 });
             }

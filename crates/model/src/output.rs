@@ -110,7 +110,7 @@ impl Model {
         let lhs = match self.eom.get(n) {
             Some(p) if !p.is_zero() => join_sum(
                 &lhs,
-                &p.to_string_with(&self.mode_names(), &self.param_names()),
+                &p.to_string_with(&self.variable_names(), &self.param_names()),
             ),
             _ => lhs,
         };
@@ -129,7 +129,19 @@ impl Model {
         let lhs = format!(
             "\\ddot{{{qb}}}_{{{s}}} + \\frac{{\\omega_{{{s}}}}}{{Q_{{{s}}}}} \\dot{{{qb}}}_{{{s}}} + \\omega_{{{s}}}^{{2}} {q}"
         );
-        let modes: Vec<String> = self.modes.iter().map(|m| latex_name(&m.name)).collect();
+        let modes: Vec<String> = self
+            .modes
+            .iter()
+            .map(|m| latex_name(&m.name))
+            .chain(self.modes.iter().map(|m| {
+                let (base, _) = split_name(&m.name);
+                format!(
+                    "\\dot{{{}}}_{{{}}}",
+                    latex_base(base),
+                    mode_suffix_latex(&m.name)
+                )
+            }))
+            .collect();
         let params: Vec<String> = self.params.iter().map(|p| latex_name(&p.name)).collect();
         let lhs = match self.eom.get(n) {
             Some(p) if !p.is_zero() => join_sum(&lhs, &p.to_latex_with(&modes, &params)),
@@ -315,6 +327,7 @@ impl Model {
         });
         out.push_str("  \"eom\": {");
         let modes = self.mode_names();
+        let vars = self.variable_names();
         let params = self.param_names();
         for (n, eq) in self.eom.iter().enumerate() {
             let _ = write!(
@@ -328,7 +341,7 @@ impl Model {
                     out,
                     "{}\n      {}: {}",
                     if i == 0 { "" } else { "," },
-                    json_str(&m.name(&modes)),
+                    json_str(&m.name(&vars)),
                     coeff_json(c, &params)
                 );
             }

@@ -17,18 +17,21 @@ type Env = Vec<(String, i64)>;
 /// cost is proportional to the number of (term, variable) pairs, not to `terms × modes`.
 pub fn equations_from_potential(u: &Poly, n_modes: usize) -> Result<Vec<Poly>, Overflow> {
     let mut eom = vec![Poly::zero(); n_modes];
-    add_potential_derivatives(u, &mut eom)?;
+    add_derivatives(u, 0, &mut eom)?;
     Ok(eom)
 }
 
-fn add_potential_derivatives(u: &Poly, eom: &mut [Poly]) -> Result<(), Overflow> {
+/// Adds `∂F/∂x_{offset+n}` to `eom[n]` for every `n`: a potential's `∂U/∂q_n` (`offset` 0) or a
+/// dissipation function's `∂D/∂q̇_n` (`offset` the number of modes: velocities follow the
+/// modes among the variables).
+fn add_derivatives(u: &Poly, offset: usize, eom: &mut [Poly]) -> Result<(), Overflow> {
     // Each slot collects the terms of ∂U/∂q_v, then sorts and sums them once (many terms on
     // one monomial, e.g. a family of parameters, are summed as a balanced tree: n log n), and is
     // merged once with the directly written terms.
     let mut slots: Vec<PolyBuilder<Coeff>> = (0..eom.len()).map(|_| PolyBuilder::new()).collect();
     for (m, c) in u.terms() {
         for &(v, _) in m.factors() {
-            let Some(slot) = slots.get_mut(v.index()) else {
+            let Some(slot) = v.index().checked_sub(offset).and_then(|i| slots.get_mut(i)) else {
                 continue;
             };
             if let Some((k, rest)) = m.derivative(v) {
@@ -110,11 +113,23 @@ impl<'s> Sink<'s> {
     }
 }
 
-/// A use of an expression: a direct equation term or a potential, with its index values.
+/// A use of an expression: a direct equation term, a potential or a dissipation function, with
+/// its index values.
 struct Use<'a> {
-    target: Option<(&'a Name, bool)>,
+    target: Target<'a>,
     expr: &'a Expr,
     env: Env,
+}
+
+/// Where an expression goes.
+#[derive(Clone, Copy)]
+enum Target<'a> {
+    /// `eom q1 += ...` (`true`: `-=`).
+    Eom(&'a Name, bool),
+    /// `potential: ...`: each equation gets `∂U/∂q_n`.
+    Potential,
+    /// `dissipation: ...`: each equation gets `∂D/∂q̇_n`.
+    Dissipation,
 }
 
 /// What a name resolves to.
@@ -175,12 +190,16 @@ pub(crate) fn lower(
     let names = Names {
         table: &table,
         style: &param_style,
+        n_modes: modes.len() as u32,
     };
     // Terms are collected in builders and sorted once: a family can add 10^5 statements in
     // any order, and inserting each into a sorted polynomial would be quadratic.
     let mut eom_terms: Vec<PolyBuilder<Coeff>> = vec![PolyBuilder::new(); modes.len()];
     let mut potential_terms = PolyBuilder::new();
     let mut first_potential: Option<Span> = None;
+    let mut dissipation_terms = PolyBuilder::new();
+    let mut first_dissipation: Option<Span> = None;
+    let n_modes = modes.len();
     for u in &decls.uses {
         let mut ev = Eval {
             names: &names,
@@ -189,27 +208,38 @@ pub(crate) fn lower(
         };
         // Resolve the target before the expression, so both kinds of error are reported.
         let target = match u.target {
-            None => None,
-            Some((name, _)) => match ev.resolve_target(name) {
-                Some(n) => Some(n),
+            Target::Eom(name, negate) => match ev.resolve_target(name) {
+                Some(n) => Some((n, negate)),
                 None => {
                     ev.eval(u.expr);
                     continue;
                 }
             },
+            Target::Potential | Target::Dissipation => None,
         };
         let Some(p) = ev.eval(u.expr) else { continue };
-        let target = match target {
-            None => {
-                first_potential.get_or_insert(u.expr.span());
-                &mut potential_terms
+        let (builder, negate) = match (u.target, target) {
+            (_, Some((n, negate))) => (&mut eom_terms[n as usize], negate),
+            (Target::Dissipation, None) => {
+                if !has_velocity(&p, n_modes) {
+                    no_velocity_in_dissipation(&mut sink, u.expr.span());
+                    continue;
+                }
+                first_dissipation.get_or_insert(u.expr.span());
+                (&mut dissipation_terms, false)
             }
-            Some(n) => &mut eom_terms[n as usize],
+            (_, None) => {
+                if has_velocity(&p, n_modes) {
+                    velocity_in_potential(&mut sink, u.expr.span());
+                    continue;
+                }
+                first_potential.get_or_insert(u.expr.span());
+                (&mut potential_terms, false)
+            }
         };
-        let negate = matches!(u.target, Some((_, true)));
-        if let Err(Overflow) = target.push_poly(&p, negate) {
+        if let Err(Overflow) = builder.push_poly(&p, negate) {
             overflow(&mut sink, u.expr.span());
-        } else if target.pending_len() > MAX_TERMS {
+        } else if builder.pending_len() > MAX_TERMS {
             too_many_terms(&mut sink, u.expr.span());
             break;
         }
@@ -221,6 +251,13 @@ pub(crate) fn lower(
             Poly::zero()
         }
     };
+    let dissipation = match dissipation_terms.finish() {
+        Ok(p) => p,
+        Err(Overflow) => {
+            overflow(&mut sink, first_dissipation.unwrap_or_default());
+            Poly::zero()
+        }
+    };
     let mut eom = Vec::with_capacity(eom_terms.len());
     for terms in eom_terms {
         eom.push(terms.finish().unwrap_or_else(|Overflow| {
@@ -229,8 +266,11 @@ pub(crate) fn lower(
         }));
     }
     if sink.list.is_empty() {
-        if let Err(Overflow) = add_potential_derivatives(&potential, &mut eom) {
+        if let Err(Overflow) = add_derivatives(&potential, 0, &mut eom) {
             overflow(&mut sink, first_potential.unwrap_or_default());
+        }
+        if let Err(Overflow) = add_derivatives(&dissipation, n_modes, &mut eom) {
+            overflow(&mut sink, first_dissipation.unwrap_or_default());
         }
     }
     if !sink.list.is_empty() {
@@ -242,6 +282,7 @@ pub(crate) fn lower(
         params,
         eom,
         potential,
+        dissipation,
     })
 }
 
@@ -439,12 +480,16 @@ fn expand<'a>(s: &'a Stmt, env: &mut Env, d: &mut Decls<'a>, sink: &mut Sink<'_>
             }
         }
         Stmt::Eom(e) => d.uses.push(Use {
-            target: Some((&e.mode, e.negate)),
+            target: Target::Eom(&e.mode, e.negate),
             expr: &e.expr,
             env: env.clone(),
         }),
         Stmt::Potential(p) => d.uses.push(Use {
-            target: None,
+            target: if p.dissipation {
+                Target::Dissipation
+            } else {
+                Target::Potential
+            },
             expr: &p.expr,
             env: env.clone(),
         }),
@@ -582,6 +627,8 @@ fn indices(name: &Name, env: &Env, sink: &mut Sink<'_>) -> Option<Vec<i64>> {
 struct Names<'t> {
     table: &'t HashMap<String, (Sym, Span)>,
     style: &'t Styles,
+    /// Modes: the velocity of mode `m` is the variable `n_modes + m`.
+    n_modes: u32,
 }
 
 struct Eval<'n, 'e, 's, 'src> {
@@ -714,7 +761,8 @@ impl Eval<'_, '_, '_, '_> {
         match e {
             Expr::Num(r, _) => Some(Poly::constant(Coeff::constant(*r))),
             Expr::Name(n) => self.name(n),
-            Expr::Call(f, sp) => {
+            Expr::Call(f, args, sp) if f == "d" => self.velocity(args, *sp),
+            Expr::Call(f, _, sp) => {
                 let help = if self.names.table.contains_key(f.as_str()) {
                     format!("to multiply, write the `*`: `{f}*(...)`")
                 } else {
@@ -980,6 +1028,86 @@ impl Eval<'_, '_, '_, '_> {
             }
         }
     }
+}
+
+impl Eval<'_, '_, '_, '_> {
+    /// `d(q1)`: the velocity of mode q1, the variable after every mode's.
+    fn velocity(&mut self, args: &[Expr], sp: Span) -> Option<Poly> {
+        let bad = |sink: &mut Sink<'_>, message: String, help: String| {
+            sink.push(ModelDiagnostic::new(
+                Code::BadVelocity,
+                sp,
+                message,
+                "not the velocity of a mode",
+                help,
+            ));
+            None
+        };
+        let [arg] = args else {
+            return bad(
+                self.sink,
+                format!("`d(...)` takes one mode, here it has {}", args.len()),
+                "write the velocity of each mode on its own: `d(q1)`".into(),
+            );
+        };
+        match arg {
+            Expr::Name(n) => {
+                let p = self.name(n)?;
+                let var = p
+                    .terms()
+                    .next()
+                    .and_then(|(m, _)| m.factors().first().map(|&(v, _)| v));
+                match var {
+                    Some(v) if v.index() < self.names.n_modes as usize => {
+                        Some(Poly::var(VarId(self.names.n_modes + v.0)))
+                    }
+                    _ => bad(
+                        self.sink,
+                        format!("`d(...)` takes a mode, and `{}` is not one", n.base),
+                        "velocities are of modes: write `d(q1)` for a declared mode q1".into(),
+                    ),
+                }
+            }
+            Expr::Call(g, _, _) if g == "d" => bad(
+                self.sink,
+                "`d(d(...))` is an acceleration, and model terms hold positions and velocities only"
+                    .into(),
+                "an acceleration term changes the mass: rescale the mode instead, or write `d(q1)`"
+                    .into(),
+            ),
+            _ => bad(
+                self.sink,
+                "`d(...)` takes one mode name".into(),
+                "write the velocity of each mode on its own, as in `d(q1) + d(q2)`".into(),
+            ),
+        }
+    }
+}
+
+/// Whether `p` holds a velocity (a variable at or after `n_modes`).
+fn has_velocity(p: &Poly, n_modes: usize) -> bool {
+    p.terms()
+        .any(|(m, _)| m.factors().iter().any(|&(v, _)| v.index() >= n_modes))
+}
+
+fn velocity_in_potential(sink: &mut Sink<'_>, span: Span) {
+    sink.push(ModelDiagnostic::new(
+        Code::VelocityInPotential,
+        span,
+        "a potential depends on the positions only, and this one holds a velocity `d(...)`",
+        "velocity in a potential",
+        "write velocity-dependent forces as `eom q1 += eta*q1^2*d(q1)`, or as a dissipation function: `dissipation: eta/4*q1^2*d(q1)^2`",
+    ));
+}
+
+fn no_velocity_in_dissipation(sink: &mut Sink<'_>, span: Span) {
+    sink.push(ModelDiagnostic::new(
+        Code::BadVelocity,
+        span,
+        "a dissipation function gives each equation its derivative by a velocity, and this one holds no velocity `d(...)`",
+        "no velocity",
+        "write it in the velocities, as in `dissipation: eta/4*q1^2*d(q1)^2`; position-only terms belong in `potential:`",
+    ));
 }
 
 fn has_index_var(n: &Name) -> bool {

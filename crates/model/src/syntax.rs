@@ -74,12 +74,15 @@ fn check_nesting(source: &str) -> Result<(), Vec<ModelDiagnostic>> {
 fn rule_words(r: &Rule) -> &'static str {
     match r {
         Rule::EOI => "end of file",
-        Rule::model | Rule::family_block => "a statement (mode, modes, param, eom, potential, for)",
+        Rule::model | Rule::family_block => {
+            "a statement (mode, modes, param, eom, potential, dissipation, for)"
+        }
         Rule::modes_decl | Rule::kw_modes => "`modes`",
         Rule::mode_decl | Rule::kw_mode => "`mode`",
         Rule::param_decl | Rule::kw_param => "`param`",
         Rule::eom_stmt | Rule::kw_eom => "`eom`",
         Rule::potential_stmt | Rule::kw_potential => "`potential`",
+        Rule::dissipation_stmt | Rule::kw_dissipation => "`dissipation`",
         Rule::family | Rule::kw_for => "`for`",
         Rule::kw_in => "`in`",
         Rule::kw_at => "`at`",
@@ -127,13 +130,14 @@ fn syntax_error(source: &str, e: pest::error::Error<Rule>) -> ModelDiagnostic {
     let mut seen = std::collections::HashSet::new();
     expected.retain(|w| seen.insert(*w));
     // "end of file, `mode`, `modes`, `param`, ..." reads better as "a new statement".
-    const STARTS: [&str; 7] = [
+    const STARTS: [&str; 8] = [
         "end of file",
         "`mode`",
         "`modes`",
         "`param`",
         "`eom`",
         "`potential`",
+        "`dissipation`",
         "`for`",
     ];
     if expected.iter().filter(|w| STARTS.contains(w)).count() >= 3 {
@@ -207,13 +211,14 @@ fn syntax_help(found: &str, expected: &[&str]) -> String {
     if expected.contains(&"a frequency unit (Hz, kHz, MHz or GHz)") {
         return "write the unit after the number, as in `207.58 kHz`".to_string();
     }
-    const RESERVED: [&str; 9] = [
+    const RESERVED: [&str; 10] = [
         "mode",
         "modes",
         "param",
         "params",
         "eom",
         "potential",
+        "dissipation",
         "for",
         "in",
         "at",
@@ -228,7 +233,7 @@ fn syntax_help(found: &str, expected: &[&str]) -> String {
     if found.is_empty() {
         return "the file ends in the middle of a statement; complete it or remove it".to_string();
     }
-    "statements start with `mode`, `modes`, `param`, `eom`, `potential` or `for`; see docs/model-language.md".to_string()
+    "statements start with `mode`, `modes`, `param`, `eom`, `potential`, `dissipation` or `for`; see docs/model-language.md".to_string()
 }
 
 struct Builder {
@@ -294,10 +299,11 @@ impl Builder {
                     out.push(Stmt::Eom(EomStmt { mode, negate, expr }));
                 }
             }
-            Rule::potential_stmt => {
+            Rule::potential_stmt | Rule::dissipation_stmt => {
+                let dissipation = p.as_rule() == Rule::dissipation_stmt;
                 if let Some(e) = p.into_inner().find(|q| q.as_rule() == Rule::expr) {
                     if let Some(expr) = self.expr(e) {
-                        out.push(Stmt::Potential(PotentialStmt { expr }));
+                        out.push(Stmt::Potential(PotentialStmt { expr, dissipation }));
                     }
                 }
             }
@@ -806,12 +812,16 @@ impl Builder {
             Rule::expr => self.expr(q),
             Rule::call => {
                 let sp = span(&q);
-                let fname = q
-                    .into_inner()
+                let mut inner = q.into_inner();
+                let fname = inner
                     .next()
                     .map(|i| i.as_str().to_string())
                     .unwrap_or_default();
-                Some(Expr::Call(fname, sp))
+                let mut args = Vec::new();
+                for a in inner {
+                    args.push(self.expr(a)?);
+                }
+                Some(Expr::Call(fname, args, sp))
             }
             _ => None,
         }

@@ -337,3 +337,70 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn velocities_are_factors_of_direct_terms() {
+    let m = ok("mode q1\nmode q2\nparam eta, eta12, mu, nu\n\
+                eom q1 += eta*q1^2*d(q1) + eta12*q2^2*d(q1)\n\
+                eom q2 += -mu*d(q2) + nu*q2^2*d(q2)");
+    assert!(m.has_velocity_terms());
+    assert_eq!(m.variable_names(), ["q1", "q2", "d(q1)", "d(q2)"]);
+    assert_eq!(
+        eq(&m, "q1"),
+        pairs(&[("q1^2*d(q1)", "eta"), ("q2^2*d(q1)", "eta12")])
+    );
+    assert_eq!(
+        eq(&m, "q2"),
+        pairs(&[("d(q2)", "-mu"), ("q2^2*d(q2)", "nu")])
+    );
+    assert!(
+        m.equation_text(0).contains("eta q1^2 d(q1)"),
+        "{}",
+        m.equation_text(0)
+    );
+    assert!(m.to_latex().contains("\\dot{q}_{1}"), "{}", m.to_latex());
+    assert!(m.to_json().contains("\"q1^2*d(q1)\""));
+    // Families index velocities like positions.
+    let f = ok("for i in 1..3: mode q[i]\nfor i in 1..3: param eta[i]\n\
+                for i in 1..3: eom q[i] += eta[i]*q[i]^2*d(q[i])");
+    assert_eq!(eq(&f, "q3"), pairs(&[("q3^2*d(q3)", "eta3")]));
+    let plain = ok("mode q1\nparam b\npotential: b/4*q1^4");
+    assert!(!plain.has_velocity_terms());
+}
+
+#[test]
+fn a_dissipation_function_gives_its_velocity_derivatives() {
+    // D = eta/4 q1^2 d(q1)^2 + c/2 d(q1)^2 d(q2)^2: dD/dv1 = eta/2 q1^2 v1 + c v1 v2^2.
+    let m = ok("mode q1\nmode q2\nparam eta, c\n\
+                dissipation: eta/4*q1^2*d(q1)^2 + c/2*d(q1)^2*d(q2)^2");
+    assert_eq!(
+        eq(&m, "q1"),
+        pairs(&[("q1^2*d(q1)", "1/2*eta"), ("d(q1)*d(q2)^2", "c")])
+    );
+    assert_eq!(eq(&m, "q2"), pairs(&[("d(q1)^2*d(q2)", "c")]));
+    assert!(!m.dissipation.is_zero());
+    assert!(m.potential.is_zero());
+}
+
+#[test]
+fn misused_velocities_are_located_errors() {
+    let base = "mode q1\nmode q2\nparam eta\n";
+    for (body, code) in [
+        ("eom q1 += eta*d(eta)", Code::BadVelocity),
+        ("eom q1 += eta*d(d(q1))", Code::BadVelocity),
+        ("eom q1 += eta*d(q1+q2)", Code::BadVelocity),
+        ("eom q1 += eta*d(q1, q2)", Code::BadVelocity),
+        ("potential: eta*q1^2*d(q1)", Code::VelocityInPotential),
+        ("dissipation: eta*q1^2", Code::BadVelocity),
+        ("eom q1 += eta*d(q3)", Code::UnknownName),
+        ("eom q1 += eta*sin(q1)", Code::NotPolynomial),
+    ] {
+        let src = format!("{base}{body}");
+        assert_eq!(err_codes(&src), [code], "{body}");
+    }
+    let e = parse_str(&format!("{base}potential: eta*q1^2*d(q1)"), "t.hb")
+        .expect_err("a velocity in a potential");
+    let text = e.render_plain(100);
+    assert!(text.contains("dissipation:"), "{text}");
+    assert!(text.contains("t.hb:4"), "{text}");
+}

@@ -96,7 +96,9 @@ pub(crate) fn param_modes(model: &Model, p: usize) -> BTreeSet<usize> {
         for (m, c) in eq.terms() {
             if c.variables().iter().any(|v| v.index() == p) {
                 out.insert(n);
-                out.extend(m.factors().iter().map(|(v, _)| v.index()));
+                // A velocity `d(q)` involves its mode.
+                let nm = model.modes.len();
+                out.extend(m.factors().iter().map(|(v, _)| v.index() % nm));
             }
         }
     }

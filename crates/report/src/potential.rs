@@ -5,6 +5,7 @@
 //! `U_nl` is the work of the nonlinear forces along the straight path from the origin,
 //! `U_nl(q) = Σ_terms b · m(q) · q_n / (deg m + 1)` for a term `b·m(q)` in the equation of
 //! `q_n`: exact for forces derived from a potential (`∂U/∂q_n`), J/kg per m² of modal mass.
+//! Velocity terms (`d(q)`: damping) are left out: they store no energy.
 
 use harmonid_plot::{PotentialCell, PotentialMatrix};
 use harmonid_sim::NumericModel;
@@ -14,6 +15,7 @@ pub fn u_nl(model: &NumericModel, q: &[f64]) -> f64 {
     model
         .terms()
         .iter()
+        .filter(|t| is_conservative(model, t))
         .map(|t| {
             let m: f64 = t
                 .factors
@@ -25,12 +27,18 @@ pub fn u_nl(model: &NumericModel, q: &[f64]) -> f64 {
         .sum()
 }
 
-/// Whether some term couples two different modes.
+/// Whether some position-only term couples two different modes.
 pub fn has_couplings(model: &NumericModel) -> bool {
     model
         .terms()
         .iter()
+        .filter(|t| is_conservative(model, t))
         .any(|t| t.factors.iter().any(|&(i, _)| i != t.eq) || t.factors.len() > 1)
+}
+
+/// A term of the positions alone (no velocity factor).
+fn is_conservative(model: &NumericModel, t: &harmonid_sim::Term) -> bool {
+    t.factors.iter().all(|&(i, _)| i < model.n_modes())
 }
 
 fn cell(model: &NumericModel, i: usize, j: usize, q_max: &[f64], g: usize) -> PotentialCell {

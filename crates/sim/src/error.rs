@@ -68,6 +68,12 @@ pub enum SimError {
         /// The model's parameters, for the message.
         declared: String,
     },
+    /// A computation that does not handle velocity terms (`d(q)`) yet.
+    #[error("{what} does not handle velocity terms (d(q) in the model) yet; the harmonic-balance steady state (`harmonid simulate`, `sweep --two-tone`) and the time-domain simulation do")]
+    VelocityTerms {
+        /// The computation.
+        what: &'static str,
+    },
     /// A term of a hand-built model refers to a mode it does not have.
     #[error("a term refers to a mode beyond the {modes} declared")]
     TermBeyondModes {

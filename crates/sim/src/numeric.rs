@@ -6,14 +6,17 @@ use harmonid_model::{Linear, Model};
 use harmonid_poly::PowerProduct;
 use std::collections::BTreeMap;
 
-/// One term `coef · Π q_var^exp` of an equation, in flat storage.
+/// One term `coef · Π x_var^exp` of an equation, in flat storage. The variables are the
+/// modes `q_0..q_{N−1}` and then their velocities: variable `N + m` is `q̇_m` (`d(q_m)` in the
+/// model language).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Term {
     /// Mode whose equation holds the term.
     pub eq: usize,
-    /// Coefficient `b` in SI units of the equation (N/kg per m^degree).
+    /// Coefficient `b` in SI units of the equation (N/kg per m^degree, times s per velocity
+    /// factor).
     pub coef: f64,
-    /// `(mode, exponent)` factors, sorted by mode, exponents ≥ 1.
+    /// `(variable, exponent)` factors, sorted by variable, exponents ≥ 1.
     pub factors: Vec<(usize, u32)>,
 }
 
@@ -101,14 +104,15 @@ fn check_positive(what: &str, v: f64, min: f64) -> Result<f64, SimError> {
     }
 }
 
-/// Parses a monomial name (`q1*q2^2`) against mode names into sorted `(mode, exponent)` pairs.
+/// Parses a monomial name (`q1*q2^2`, `q1^2*d(q1)`) against mode names into sorted
+/// `(variable, exponent)` pairs (the velocity `d(q_m)` is variable `N + m`).
 pub fn parse_monomial(name: &str, modes: &[String]) -> Result<Vec<(usize, u32)>, SimError> {
     let bad = |why: String| SimError::BadMonomial {
         name: name.to_string(),
         why,
         modes: modes.join(", "),
     };
-    let mut exps = vec![0u32; modes.len()];
+    let mut exps = vec![0u32; 2 * modes.len()];
     for part in name.split('*') {
         let part = part.trim();
         let (var, k) = match part.split_once('^') {
@@ -120,14 +124,18 @@ pub fn parse_monomial(name: &str, modes: &[String]) -> Result<Vec<(usize, u32)>,
             ),
             None => (part, 1),
         };
+        let (mode, velocity) = match var.strip_prefix("d(").and_then(|v| v.strip_suffix(')')) {
+            Some(v) => (v.trim(), true),
+            None => (var, false),
+        };
         let m = modes
             .iter()
-            .position(|n| n == var)
-            .ok_or_else(|| bad(format!("`{var}` is not a mode")))?;
+            .position(|n| n == mode)
+            .ok_or_else(|| bad(format!("`{mode}` is not a mode")))?;
         if k == 0 || k > 16 {
             return Err(bad(format!("exponent {k} is outside 1..=16")));
         }
-        exps[m] += k;
+        exps[if velocity { modes.len() + m } else { m }] += k;
     }
     Ok(exps
         .iter()
@@ -178,7 +186,7 @@ impl NumericModel {
             .filter(|(t, g)| t.coef != 0.0 || !g.is_empty())
             .collect();
         for (t, _) in &terms {
-            if t.eq >= n || t.factors.iter().any(|&(m, k)| m >= n || k == 0) {
+            if t.eq >= n || t.factors.iter().any(|&(m, k)| m >= 2 * n || k == 0) {
                 return Err(SimError::TermBeyondModes { modes: n });
             }
             if !t.coef.is_finite() {
@@ -198,7 +206,8 @@ impl NumericModel {
         for i in 0..n {
             eq_start[i + 1] += eq_start[i];
         }
-        let mut max_pow = vec![1u32; n];
+        let velocities = terms.iter().any(|t| t.factors.iter().any(|&(m, _)| m >= n));
+        let mut max_pow = vec![1u32; if velocities { 2 * n } else { n }];
         for t in &terms {
             for &(m, k) in &t.factors {
                 max_pow[m] = max_pow[m].max(k);
@@ -391,9 +400,32 @@ impl NumericModel {
         self.terms.iter().map(Term::degree).max().unwrap_or(0)
     }
 
-    /// Highest exponent of mode `m` in any term (at least 1).
+    /// Highest exponent of variable `m` (a mode, or a velocity from `N` on) in any term (at
+    /// least 1).
     pub fn max_pow(&self, m: usize) -> u32 {
         self.max_pow[m]
+    }
+
+    /// Number of variables the terms are polynomials in: the modes, and their velocities when
+    /// a term holds one (`2N`; otherwise `N`). [`Self::forces`] takes that many values.
+    pub fn n_vars(&self) -> usize {
+        self.max_pow.len()
+    }
+
+    /// Whether a term holds a velocity (nonlinear damping, a velocity coupling).
+    pub fn has_velocity_terms(&self) -> bool {
+        self.n_vars() > self.n_modes()
+    }
+
+    /// Names of the variables: the modes, then `d(q)` of each when there are velocity terms.
+    pub fn variable_names(&self) -> Vec<String> {
+        let velocities = self.mode_names.iter().map(|m| format!("d({m})"));
+        self.mode_names
+            .iter()
+            .cloned()
+            .chain(velocities)
+            .take(self.n_vars())
+            .collect()
     }
 
     /// The terms of equation `n` as a map from monomial name to coefficient.
@@ -402,19 +434,20 @@ impl NumericModel {
             .iter()
             .map(|t| {
                 let pp = PowerProduct::from_exponents(&{
-                    let mut e = vec![0u32; self.n_modes()];
+                    let mut e = vec![0u32; self.n_vars()];
                     for &(m, k) in &t.factors {
                         e[m] = k;
                     }
                     e
                 });
-                (pp.name(&self.mode_names), t.coef)
+                (pp.name(&self.variable_names()), t.coef)
             })
             .collect()
     }
 
-    /// Nonlinear forces `out[n] = Σ_m b_m^(n) m(q)` at modal coordinates `q` (m). `pows` is
-    /// scratch of length [`Self::pow_len`]. No allocation.
+    /// Nonlinear forces `out[n] = Σ_m b_m^(n) m(x)` at `x`: the modal coordinates (m), then,
+    /// for a model with velocity terms, the modal velocities (m/s) ([`Self::n_vars`] values).
+    /// `pows` is scratch of length [`Self::pow_len`]. No allocation.
     #[inline]
     pub fn forces(&self, q: &[f64], pows: &mut [f64], out: &mut [f64]) {
         self.fill_pows(q, pows);
@@ -433,12 +466,13 @@ impl NumericModel {
         }
     }
 
-    /// Jacobian of the nonlinear forces, `jac[n * N + j] = ∂(Σ_m b_m^(n) m(q)) / ∂q_j`.
+    /// Jacobian of the nonlinear forces, `jac[n * V + j] = ∂(Σ_m b_m^(n) m(x)) / ∂x_j` over
+    /// the `V =` [`Self::n_vars`] variables (modes, then velocities).
     pub fn force_jacobian(&self, q: &[f64], pows: &mut [f64], jac: &mut [f64]) {
         self.fill_pows(q, pows);
         let stride = self.pow_stride();
-        let nm = self.n_modes();
-        jac[..nm * nm].iter_mut().for_each(|x| *x = 0.0);
+        let nm = self.n_vars();
+        jac[..self.n_modes() * nm].iter_mut().for_each(|x| *x = 0.0);
         for t in &self.terms {
             for (i, &(j, kj)) in t.factors.iter().enumerate() {
                 let mut v = t.coef * kj as f64 * pows[j * stride + kj as usize - 1];
@@ -459,7 +493,7 @@ impl NumericModel {
 
     /// Length of the power table scratch used by [`Self::forces`].
     pub fn pow_len(&self) -> usize {
-        self.n_modes() * self.pow_stride()
+        self.n_vars() * self.pow_stride()
     }
 
     #[inline]

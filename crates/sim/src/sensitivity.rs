@@ -25,7 +25,7 @@
 
 use crate::lattice::LINE_TOL_HZ;
 use crate::linalg::ColumnScratch;
-use crate::steady::{HbSolver, SteadyState};
+use crate::steady::{fill_velocities, term_monomial, variable_spectra, HbSolver, SteadyState};
 use crate::SimError;
 use harmonid_poly::PowerProduct;
 use harmonid_spectral::{SystemPlan, SystemScratch};
@@ -83,6 +83,9 @@ pub struct Sensitivity {
     mono_of_term: Vec<usize>,
     /// `[k·R + r]`: amplitude of monomial `k` on the lattice.
     mono_amp: Vec<Complex64>,
+    /// The state's amplitudes `[n·R + r]` and velocity spectra (empty without velocity terms).
+    x: Vec<Complex64>,
+    vel: Vec<Complex64>,
     /// `∂R/∂θ`, complex, `[n·R + r]`.
     dres: Vec<Complex64>,
     /// Real right-hand sides / solutions, one column per parameter (`2·N·R` rows).
@@ -164,11 +167,7 @@ impl Sensitivity {
         let mut monos: Vec<PowerProduct> = Vec::new();
         let mut mono_of_term = Vec::with_capacity(model.terms().len());
         for t in model.terms() {
-            let mut e = vec![0u32; nm];
-            for &(m, k) in &t.factors {
-                e[m] += k;
-            }
-            let pp = PowerProduct::from_exponents(&e);
+            let pp = term_monomial(model, &t.factors);
             let k = match monos.iter().position(|x| *x == pp) {
                 Some(k) => k,
                 None => {
@@ -183,7 +182,8 @@ impl Sensitivity {
             .enumerate()
             .map(|(k, m)| (k, m.clone(), 1.0))
             .collect();
-        let monomials = SystemPlan::new(solver.product_plan().clone(), nm, monos.len(), &terms)
+        let n_vars = model.n_vars();
+        let monomials = SystemPlan::new(solver.product_plan().clone(), n_vars, monos.len(), &terms)
             .map_err(|e| SimError::Hb(format!("cannot plan the monomials: {e}")))?;
         let mono_scratch = monomials.scratch();
         Ok(Self {
@@ -193,6 +193,12 @@ impl Sensitivity {
             tone_line,
             mono_scratch,
             mono_amp: vec![Z; monos.len() * nr],
+            x: vec![Z; nm * nr],
+            vel: if n_vars > nm {
+                vec![Z; nm * nr]
+            } else {
+                Vec::new()
+            },
             monomials,
             mono_of_term,
             dres: vec![Z; nm * nr],
@@ -257,12 +263,14 @@ impl Sensitivity {
         solver.factor_at(state)?;
         let needs_monomials = self.params.iter().any(|p| matches!(p, SensParam::Param(_)));
         if needs_monomials {
-            let mut refs: [&[Complex64]; crate::MAX_MODES] = [&[]; crate::MAX_MODES];
             for n in 0..nm {
-                refs[n] = &state.amplitudes[n];
+                self.x[n * nr..(n + 1) * nr].copy_from_slice(&state.amplitudes[n]);
             }
+            fill_velocities(&state.lattice_hz, &self.x, &mut self.vel);
+            let refs = variable_spectra(&self.x, &self.vel, nm, nr);
+            let nv = solver.model().n_vars();
             self.monomials
-                .forces(&refs[..nm], &mut self.mono_amp, &mut self.mono_scratch);
+                .forces(&refs[..nv], &mut self.mono_amp, &mut self.mono_scratch);
         }
         for (k, p) in self.params.iter().enumerate() {
             self.dres.fill(Z);

@@ -319,7 +319,7 @@ fn run(
                 // Sample at the end of this step: t = (win * n_win + j + 1) h; the phasor zk
                 // refers to that time.
                 lin.q_total(&stepper.z, &stepper.u, &mut stepper.qtot);
-                lockin.sample(&clock, (j + 1) / clock.m_dec, n_in, &stepper.qtot);
+                lockin.sample(&clock, (j + 1) / clock.m_dec, n_in, &stepper.qtot[..nm]);
             }
         }
         win += 1;
@@ -541,10 +541,13 @@ impl LinearDrive {
     }
 
     /// Total displacements into `qtot`: the linear response at tone phasors `t_z` plus the
-    /// deviations `us`.
+    /// deviations `us`; then, when `qtot` has room (a model with velocity terms), the total
+    /// velocities.
     fn q_total(&self, t_z: &[Complex64], us: &[[f64; 2]], qtot: &mut [f64]) {
+        let nm = us.len();
+        let (q_part, v_part) = qtot.split_at_mut(nm);
         let mut k = 0;
-        for (q, un) in qtot.iter_mut().zip(us) {
+        for (q, un) in q_part.iter_mut().zip(us) {
             let mut ql = un[0];
             for b in t_z {
                 let a = self.y[k];
@@ -552,6 +555,14 @@ impl LinearDrive {
                 k += 1;
             }
             *q = ql;
+        }
+        for (n, (v, un)) in v_part.iter_mut().zip(us).enumerate() {
+            let mut vl = un[1];
+            for (d, b) in t_z.iter().enumerate() {
+                let a = self.y[n * self.nd + d];
+                vl -= self.wdr[d] * (a.re * b.im + a.im * b.re);
+            }
+            *v = vl;
         }
     }
 }
@@ -603,7 +614,8 @@ impl Stepper {
             z,
             g: vec![0.0f64; 7 * nm],
             ust: vec![[0.0f64; 2]; nm],
-            qtot: vec![0.0f64; nm],
+            // The displacements, then the velocities when a term holds one.
+            qtot: vec![0.0f64; model.n_vars()],
             pows: vec![0.0f64; model.pow_len()],
         };
         let Self {

@@ -279,3 +279,27 @@ fn a_parameter_at_zero_keeps_its_sensitivity() {
     );
     assert!(worst < 1e-6, "worst relative error {worst:e}");
 }
+
+#[test]
+fn nonlinear_damping_and_a_velocity_coupling_match_finite_differences() {
+    // The nanostring with amplitude-dependent damping of q1 (eta1 q1^2 q1') and damping of q1
+    // induced by q2 (eta12 q2^2 q1'), each about a linewidth's worth at the driven amplitude.
+    let src = format!(
+        "{NANOSTRING}\n param eta1, eta12\n eom q1 += eta1*q1^2*d(q1) + eta12*q2^2*d(q1)\n"
+    );
+    let model = harmonid_model::parse_str(&src, "damped.hb").expect("model");
+    let c = |x: f64| Complex64::new(x, 0.0);
+    let mut theta = nanostring_theta(
+        8.57e22,
+        vec![
+            vec![c(3.5), c(3.5), c(0.0)],
+            vec![c(0.0), Complex64::new(0.0, 0.2), c(1.81)],
+        ],
+    );
+    theta.params.extend([3e14, 1e14]);
+    let tones = [207572.5, 207592.5, 415841.5];
+    let points = vec![vec![0.309, 0.588], vec![1.0, -0.5]];
+    let params = all_params(2, 5, 3);
+    let (worst, ..) = check_against_fd(&model, &theta, &tones, &params, every_line(&points));
+    assert!(worst < 1e-6, "worst relative error {worst:e}");
+}

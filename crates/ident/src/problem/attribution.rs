@@ -40,7 +40,33 @@ impl Problem {
         }
         modal
     }
-    /// from unknown values `values` (N/kg): `(tone, mode, F)`.
+
+    /// The spectra of the equation terms' variables for one shot: [`Problem::modal_spectra`],
+    /// then, for a model with velocity terms, each mode's velocity `i 2π f X` on the same
+    /// lines.
+    pub(super) fn variable_spectra(
+        &self,
+        ds: &Dataset,
+        mi: usize,
+        shot: usize,
+    ) -> Vec<Vec<Complex64>> {
+        let mut spectra = self.modal_spectra(ds, mi, shot);
+        if self.velocities {
+            let freqs = &ds.measurements[mi].freqs_hz;
+            for n in 0..spectra.len() {
+                let v = spectra[n]
+                    .iter()
+                    .zip(freqs)
+                    .map(|(x, &f)| Complex64::new(0.0, 2.0 * std::f64::consts::PI * f) * x)
+                    .collect();
+                spectra.push(v);
+            }
+        }
+        spectra
+    }
+
+    /// The drive force on its mode of each tone of measurement `mi`, from unknown values
+    /// `values` (N/kg): `(tone, mode, F)`.
     pub fn forces(&self, mi: usize, values: &[f64]) -> Vec<(usize, usize, Complex64)> {
         let prep = &self.meas[mi];
         prep.drive_idx

@@ -22,10 +22,12 @@ impl Problem {
                 for (n, terms) in self.eqs.iter().enumerate() {
                     for t in terms {
                         if t.params.iter().any(|(q, _)| q == p) {
+                            // A velocity involves its mode.
+                            let nm = self.mode_names.len();
                             let mut s: Vec<usize> = self.monomials[t.monomial]
                                 .factors()
                                 .iter()
-                                .map(|(v, _)| v.index())
+                                .map(|(v, _)| v.index() % nm)
                                 .collect();
                             s.push(n);
                             s.sort_unstable();

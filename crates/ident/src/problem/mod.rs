@@ -68,6 +68,11 @@ pub struct Problem {
     pub mode_names: Vec<String>,
     /// Parameter names.
     pub param_names: Vec<String>,
+    /// Names of the variables of the equation terms: the modes, then their velocities
+    /// (`d(q1)`), as monomial names spell them.
+    pub variable_names: Vec<String>,
+    /// A term holds a velocity: the regressors need each mode's velocity spectrum.
+    velocities: bool,
     /// The unknowns (the layout the output-error fit shares), nominal resonances and the
     /// force model in use.
     pub table: UnknownTable,
@@ -121,6 +126,8 @@ impl Problem {
         let mut prob = Problem {
             mode_names,
             param_names: model.params.iter().map(|p| p.name.clone()).collect(),
+            variable_names: model.variable_names(),
+            velocities: model.has_velocity_terms(),
             table,
             groups: Vec::new(),
             not_identifiable: Vec::new(),

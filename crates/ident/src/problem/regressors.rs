@@ -38,7 +38,7 @@ impl Problem {
         let m = &ds.measurements[mi];
         let prep = &self.meas[mi];
         let nf = m.freqs_hz.len();
-        let modal = self.modal_spectra(ds, mi, shot);
+        let modal = self.variable_spectra(ds, mi, shot);
         let modal_ref: Vec<&[Complex64]> = modal.iter().map(|v| v.as_slice()).collect();
         // Which monomials are needed: those of active equations.
         let mut g: Vec<Vec<Complex64>> = vec![Vec::new(); self.monomials.len()];

@@ -83,8 +83,9 @@ impl Problem {
             let prep = &self.meas[mi];
             let m = &ds.measurements[mi];
             let nf = prep.mode_of.len();
-            let modal = self.modal_spectra(ds, mi, shot);
+            let modal = self.variable_spectra(ds, mi, shot);
             let modal_ref: Vec<&[Complex64]> = modal.iter().map(|v| v.as_slice()).collect();
+            let nm = self.mode_names.len();
             // J[o][2s + quad], complex.
             let mut jac = vec![Complex64::new(0.0, 0.0); nf * 2 * nf];
             for r in 0..nf {
@@ -120,10 +121,17 @@ impl Problem {
                             &mut ji,
                             &mut scratch[mi],
                         );
+                        // A velocity V = iΩX: ∂/∂Re X = Ω ∂/∂Im V, ∂/∂Im X = −Ω ∂/∂Re V.
+                        let (mode, velocity) = (v.index() % nm, v.index() >= nm);
                         for o in (0..nf).filter(|&o| prep.mode_of[o] == n) {
-                            for s in (0..nf).filter(|&s| prep.mode_of[s] == v.index()) {
-                                jac[o * 2 * nf + 2 * s] += jr[o * nf + s] * b;
-                                jac[o * 2 * nf + 2 * s + 1] += ji[o * nf + s] * b;
+                            for s in (0..nf).filter(|&s| prep.mode_of[s] == mode) {
+                                let (mut dre, mut dim) = (jr[o * nf + s], ji[o * nf + s]);
+                                if velocity {
+                                    let w = 2.0 * PI * m.freqs_hz[s];
+                                    (dre, dim) = (dim * w, -dre * w);
+                                }
+                                jac[o * 2 * nf + 2 * s] += dre * b;
+                                jac[o * 2 * nf + 2 * s + 1] += dim * b;
                             }
                         }
                     }

@@ -17,6 +17,11 @@ pub fn backbone(
     amplitudes: &[f64],
     harmonics: usize,
 ) -> Result<Vec<Option<f64>>, SimError> {
+    if model.has_velocity_terms() {
+        return Err(SimError::VelocityTerms {
+            what: "the backbone (a free, undamped oscillation)",
+        });
+    }
     let nm = model.n_modes();
     if n >= nm {
         return Err(SimError::ModeIndex {

@@ -39,6 +39,9 @@ pub struct HbSolver {
     pub(super) coupled: Vec<bool>,
     pub(super) step: Vec<f64>,
     pub(super) x_try: Vec<Complex64>,
+    /// Velocity spectra `i Ω_r X_{n,r}` of the state being evaluated, for models with
+    /// velocity terms (empty otherwise).
+    pub(super) vel: Vec<Complex64>,
     /// `lu` holds a factorised Jacobian (of some earlier state).
     pub(super) have_lu: bool,
     /// The factorised Jacobian is that of the current `x`.
@@ -68,15 +71,9 @@ impl Operators {
         let terms: Vec<_> = model
             .terms()
             .iter()
-            .map(|t| {
-                let mut e = vec![0u32; nm];
-                for &(m, k) in &t.factors {
-                    e[m] += k;
-                }
-                (t.eq, PowerProduct::from_exponents(&e), t.coef)
-            })
+            .map(|t| (t.eq, term_monomial(model, &t.factors), t.coef))
             .collect();
-        let system = SystemPlan::new(plan, nm, nm, &terms)?;
+        let system = SystemPlan::new(plan, model.n_vars(), nm, &terms)?;
         let mut lin = vec![Z; nm * nr];
         for n in 0..nm {
             let (w, g) = (model.omega(n), model.gamma(n));
@@ -213,6 +210,11 @@ impl HbSolver {
             coupled: vec![true; nm * nm],
             step: vec![0.0; nu],
             x_try: vec![Z; nm * nr],
+            vel: if model.has_velocity_terms() {
+                vec![Z; nm * nr]
+            } else {
+                Vec::new()
+            },
             have_lu: false,
             fresh: false,
             coarse: None,
@@ -235,12 +237,11 @@ impl HbSolver {
         let nm = self.model.n_modes();
         let nr = self.lattice.len();
         let x = if use_try { &self.x_try } else { &self.x };
-        let mut refs: [&[Complex64]; MAX_MODES] = [&[]; MAX_MODES];
-        for n in 0..nm {
-            refs[n] = &x[n * nr..(n + 1) * nr];
-        }
+        fill_velocities(&self.lattice, x, &mut self.vel);
+        let refs = variable_spectra(x, &self.vel, nm, nr);
+        let nv = self.model.n_vars();
         self.system
-            .forces(&refs[..nm], &mut self.out, &mut self.scratch);
+            .forces(&refs[..nv], &mut self.out, &mut self.scratch);
         for i in 0..nm * nr {
             self.res[i] = self.lin[i] * x[i] - self.force[i] * s + self.out[i];
         }
@@ -276,17 +277,17 @@ impl HbSolver {
             self.jac[(2 * i + 1) * nu + 2 * i] = l.im;
             self.jac[(2 * i + 1) * nu + 2 * i + 1] = l.re;
         }
-        let mut refs: [&[Complex64]; MAX_MODES] = [&[]; MAX_MODES];
-        for n in 0..nm {
-            refs[n] = &self.x[n * nr..(n + 1) * nr];
-        }
+        fill_velocities(&self.lattice, &self.x, &mut self.vel);
+        let refs = variable_spectra(&self.x, &self.vel, nm, nr);
+        let nv = self.model.n_vars();
         let jac = &mut self.jac;
         let coupled = &mut self.coupled;
         for (i, c) in coupled.iter_mut().enumerate() {
             *c = i / nm == i % nm;
         }
+        let lattice = &self.lattice;
         self.system.jacobian(
-            &refs[..nm],
+            &refs[..nv],
             &mut self.jre,
             &mut self.jim,
             &mut self.scratch,
@@ -296,13 +297,20 @@ impl HbSolver {
                 if jre.iter().chain(jim).all(|z| *z == Z) {
                     return;
                 }
-                coupled[eq * nm + j] = true;
+                // A velocity V = iΩX of mode m: Re V = −Ω Im X, Im V = Ω Re X, so
+                // ∂F/∂Re X = Ω ∂F/∂Im V and ∂F/∂Im X = −Ω ∂F/∂Re V.
+                let (m, velocity) = if j < nm { (j, false) } else { (j - nm, true) };
+                coupled[eq * nm + m] = true;
                 for o in 0..nr {
                     let row0 = 2 * (eq * nr + o);
                     let (top, bottom) = jac[row0 * nu..(row0 + 2) * nu].split_at_mut(nu);
                     for r in 0..nr {
-                        let col0 = 2 * (j * nr + r);
-                        let (a, c) = (jre[o * nr + r], jim[o * nr + r]);
+                        let col0 = 2 * (m * nr + r);
+                        let (mut a, mut c) = (jre[o * nr + r], jim[o * nr + r]);
+                        if velocity {
+                            let w = TAU * lattice[r];
+                            (a, c) = (c * w, -a * w);
+                        }
                         top[col0] += a.re;
                         bottom[col0] += a.im;
                         top[col0 + 1] += c.re;
@@ -425,4 +433,40 @@ pub fn steady_state(
 ) -> Result<SteadyState, SimError> {
     let mut solver = HbSolver::new(model, drive, &settings.lattice)?;
     Ok(solver.solve(settings))
+}
+
+/// The monomial of a term's factors over the model's variables (modes, then velocities).
+pub(crate) fn term_monomial(model: &NumericModel, factors: &[(usize, u32)]) -> PowerProduct {
+    let mut e = vec![0u32; model.n_vars()];
+    for &(m, k) in factors {
+        e[m] += k;
+    }
+    PowerProduct::from_exponents(&e)
+}
+
+/// Velocity spectra `vel[n·R + r] = i 2π f_r x[n·R + r]` of the amplitudes `x` on `lattice`
+/// (nothing when `vel` is empty: a model without velocity terms).
+pub(crate) fn fill_velocities(lattice: &[f64], x: &[Complex64], vel: &mut [Complex64]) {
+    let nr = lattice.len();
+    for (i, v) in vel.iter_mut().enumerate() {
+        *v = Complex64::new(0.0, TAU * lattice[i % nr]) * x[i];
+    }
+}
+
+/// The spectra of the model's variables: each mode's amplitudes in `x`, then each mode's
+/// velocity in `vel` (when not empty), `R = nr` lines each.
+pub(crate) fn variable_spectra<'a>(
+    x: &'a [Complex64],
+    vel: &'a [Complex64],
+    nm: usize,
+    nr: usize,
+) -> [&'a [Complex64]; 2 * MAX_MODES] {
+    let mut refs: [&[Complex64]; 2 * MAX_MODES] = [&[]; 2 * MAX_MODES];
+    for n in 0..nm {
+        refs[n] = &x[n * nr..(n + 1) * nr];
+        if !vel.is_empty() {
+            refs[nm + n] = &vel[n * nr..(n + 1) * nr];
+        }
+    }
+    refs
 }

@@ -1,0 +1,63 @@
+//! Nonlinear damping identified like any other coefficient (issue 20): a Duffing resonator
+//! with `η q² q̇`, two drive levels (the damping shows in how the response grows with the
+//! drive), simulated by harmonic balance with noise, identified by the default estimator.
+
+use harmonid_ident::{identify, Settings};
+use harmonid_testgen::{self as gen, Design, Values};
+
+const MODEL: &str = "
+    mode q1 at 1 MHz
+    param beta1, eta1
+    potential: beta1/4*q1^4
+    eom q1 += eta1*q1^2*d(q1)
+";
+
+#[test]
+fn nonlinear_damping_is_identified_within_its_error_bar() {
+    let model = harmonid_model::parse_str(MODEL, "damped.hb").expect("model");
+    // 10 nm shifts the resonance by about a linewidth (beta) and adds 0.4 linewidth of damping
+    // (eta a^2 / 4 = 0.4 gamma).
+    let (f, q) = (1.0e6, 2.0e4);
+    let w = std::f64::consts::TAU * f;
+    let v = Values {
+        f_hz: vec![f],
+        q: vec![q],
+        params: [("beta1", 2.6e25), ("eta1", 0.4 * 4.0 * (w / q) / 1e-16)]
+            .iter()
+            .map(|(k, x)| (k.to_string(), *x))
+            .collect(),
+    };
+    let lw = f / q;
+    let pair = |name: &str, force: f64| Design {
+        name: name.into(),
+        tones: vec![(f - 2.0 * lw, 0, force), (f + 2.0 * lw, 0, force)],
+        observe: Vec::new(),
+    };
+    // Linear peak response F Q / w^2: 2.5 nm and 10 nm.
+    let unit = 1e-9 * w * w / q;
+    let designs = [pair("low", 2.5 * unit), pair("high", 10.0 * unit)];
+    let ds = gen::simulate(&model, &v, &designs, &[1.0], 1e-12, 10, 7);
+    let rep = identify(&model, &ds, &Settings::default()).expect("identify");
+    assert_eq!(rep.estimator, "ml");
+    let g = rep.goodness_of_fit.as_ref().expect("a verdict");
+    assert!(g.fits == Some(true), "{:?}", g.p_value);
+    for (name, truth) in [("beta1", v.params["beta1"]), ("eta1", v.params["eta1"])] {
+        let e = &rep.parameters[name];
+        let dev = (e.value - truth) / e.stderr;
+        println!(
+            "{name}: {:.6e} ± {:.2e} (truth {truth:.6e}, {dev:+.2} stderr)",
+            e.value, e.stderr
+        );
+        assert!(
+            e.stderr < 0.05 * truth.abs(),
+            "{name} poorly determined: {e:?}"
+        );
+        assert!(dev.abs() < 4.0, "{name}: {dev} stderr off");
+    }
+    // The result names the term the way the data format does.
+    assert!(
+        rep.eom["q1"].contains_key("q1^2*d(q1)"),
+        "{:?}",
+        rep.eom["q1"]
+    );
+}
