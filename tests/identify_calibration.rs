@@ -164,7 +164,7 @@ fn long_case(
     let t0 = std::time::Instant::now();
     let s = run(&m, v, clean, sigma, n, seed0);
     let label = format!(
-        "{model_path}, {:.2} nm, {} shots, {n} realisations ({:.0} s)",
+        "{model_path}, {:.3} nm, {} shots, {n} realisations ({:.0} s)",
         sigma * 1e9,
         clean.measurements[0].n_shots,
         t0.elapsed().as_secs_f64()
@@ -191,8 +191,9 @@ fn long_case(
     }
 }
 
-/// The long calibration: the four models at 0.01, 0.05 and 0.1 nm, each noise level with its
-/// own seeds. `HARMONID_CALIB_ONLY=two_mode|five_mode|three_wave|cubic` runs one model.
+/// The long calibration: the four models at 0.01, 0.05 and 0.1 nm (the damped one at 1, 2 and
+/// 5 pm), each noise level with its own seeds.
+/// `HARMONID_CALIB_ONLY=two_mode|five_mode|three_wave|cubic|damped` runs one model.
 #[test]
 #[ignore = "long Monte Carlo (minutes); run with --ignored --nocapture"]
 fn calibration_long() {
@@ -223,6 +224,10 @@ fn calibration_long() {
         }
     };
     type Prepare<'a> = Box<dyn Fn(&str) -> (Values, harmonid_ident::Dataset) + 'a>;
+    // The noise levels of every case but the damped one, whose damping shows as a few per cent
+    // of the response: at 0.05 nm its plan leaves beta2 and eta1 undetermined.
+    const LEVELS: [f64; 3] = [1e-11, 5e-11, 1e-10];
+    const QUIET: [f64; 3] = [1e-12, 2e-12, 5e-12];
     let cases: Vec<(&str, &str, Prepare, u64, u64)> = vec![
         (
             "two_mode",
@@ -252,13 +257,21 @@ fn calibration_long() {
             1000,
             17000,
         ),
+        (
+            "damped",
+            "examples/damped_2mode/model.hb",
+            Box::new(|p: &str| hand(p, gen::damped_2mode_plan(), &[0.5, 0.5], 20)),
+            1000,
+            21000,
+        ),
     ];
     for (key, path, prepare, n, seed0) in &cases {
         if !want(key) {
             continue;
         }
         let case = prepare(path);
-        for (i, sigma) in [1e-11, 5e-11, 1e-10].into_iter().enumerate() {
+        let levels = if *key == "damped" { QUIET } else { LEVELS };
+        for (i, sigma) in levels.into_iter().enumerate() {
             let seed = seed0 + 100_000 * i as u64;
             let n = long_realisations(*n);
             long_case(path, &case, sigma, n, seed, &mut failures);
@@ -351,5 +364,33 @@ fn five_mode_fold_plan_determines_every_parameter() {
     }
     for (name, rel) in five_mode_bounds(&gen::nanostring_5mode_fold_plan()) {
         assert!(rel < 0.15, "{name}: relative bound {rel:.3}");
+    }
+}
+
+/// The short version of the nonlinear-damping case for CI (issue 20): 16 realisations at
+/// 2 pm of `examples/damped_2mode` (nonlinear damping and a velocity coupling); loose
+/// versions of the long test's targets.
+#[test]
+fn nonlinear_damping_stderrs_cover_the_truth() {
+    let path = "examples/damped_2mode/model.hb";
+    let m = model(path);
+    let (v, d) = gen::damped_2mode_plan();
+    let clean = simulate_clean(&m, &v, &d, &[0.5, 0.5], 20);
+    // The damping shows as a few per cent of the response at 10 nm: 2 pm of noise determines
+    // every unknown to about 10 % (at 50 pm the plan leaves beta2 and eta1 undetermined).
+    let s = run(&m, &v, &clean, 2e-12, 16, 500);
+    for (name, bias, in1, in2, _, rel) in
+        table(&s, &format!("{path}, 0.002 nm, 20 shots, 16 realisations"))
+    {
+        assert!(
+            rel <= harmonid_ident::MAX_REL_STDERR,
+            "{name}: the plan determines it ({rel:.2})"
+        );
+        assert!(bias.abs() < 0.8, "{name}: bias {bias:.2} stderr");
+        assert!(
+            (0.35..=0.97).contains(&in1),
+            "{name}: {in1:.2} within ±1 stderr"
+        );
+        assert!(in2 >= 0.75, "{name}: {in2:.2} within ±2 stderr");
     }
 }

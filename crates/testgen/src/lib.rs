@@ -423,3 +423,35 @@ pub fn cubic_3mode_plan() -> (Values, Vec<Design>) {
     d[5].observe = vec![0];
     (v, d)
 }
+
+/// Values of `examples/damped_2mode/values.toml`, and a plan for nonlinear damping: q1's tone
+/// pair (2 linewidths either side) at two levels (linear response 2.5 and 10 nm: the damping
+/// shows in how the response grows), q2's pair at 10 nm, and q1's weaker pair with a tone on
+/// q2's resonance (q2 moving damps q1 through eta12).
+pub fn damped_2mode_plan() -> (Values, Vec<Design>) {
+    let names: Vec<String> = (1..=2).map(|n| format!("q{n}")).collect();
+    let v = example_values("damped_2mode", &names);
+    // Force for a linear peak response of `x` m: x w^2 / Q.
+    let force = |n: usize, x: f64| x * (std::f64::consts::TAU * v.f_hz[n]).powi(2) / v.q[n];
+    let pair = |n: usize, x: f64| {
+        let d = 2.0 * v.f_hz[n] / v.q[n];
+        vec![
+            (v.f_hz[n] - d, n, force(n, x)),
+            (v.f_hz[n] + d, n, force(n, x)),
+        ]
+    };
+    let design = |name: &str, tones: Vec<(f64, usize, f64)>| Design {
+        name: name.into(),
+        tones,
+        observe: Vec::new(),
+    };
+    let mut couple = pair(0, 2.5e-9);
+    couple.push((v.f_hz[1], 1, force(1, 1e-8)));
+    let d = vec![
+        design("single_q1_low", pair(0, 2.5e-9)),
+        design("single_q1_high", pair(0, 1e-8)),
+        design("single_q2", pair(1, 1e-8)),
+        design("couple_q1_q2", couple),
+    ];
+    (v, d)
+}
