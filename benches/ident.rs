@@ -7,10 +7,14 @@
 //! `identify_ml_30shots`: the whole default identification of 30 shots at 0.1 nm (per-shot
 //! fits, pooling, pooled linear fit, output-error ML by harmonic balance, Fisher stderrs,
 //! jackknife, drift check).
+//! `stepped_sweep_160steps`: a stepped-sine sweep as a lock-in records it (issue 20): one
+//! Duffing mode with nonlinear damping, 40 single-tone steps at each of 4 drive levels, each
+//! step a measurement of one line, 10 shots, one actuator gain for the whole sweep; the whole
+//! default identification.
 #![allow(missing_docs)] // criterion_group! generates an undocumented pub fn
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use harmonid_ident::{identify, Problem, Settings};
+use harmonid_ident::{identify, ForceModel, Problem, Settings};
 use std::hint::black_box;
 use std::path::PathBuf;
 
@@ -46,5 +50,45 @@ fn bench_identify(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_identify);
+fn bench_stepped_sweep(c: &mut Criterion) {
+    let model = harmonid_model::parse_str(
+        "mode q1 at 1 MHz\nparam beta1, eta1\npotential: beta1/4*q1^4\neom q1 += eta1*q1^2*d(q1)\n",
+        "stepped.hb",
+    )
+    .expect("model");
+    let (f, q) = (1.0e6, 2.0e4);
+    let w = std::f64::consts::TAU * f;
+    let v = gen::Values {
+        f_hz: vec![f],
+        q: vec![q],
+        params: [("beta1", 2.6e25), ("eta1", 5.0e18)]
+            .iter()
+            .map(|(k, x)| (k.to_string(), *x))
+            .collect(),
+    };
+    let lw = f / q;
+    let mut d = Vec::new();
+    for (l, x) in [1e-9, 2.5e-9, 5e-9, 1e-8].iter().enumerate() {
+        for s in 0..40 {
+            d.push(gen::Design {
+                name: format!("l{l}_s{s:02}"),
+                tones: vec![(f + lw * (s as f64 / 4.0 - 5.0), 0, x * w * w / q)],
+                observe: Vec::new(),
+            });
+        }
+    }
+    let ds = gen::simulate(&model, &v, &d, &[1.0], 1e-12, 10, 3);
+    let settings = Settings {
+        force_model: ForceModel::GainPerMode,
+        ..Settings::default()
+    };
+    let mut group = c.benchmark_group("identify/stepped_sweep");
+    group.sample_size(10);
+    group.bench_function("stepped_sweep_160steps", |b| {
+        b.iter(|| black_box(identify(&model, black_box(&ds), &settings).expect("identify")))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench_identify, bench_stepped_sweep);
 criterion_main!(benches);

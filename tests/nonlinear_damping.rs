@@ -61,3 +61,48 @@ fn nonlinear_damping_is_identified_within_its_error_bar() {
         rep.eom["q1"]
     );
 }
+
+#[test]
+fn a_stepped_sweep_at_four_levels_identifies_the_damping() {
+    // The shape of a lock-in's stepped sine: one tone and one line per step, 40 steps over ±5
+    // linewidths at each of four levels, one actuator gain for the whole sweep.
+    let model = harmonid_model::parse_str(MODEL, "damped.hb").expect("model");
+    let (f, q) = (1.0e6, 2.0e4);
+    let w = std::f64::consts::TAU * f;
+    let v = Values {
+        f_hz: vec![f],
+        q: vec![q],
+        params: [("beta1", 2.6e25), ("eta1", 5.0e18)]
+            .iter()
+            .map(|(k, x)| (k.to_string(), *x))
+            .collect(),
+    };
+    let lw = f / q;
+    let mut d = Vec::new();
+    for (l, x) in [1e-9, 2.5e-9, 5e-9, 1e-8].iter().enumerate() {
+        for s in 0..40 {
+            d.push(Design {
+                name: format!("l{l}_s{s:02}"),
+                tones: vec![(f + lw * (s as f64 / 4.0 - 5.0), 0, x * w * w / q)],
+                observe: Vec::new(),
+            });
+        }
+    }
+    let ds = gen::simulate(&model, &v, &d, &[1.0], 1e-12, 10, 3);
+    let settings = Settings {
+        force_model: harmonid_ident::ForceModel::GainPerMode,
+        ..Settings::default()
+    };
+    let rep = identify(&model, &ds, &settings).expect("identify");
+    assert_eq!(rep.estimator, "ml", "{:?}", rep.warnings);
+    for (name, truth) in [("beta1", 2.6e25), ("eta1", 5.0e18)] {
+        let e = &rep.parameters[name];
+        let dev = (e.value - truth) / e.stderr;
+        println!(
+            "{name}: {:.6e} ± {:.2e} ({dev:+.2} stderr)",
+            e.value, e.stderr
+        );
+        assert!(e.stderr < 0.05 * truth, "{name}: {e:?}");
+        assert!(dev.abs() < 4.0, "{name}: {dev} stderr off");
+    }
+}

@@ -91,7 +91,10 @@ pub fn sweep_curve(model: &NumericModel, r: &SweepResult, n: usize) -> ResponseC
     let name = &model.mode_names[n];
     // Where Newton fails (far beyond the weakly nonlinear regime), say how far the backbone goes.
     let bb_top = backbone.iter().map(|p| p.1).fold(0.0, f64::max);
-    let note = if bb_top < 0.999 * a_max {
+    let note = if model.has_velocity_terms() {
+        // A free oscillation with motion-dependent damping decays: no backbone.
+        " (no backbone: the damping depends on the motion)".to_string()
+    } else if bb_top < 0.999 * a_max {
         format!(
             " (backbone found only up to {} m)",
             harmonid_plot::style::tick(bb_top)

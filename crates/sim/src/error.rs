@@ -69,7 +69,7 @@ pub enum SimError {
         declared: String,
     },
     /// A computation that does not handle velocity terms (`d(q)`) yet.
-    #[error("{what} does not handle velocity terms (d(q) in the model) yet; the harmonic-balance steady state (`harmonid simulate`, `sweep --two-tone`) and the time-domain simulation do")]
+    #[error("{what} does not handle velocity terms (d(q) in the model): a free oscillation with nonlinear damping decays, so it has no backbone; the steady states (`harmonid simulate`, `sweep`) do")]
     VelocityTerms {
         /// The computation.
         what: &'static str,

@@ -17,12 +17,17 @@ pub(super) struct Aft {
     /// Force on each mode at the fundamental (`[n]`).
     force: Vec<Complex64>,
     // Buffers.
+    /// The variables at one sample: displacements, then velocities (models with velocity
+    /// terms).
     q: Vec<f64>,
     pows: Vec<f64>,
     fnl: Vec<f64>,
+    /// `∂f_n/∂x_v` at one sample (`N × V`, `V` = [`NumericModel::n_vars`]).
     fj: Vec<f64>,
     nl_t: Vec<f64>,
     jac_t: Vec<f64>,
+    /// `∂f_n/∂ω` at each sample through the velocities (`q̇ = ω dq/dθ`), `[j·N + n]`.
+    dfdw_t: Vec<f64>,
 }
 
 impl Aft {
@@ -45,6 +50,7 @@ impl Aft {
             }
         }
         let nm = model.n_modes();
+        let nv = model.n_vars();
         Self {
             model: model.clone(),
             harm,
@@ -52,12 +58,13 @@ impl Aft {
             cos,
             sin,
             force: force.to_vec(),
-            q: vec![0.0; nm],
+            q: vec![0.0; nv],
             pows: vec![0.0; model.pow_len()],
             fnl: vec![0.0; nm],
-            fj: vec![0.0; nm * nm],
+            fj: vec![0.0; nm * nv],
             nl_t: vec![0.0; nt * nm],
-            jac_t: vec![0.0; nt * nm * nm],
+            jac_t: vec![0.0; nt * nm * nv],
+            dfdw_t: vec![0.0; if nv > nm { nt * nm } else { 0 }],
         }
     }
 
@@ -78,9 +85,11 @@ impl Aft {
         mut jac: Option<(&mut [f64], &mut [f64])>,
     ) {
         let nm = self.model.n_modes();
+        let nv = self.model.n_vars();
         let nh = self.harm.len();
         let nt = self.nt;
-        // Time samples of q and the nonlinear forces.
+        // Time samples of q (and q̇ = ω Σ h (−Re X sin hθ − Im X cos hθ) for velocity terms)
+        // and the nonlinear forces.
         for j in 0..nt {
             for n in 0..nm {
                 let mut v = 0.0;
@@ -90,12 +99,29 @@ impl Aft {
                 }
                 self.q[n] = v;
             }
+            for n in 0..nv - nm {
+                let mut v = 0.0;
+                for (i, &h) in self.harm.iter().enumerate() {
+                    let k = 2 * (n * nh + i);
+                    v -= h as f64 * (u[k] * self.sin[j * nh + i] + u[k + 1] * self.cos[j * nh + i]);
+                }
+                self.q[nm + n] = w * v;
+            }
             self.model.forces(&self.q, &mut self.pows, &mut self.fnl);
             self.nl_t[j * nm..(j + 1) * nm].copy_from_slice(&self.fnl);
             if jac.is_some() {
                 self.model
                     .force_jacobian(&self.q, &mut self.pows, &mut self.fj);
-                self.jac_t[j * nm * nm..(j + 1) * nm * nm].copy_from_slice(&self.fj);
+                self.jac_t[j * nm * nv..(j + 1) * nm * nv].copy_from_slice(&self.fj);
+                if nv > nm {
+                    for n in 0..nm {
+                        let mut d = 0.0;
+                        for m in 0..nm {
+                            d += self.fj[n * nv + nm + m] * self.q[nm + m];
+                        }
+                        self.dfdw_t[j * nm + n] = if w != 0.0 { d / w } else { 0.0 };
+                    }
+                }
             }
         }
         for n in 0..nm {
@@ -124,7 +150,17 @@ impl Aft {
                 res[k] = r.re;
                 res[k + 1] = if h == 0 { u[k + 1] } else { r.im };
                 if let Some((_, jw)) = jac.as_mut() {
-                    let dl = Complex64::new(-2.0 * h as f64 * hw, h as f64 * g) * x;
+                    let mut dl = Complex64::new(-2.0 * h as f64 * hw, h as f64 * g) * x;
+                    if nv > nm {
+                        // The velocity terms' force moves with ω at fixed X.
+                        let mut acc = Complex64::new(0.0, 0.0);
+                        for j in 0..nt {
+                            let f = self.dfdw_t[j * nm + n];
+                            acc +=
+                                Complex64::new(f * self.cos[j * nh + i], -f * self.sin[j * nh + i]);
+                        }
+                        dl += acc * norm;
+                    }
                     jw[k] = dl.re;
                     jw[k + 1] = if h == 0 { 0.0 } else { dl.im };
                 }
@@ -154,17 +190,29 @@ impl Aft {
                         2.0 / nt as f64
                     };
                     for m in 0..nm {
-                        for (i2, _) in self.harm.iter().enumerate() {
+                        for (i2, &h2) in self.harm.iter().enumerate() {
                             let col = 2 * (m * nh + i2);
-                            // ∂q_m(t)/∂Re X = cos(h2 θ), ∂/∂Im X = −sin(h2 θ).
+                            // ∂q_m(t)/∂Re X = cos(h2 θ), ∂/∂Im X = −sin(h2 θ); for the
+                            // velocity, −ω h2 sin(h2 θ) and −ω h2 cos(h2 θ).
                             let mut a = Complex64::new(0.0, 0.0);
                             let mut b = Complex64::new(0.0, 0.0);
                             for j in 0..nt {
-                                let d = self.jac_t[j * nm * nm + n * nm + m];
+                                let d = self.jac_t[j * nm * nv + n * nv + m];
                                 let e =
                                     Complex64::new(self.cos[j * nh + i], -self.sin[j * nh + i]) * d;
                                 a += e * self.cos[j * nh + i2];
                                 b -= e * self.sin[j * nh + i2];
+                            }
+                            if nv > nm {
+                                let wh2 = w * h2 as f64;
+                                for j in 0..nt {
+                                    let d = self.jac_t[j * nm * nv + n * nv + nm + m];
+                                    let e =
+                                        Complex64::new(self.cos[j * nh + i], -self.sin[j * nh + i])
+                                            * d;
+                                    a -= e * (wh2 * self.sin[j * nh + i2]);
+                                    b -= e * (wh2 * self.cos[j * nh + i2]);
+                                }
                             }
                             a *= norm;
                             b *= norm;
@@ -178,6 +226,74 @@ impl Aft {
                     }
                 }
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Term;
+
+    /// Two modes with Duffing, a dispersive coupling and velocity terms of both kinds.
+    fn damped() -> NumericModel {
+        let t = |eq, coef, factors: Vec<(usize, u32)>| Term { eq, coef, factors };
+        NumericModel::new(
+            vec!["a".into(), "b".into()],
+            vec![1000.0, 1500.0],
+            vec![50.0, 80.0],
+            vec![
+                t(0, 3e9, vec![(0, 3)]),
+                t(0, 2e8, vec![(0, 2), (2, 1)]),
+                t(0, 1e8, vec![(1, 2), (2, 1)]),
+                t(1, 1e9, vec![(0, 2), (1, 1)]),
+                t(1, -5e7, vec![(1, 1), (3, 2)]),
+            ],
+        )
+        .expect("model")
+    }
+
+    #[test]
+    fn jacobian_matches_central_differences_with_velocity_terms() {
+        let m = damped();
+        let force = [Complex64::new(30.0, 5.0), Complex64::new(-10.0, 20.0)];
+        let mut aft = Aft::new(&m, &force, 5);
+        let n = aft.n();
+        let u: Vec<f64> = (0..n)
+            .map(|k| 1e-3 * ((k as f64 * 0.7).sin() + 0.3))
+            .collect();
+        let w = TAU * 1010.0;
+        let (mut res, mut ju, mut jw) = (vec![0.0; n], vec![0.0; n * n], vec![0.0; n]);
+        aft.eval(&u, w, 1.0, 1.0, &mut res, Some((&mut ju, &mut jw)));
+        let mut eval = |u: &[f64], w: f64| {
+            let mut r = vec![0.0; n];
+            aft.eval(u, w, 1.0, 1.0, &mut r, None);
+            r
+        };
+        let scale = ju.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let mut worst: f64 = 0.0;
+        for c in 0..n {
+            let h = 1e-7;
+            let (mut up, mut dn) = (u.clone(), u.clone());
+            up[c] += h;
+            dn[c] -= h;
+            let (rp, rm) = (eval(&up, w), eval(&dn, w));
+            for r in 0..n {
+                let fd = (rp[r] - rm[r]) / (2.0 * h);
+                worst = worst.max((fd - ju[r * n + c]).abs() / scale);
+            }
+        }
+        assert!(worst < 1e-6, "dR/du: worst {worst:e}");
+        let h = 1e-3;
+        let (rp, rm) = (eval(&u, w + h), eval(&u, w - h));
+        let jscale = jw.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        for r in 0..n {
+            let fd = (rp[r] - rm[r]) / (2.0 * h);
+            assert!(
+                (fd - jw[r]).abs() < 1e-6 * jscale,
+                "dR/dw row {r}: {fd} vs {}",
+                jw[r]
+            );
         }
     }
 }

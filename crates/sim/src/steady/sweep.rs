@@ -213,11 +213,6 @@ pub fn sweep(
     }
     let (f0, f1) = (settings.f_start_hz, settings.f_stop_hz);
     check_settings(model, force, settings)?;
-    if model.has_velocity_terms() {
-        return Err(SimError::VelocityTerms {
-            what: "the single-tone arclength sweep",
-        });
-    }
     if f0 == f1 {
         return Err(SimError::BadValue {
             what: "sweep stop frequency (Hz)".into(),
