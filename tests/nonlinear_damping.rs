@@ -106,3 +106,49 @@ fn a_stepped_sweep_at_four_levels_identifies_the_damping() {
         assert!(dev.abs() < 4.0, "{name}: {dev} stderr off");
     }
 }
+
+#[test]
+fn a_self_excited_mode_is_named_as_such_and_nothing_is_written() {
+    // Van der Pol: -mu d(q1) outweighs w/Q, so q1 oscillates without a drive.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let write = |name: &str, text: &str| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).expect("write");
+        p
+    };
+    let model = write(
+        "vdp.hb",
+        "mode q1 at 1 kHz\nparam mu, nu\neom q1 += -mu*d(q1) + nu*q1^2*d(q1)\n",
+    );
+    let values = write(
+        "vdp.toml",
+        "[modes.q1]\nf_hz = 1000.0\nQ = 100.0\n[parameters]\nmu = 100.0\nnu = 1e8\n",
+    );
+    let plan = write(
+        "plan.toml",
+        "description = \"vdp\"\ndisplacement_unit = \"m\"\n[[point]]\nname = \"p\"\nshape = { q1 = 1.0 }\n\
+         [noise]\nsigma_per_quadrature = 1e-12\nshots = 1\n[[measurement]]\nname = \"m\"\n\
+         drives_hz = [1010.0]\nforce = { q1 = [1.0] }\nmeasure_hz = [1010.0]\n",
+    );
+    let out = dir.path().join("out");
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_harmonid"))
+        .args(["simulate"])
+        .arg(&model)
+        .arg("--values")
+        .arg(&values)
+        .arg("--plan")
+        .arg(&plan)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .expect("runs");
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success());
+    assert!(
+        err.contains("self_excited") && err.contains("q1 is self-excited"),
+        "{err}"
+    );
+    // w/Q = 2 pi 1000 / 100 = 62.8 1/s against mu = 100: net -37.2 1/s.
+    assert!(err.contains("-3.717e1"), "{err}");
+    assert!(!out.exists(), "nothing written");
+}

@@ -501,6 +501,14 @@ impl Plan {
     ) -> Result<Simulation, ExperimentError> {
         self.check("the plan")?;
         settings.check(self)?;
+        // A self-excited mode has no steady state at the drive's frequencies to simulate (and
+        // the lock-in windows would not settle on its limit cycle either).
+        if let Some(n) = (0..model.n_modes()).find(|&n| model.net_linear_damping(n) <= 0.0) {
+            return Err(ExperimentError::SelfExcited {
+                mode: model.mode_names[n].clone(),
+                net_damping: model.net_linear_damping(n),
+            });
+        }
         let shapes = self.point_shapes(model);
         for (i, p) in self.points.iter().enumerate() {
             if let Some(k) = p.shape.keys().find(|k| !model.mode_names.contains(k)) {

@@ -3,7 +3,7 @@
 //! Every mode `n` obeys (mass-normalised, SI, `DATA_FORMAT.md` conventions)
 //!
 //! ```text
-//! q̈_n + (ω_n/Q_n) q̇_n + ω_n² q_n + Σ_m b_m^(n) m(q) = Σ_d Re[F_d^(n) e^{i 2π f_d t}],
+//! q̈_n + (ω_n/Q_n) q̇_n + ω_n² q_n + Σ_m b_m^(n) m(q, q̇) = Σ_d Re[F_d^(n) e^{i 2π f_d t}],
 //! ```
 //!
 //! and a complex amplitude `X` at `f` means `Re[X e^{i 2π f t}]` (peak). This crate computes:

@@ -412,6 +412,20 @@ impl NumericModel {
         self.max_pow.len()
     }
 
+    /// The net linear damping rate of mode `n`, 1/s: `ω_n/Q_n` plus the coefficient of a term
+    /// `c · q̇_n` in its own equation (a linear velocity term, van der Pol's `−μ q̇`). Zero or
+    /// below, the mode at rest is unstable: it oscillates without a drive (self-excited).
+    pub fn net_linear_damping(&self, n: usize) -> f64 {
+        let own_velocity = [(self.n_modes() + n, 1)];
+        self.gamma(n)
+            + self
+                .eq_terms(n)
+                .iter()
+                .filter(|t| t.factors == own_velocity)
+                .map(|t| t.coef)
+                .sum::<f64>()
+    }
+
     /// Whether a term holds a velocity (nonlinear damping, a velocity coupling).
     pub fn has_velocity_terms(&self) -> bool {
         self.n_vars() > self.n_modes()

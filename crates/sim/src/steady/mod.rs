@@ -6,8 +6,12 @@
 //! (DATA_FORMAT conventions, `Ω_r = 2π f_r`):
 //!
 //! ```text
-//! R_{n,r} = (ω_n² − Ω_r² + i Ω_r ω_n/Q_n) X_{n,r} + Σ_m b_m^(n) [m(q)]_r − F_{n,r}.
+//! R_{n,r} = (ω_n² − Ω_r² + i Ω_r ω_n/Q_n) X_{n,r} + Σ_m b_m^(n) [m(q, q̇)]_r − F_{n,r}.
 //! ```
+//!
+//! A monomial may hold velocities (nonlinear damping): the velocity of mode `n` has the spectrum
+//! `i Ω_r X_{n,r}`, which enters the products like another variable; its Jacobian block folds
+//! back onto `X` (`∂/∂Re X = Ω ∂/∂Im V`, `∂/∂Im X = −Ω ∂/∂Re V`).
 //!
 //! Static offset: models with even-degree terms have a 0 Hz line (see
 //! [`crate::choose_lattice`]) whose amplitude is the real offset `X_{n,0} = q̄_n` (the mean of

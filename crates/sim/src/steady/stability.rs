@@ -13,6 +13,8 @@ impl HbSolver {
     /// `(2iΩ_r + γ_n) Ẋ = −R(X)`; the state is stable when every eigenvalue of the linearised
     /// flow `−(2iΩ + γ)⁻¹ ∂R/∂X` has a negative real part. The neglected `Ẍ` term is
     /// `O(λ/Ω)` relative, negligible for the high-Q resonators this crate is for (`Q ≫ 1`).
+    /// Velocity terms also add `∂f/∂q̇ · Ẋ` to the flow's left side; like the linear damping
+    /// beside `2iΩ`, that is a relative correction of the damping rate over `Ω`, neglected.
     pub fn stability(&mut self, state: &SteadyState) -> Result<Stability, SimError> {
         let nm = self.model.n_modes();
         let nr = self.lattice.len();
