@@ -152,3 +152,47 @@ fn a_self_excited_mode_is_named_as_such_and_nothing_is_written() {
     assert!(err.contains("-3.717e1"), "{err}");
     assert!(!out.exists(), "nothing written");
 }
+
+#[test]
+fn plans_for_a_damped_model_stop_where_the_damping_saturates_the_response() {
+    // Nonlinear damping removes the fold that bounds the designer's search for the strongest
+    // drive; the search is capped where the own velocity terms add a few linewidths.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("plan.toml");
+    let root = env!("CARGO_MANIFEST_DIR");
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_harmonid"))
+        .current_dir(root)
+        .args([
+            "plan",
+            "examples/damped_2mode/model.hb",
+            "--values",
+            "examples/damped_2mode/values.toml",
+            "--noise",
+            "2pm",
+            "--shots",
+            "20",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .expect("runs");
+    let text = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(out.exists(), "the plan is written");
+    for name in ["eta1", "eta12", "beta1", "beta2", "g12"] {
+        let line = text
+            .lines()
+            .find(|l| l.split_whitespace().next() == Some(name))
+            .unwrap_or_else(|| panic!("{name} in {text}"));
+        let rel: f64 = line
+            .split_whitespace()
+            .last()
+            .and_then(|x| x.parse().ok())
+            .expect("relative bound");
+        assert!(rel < 0.05, "{name}: relative bound {rel}");
+    }
+}

@@ -389,6 +389,60 @@ impl Stages {
     }
 }
 
+/// How many linewidths of damping a mode's own velocity terms may add at the strongest drive
+/// the designer tries (see [`velocity_damping_amplitude`]).
+const DAMPING_CAP: f64 = 3.0;
+
+/// The amplitude (m) at which the velocity terms of mode `n`'s own equation (`c q^k q̇^j`,
+/// `j ≥ 1`, degree `k + j ≥ 2`) reach the damping rate `rate` (1/s), by the size of their
+/// single-harmonic damping `|c| a^(k+j−1) ω^(j−1)`; `None` without such terms.
+fn velocity_damping_amplitude(num: &NumericModel, n: usize, rate: f64) -> Option<f64> {
+    let nm = num.n_modes();
+    let w = num.omega(n);
+    let terms: Vec<(f64, i32, i32)> = num
+        .eq_terms(n)
+        .iter()
+        .filter(|t| t.factors.iter().all(|&(v, _)| v == n || v == nm + n))
+        .filter_map(|t| {
+            let j: u32 = t
+                .factors
+                .iter()
+                .filter(|f| f.0 == nm + n)
+                .map(|f| f.1)
+                .sum();
+            let deg = t.degree();
+            (j >= 1 && deg >= 2 && t.coef != 0.0).then_some((
+                t.coef.abs(),
+                deg as i32 - 1,
+                j as i32 - 1,
+            ))
+        })
+        .collect();
+    if terms.is_empty() {
+        return None;
+    }
+    let damping = |a: f64| -> f64 {
+        terms
+            .iter()
+            .map(|&(c, p, q)| c * a.powi(p) * w.powi(q))
+            .sum()
+    };
+    // Increasing in a: bisect in log a.
+    let (mut lo, mut hi) = (1e-18_f64.ln(), 1.0_f64.ln());
+    if damping(1.0) < rate {
+        return None;
+    }
+    for _ in 0..100 {
+        let mid = 0.5 * (lo + hi);
+        if damping(mid.exp()) < rate {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    Some(hi.exp())
+}
+
 /// What every stage of a design reads: the model at the guessed values, the plan's frame
 /// (points, noise) and the instrument's limits.
 struct Designer<'a> {
@@ -436,6 +490,12 @@ impl Designer<'_> {
         let wanted = quantity_names(self.model, own);
         // The weakest useful drive: a linear peak response of 100 σ.
         let f_lin = (100.0 * s.sigma_m * w2 / num.q_factor[n]).min(s.max_force);
+        // A mode its own velocity terms damp may have no fold to stop the search for the
+        // strongest drive: cap it where they add DAMPING_CAP linewidths of damping.
+        let hi = match velocity_damping_amplitude(num, n, DAMPING_CAP * num.gamma(n)) {
+            Some(a) => s.max_force.min(a * w2 / num.q_factor[n]).max(f_lin),
+            None => s.max_force,
+        };
         let mut best: Option<Candidate> = None;
         for mult in SPACINGS {
             let half = (on_grid(0.5 * mult * kappa, s.grid_hz)).max(s.grid_hz);
@@ -445,7 +505,7 @@ impl Designer<'_> {
                 Ok(feasible(simulate(num, self.base, &pm, Fidelity::Search))?.is_some())
             };
             let start = pair_fold_estimate(num, n, 2.0 * half / kappa).unwrap_or(f_lin);
-            let Some((good, folds)) = strongest(start, f_lin, s.max_force, &ok)? else {
+            let Some((good, folds)) = strongest(start, f_lin, hi, &ok)? else {
                 continue;
             };
             // A margin below the fold: the guess is a guess.
@@ -542,5 +602,35 @@ impl Designer<'_> {
             ),
             limits: self.limits.clone(),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use harmonid_sim::Term;
+
+    #[test]
+    fn the_damping_cap_solves_the_single_harmonic_damping() {
+        let t = |eq, coef, factors: Vec<(usize, u32)>| Term { eq, coef, factors };
+        // eta q^2 q': damping eta a^2 = rate at a = sqrt(rate / eta); Duffing, a coupling's
+        // velocity term and a linear velocity term do not count.
+        let m = NumericModel::new(
+            vec!["a".into(), "b".into()],
+            vec![1e6, 1.6e6],
+            vec![2e4, 2e4],
+            vec![
+                t(0, 5e18, vec![(0, 2), (2, 1)]),
+                t(0, 2.6e25, vec![(0, 3)]),
+                t(0, 1e30, vec![(1, 2), (2, 1)]),
+                t(0, -3.0, vec![(2, 1)]),
+            ],
+        )
+        .expect("model");
+        let rate = 3.0 * m.gamma(0);
+        let a = velocity_damping_amplitude(&m, 0, rate).expect("a cap");
+        let want = (rate / 5e18).sqrt();
+        assert!((a / want - 1.0).abs() < 1e-12, "{a:e} vs {want:e}");
+        assert!(velocity_damping_amplitude(&m, 1, rate).is_none());
     }
 }
