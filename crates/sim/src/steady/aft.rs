@@ -73,23 +73,14 @@ impl Aft {
         2 * self.model.n_modes() * self.harm.len()
     }
 
-    /// Residual `res` (real, [2(n·H + i) + part]) at unknowns `u` and angular frequency `w`
-    /// with drive scale `s`; if `jac` is given, also `∂R/∂u` (row-major n×n) and `∂R/∂w`.
-    pub(super) fn eval(
-        &mut self,
-        u: &[f64],
-        w: f64,
-        s: f64,
-        damping: f64,
-        res: &mut [f64],
-        mut jac: Option<(&mut [f64], &mut [f64])>,
-    ) {
+    /// Time samples of the variables at `u`, `ω = w` (q, and q̇ = ω Σ h (−Re X sin hθ −
+    /// Im X cos hθ) for velocity terms), the nonlinear forces there, and with `with_jacobian`
+    /// their derivatives (and `∂f/∂ω` through the velocities).
+    fn sample(&mut self, u: &[f64], w: f64, with_jacobian: bool) {
         let nm = self.model.n_modes();
         let nv = self.model.n_vars();
         let nh = self.harm.len();
         let nt = self.nt;
-        // Time samples of q (and q̇ = ω Σ h (−Re X sin hθ − Im X cos hθ) for velocity terms)
-        // and the nonlinear forces.
         for j in 0..nt {
             for n in 0..nm {
                 let mut v = 0.0;
@@ -109,7 +100,7 @@ impl Aft {
             }
             self.model.forces(&self.q, &mut self.pows, &mut self.fnl);
             self.nl_t[j * nm..(j + 1) * nm].copy_from_slice(&self.fnl);
-            if jac.is_some() {
+            if with_jacobian {
                 self.model
                     .force_jacobian(&self.q, &mut self.pows, &mut self.fj);
                 self.jac_t[j * nm * nv..(j + 1) * nm * nv].copy_from_slice(&self.fj);
@@ -124,6 +115,24 @@ impl Aft {
                 }
             }
         }
+    }
+
+    /// Residual `res` (real, [2(n·H + i) + part]) at unknowns `u` and angular frequency `w`
+    /// with drive scale `s`; if `jac` is given, also `∂R/∂u` (row-major n×n) and `∂R/∂w`.
+    pub(super) fn eval(
+        &mut self,
+        u: &[f64],
+        w: f64,
+        s: f64,
+        damping: f64,
+        res: &mut [f64],
+        mut jac: Option<(&mut [f64], &mut [f64])>,
+    ) {
+        let nm = self.model.n_modes();
+        let nv = self.model.n_vars();
+        let nh = self.harm.len();
+        let nt = self.nt;
+        self.sample(u, w, jac.is_some());
         for n in 0..nm {
             let (wn, g) = (self.model.omega(n), self.model.gamma(n) * damping);
             for (i, &h) in self.harm.iter().enumerate() {
