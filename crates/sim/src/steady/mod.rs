@@ -40,6 +40,8 @@ mod sweep;
 #[cfg(test)]
 mod sweep_tests;
 #[cfg(test)]
+mod test_models;
+#[cfg(test)]
 mod tests;
 mod two_tone;
 

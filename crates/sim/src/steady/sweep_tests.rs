@@ -1,24 +1,11 @@
+use super::test_models::duffing;
 use super::*;
-use crate::{linear_response, NumericModel, Term};
+use crate::linear_response;
 use std::f64::consts::TAU;
-
-fn duffing(beta: f64) -> NumericModel {
-    NumericModel::new(
-        vec!["q".into()],
-        vec![1000.0],
-        vec![200.0],
-        vec![Term {
-            eq: 0,
-            coef: beta,
-            factors: vec![(0, 3)],
-        }],
-    )
-    .expect("model")
-}
 
 #[test]
 fn vanishing_drive_sweep_is_linear_frf() {
-    let m = duffing(1e12);
+    let m = duffing(1e12, 200.0);
     let f = [Complex64::new(1e-6, 0.0)];
     let s = SweepSettings {
         f_start_hz: 980.0,
@@ -46,7 +33,7 @@ fn vanishing_drive_sweep_is_linear_frf() {
 fn folds_are_named_the_same_followed_up_or_down() {
     // The upper fold (a local maximum of f, where an up-sweep jumps) is the one at the
     // higher frequency, whichever way the curve is followed.
-    let m = duffing(1e14);
+    let m = duffing(1e14, 200.0);
     let f = [Complex64::new(20.0, 0.0)];
     for (from, to) in [(990.0, 1030.0), (1030.0, 990.0)] {
         let s = SweepSettings {
@@ -69,7 +56,7 @@ fn backbone_reaches_large_amplitudes_in_big_steps() {
     // (the frequency grows 4× and 14×) and out of order: each is reached by continuation
     // from the last converged state, none is lost after a hard one.
     let beta = 1e14;
-    let m = duffing(beta);
+    let m = duffing(beta, 200.0);
     let w0 = m.omega(0);
     let amps = [1e-6, 3e-3, 1e-2, 2e-4];
     let bb = backbone(&m, 0, &amps, 1).expect("backbone");
@@ -83,7 +70,7 @@ fn backbone_reaches_large_amplitudes_in_big_steps() {
 #[test]
 fn duffing_backbone_matches_analytic() {
     let beta = 1e14;
-    let m = duffing(beta);
+    let m = duffing(beta, 200.0);
     let w = m.omega(0);
     let amps = [1e-5, 3e-5, 1e-4];
     let bb = backbone(&m, 0, &amps, 5).expect("backbone");
@@ -98,7 +85,7 @@ fn duffing_backbone_matches_analytic() {
 #[test]
 fn duffing_sweep_folds_and_peak_follow_backbone() {
     let beta = 1e14;
-    let m = duffing(beta);
+    let m = duffing(beta, 200.0);
     let w = m.omega(0);
     let f = [Complex64::new(20.0, 0.0)];
     let s = SweepSettings {

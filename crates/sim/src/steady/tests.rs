@@ -1,21 +1,8 @@
+use super::test_models::duffing;
 use super::*;
 use crate::{linear_response, Excitation, NumericModel, Term};
 use num_complex::Complex64;
 use std::f64::consts::TAU;
-
-fn duffing(beta: f64) -> NumericModel {
-    NumericModel::new(
-        vec!["q".into()],
-        vec![1000.0],
-        vec![100.0],
-        vec![Term {
-            eq: 0,
-            coef: beta,
-            factors: vec![(0, 3)],
-        }],
-    )
-    .expect("model")
-}
 
 #[test]
 fn status_reads_as_words() {
@@ -28,7 +15,7 @@ fn status_reads_as_words() {
 
 #[test]
 fn vanishing_drive_is_linear_frf() {
-    let m = duffing(1e12);
+    let m = duffing(1e12, 100.0);
     let drive = Excitation {
         tones_hz: vec![995.0, 1005.0],
         force: vec![vec![Complex64::new(1e-6, 0.0), Complex64::new(0.0, 2e-6)]],
@@ -46,7 +33,7 @@ fn vanishing_drive_is_linear_frf() {
 fn single_tone_matches_cubic_balance() {
     // One harmonic: (ω² − Ω² + iΩγ) X + 3/4 β |X|² X = F, checked on the solution.
     let beta = 4e13;
-    let m = duffing(beta);
+    let m = duffing(beta, 100.0);
     let drive = Excitation {
         tones_hz: vec![1003.0],
         force: vec![vec![Complex64::new(30.0, 0.0)]],
@@ -96,7 +83,7 @@ fn duffing_roots(l: Complex64, k: f64, f: f64) -> Vec<f64> {
 fn duffing_branches_stability() {
     // Hardening Duffing, f0 = 1 kHz, Q = 100, strongly driven: three branches above resonance.
     let beta = 4e13;
-    let m = duffing(beta);
+    let m = duffing(beta, 100.0);
     let force = 300.0;
     let k = 0.75 * beta;
     let (w, g) = (m.omega(0), m.gamma(0));
@@ -227,7 +214,7 @@ fn drive_ramp_jumps_at_a_fold_like_the_experiment() {
     // ends at a fold in the force and the state jumps to the high branch, which is the
     // only state left beyond the fold.
     let beta = 4e13;
-    let m = duffing(beta);
+    let m = duffing(beta, 100.0);
     let k = 0.75 * beta;
     let (w, g) = (m.omega(0), m.gamma(0));
     let f = 1030.0;
