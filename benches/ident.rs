@@ -51,32 +51,8 @@ fn bench_identify(c: &mut Criterion) {
 }
 
 fn bench_stepped_sweep(c: &mut Criterion) {
-    let model = harmonid_model::parse_str(
-        "mode q1 at 1 MHz\nparam beta1, eta1\npotential: beta1/4*q1^4\neom q1 += eta1*q1^2*d(q1)\n",
-        "stepped.hb",
-    )
-    .expect("model");
-    let (f, q) = (1.0e6, 2.0e4);
-    let w = std::f64::consts::TAU * f;
-    let v = gen::Values {
-        f_hz: vec![f],
-        q: vec![q],
-        params: [("beta1", 2.6e25), ("eta1", 5.0e18)]
-            .iter()
-            .map(|(k, x)| (k.to_string(), *x))
-            .collect(),
-    };
-    let lw = f / q;
-    let mut d = Vec::new();
-    for (l, x) in [1e-9, 2.5e-9, 5e-9, 1e-8].iter().enumerate() {
-        for s in 0..40 {
-            d.push(gen::Design {
-                name: format!("l{l}_s{s:02}"),
-                tones: vec![(f + lw * (s as f64 / 4.0 - 5.0), 0, x * w * w / q)],
-                observe: Vec::new(),
-            });
-        }
-    }
+    let model = harmonid_model::parse_str(gen::DAMPED_DUFFING, "stepped.hb").expect("model");
+    let (v, d) = gen::stepped_sweep_plan();
     let ds = gen::simulate(&model, &v, &d, &[1.0], 1e-12, 10, 3);
     let settings = Settings {
         force_model: ForceModel::GainPerMode,

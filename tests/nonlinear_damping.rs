@@ -3,14 +3,7 @@
 //! drive), simulated by harmonic balance with noise, identified by the default estimator.
 
 use harmonid_ident::{identify, Settings};
-use harmonid_testgen::{self as gen, Design, Values};
-
-const MODEL: &str = "
-    mode q1 at 1 MHz
-    param beta1, eta1
-    potential: beta1/4*q1^4
-    eom q1 += eta1*q1^2*d(q1)
-";
+use harmonid_testgen::{self as gen, Design, DAMPED_DUFFING as MODEL};
 
 #[test]
 fn nonlinear_damping_is_identified_within_its_error_bar() {
@@ -19,14 +12,8 @@ fn nonlinear_damping_is_identified_within_its_error_bar() {
     // (eta a^2 / 4 = 0.4 gamma).
     let (f, q) = (1.0e6, 2.0e4);
     let w = std::f64::consts::TAU * f;
-    let v = Values {
-        f_hz: vec![f],
-        q: vec![q],
-        params: [("beta1", 2.6e25), ("eta1", 0.4 * 4.0 * (w / q) / 1e-16)]
-            .iter()
-            .map(|(k, x)| (k.to_string(), *x))
-            .collect(),
-    };
+    let v = gen::damped_duffing_values(0.4 * 4.0 * (w / q) / 1e-16);
+    assert_eq!((v.f_hz[0], v.q[0]), (f, q));
     let lw = f / q;
     let pair = |name: &str, force: f64| Design {
         name: name.into(),
@@ -67,27 +54,7 @@ fn a_stepped_sweep_at_four_levels_identifies_the_damping() {
     // The shape of a lock-in's stepped sine: one tone and one line per step, 40 steps over ±5
     // linewidths at each of four levels, one actuator gain for the whole sweep.
     let model = harmonid_model::parse_str(MODEL, "damped.hb").expect("model");
-    let (f, q) = (1.0e6, 2.0e4);
-    let w = std::f64::consts::TAU * f;
-    let v = Values {
-        f_hz: vec![f],
-        q: vec![q],
-        params: [("beta1", 2.6e25), ("eta1", 5.0e18)]
-            .iter()
-            .map(|(k, x)| (k.to_string(), *x))
-            .collect(),
-    };
-    let lw = f / q;
-    let mut d = Vec::new();
-    for (l, x) in [1e-9, 2.5e-9, 5e-9, 1e-8].iter().enumerate() {
-        for s in 0..40 {
-            d.push(Design {
-                name: format!("l{l}_s{s:02}"),
-                tones: vec![(f + lw * (s as f64 / 4.0 - 5.0), 0, x * w * w / q)],
-                observe: Vec::new(),
-            });
-        }
-    }
+    let (v, d) = gen::stepped_sweep_plan();
     let ds = gen::simulate(&model, &v, &d, &[1.0], 1e-12, 10, 3);
     let settings = Settings {
         force_model: harmonid_ident::ForceModel::GainPerMode,
@@ -95,7 +62,7 @@ fn a_stepped_sweep_at_four_levels_identifies_the_damping() {
     };
     let rep = identify(&model, &ds, &settings).expect("identify");
     assert_eq!(rep.estimator, "ml", "{:?}", rep.warnings);
-    for (name, truth) in [("beta1", 2.6e25), ("eta1", 5.0e18)] {
+    for (name, truth) in ["beta1", "eta1"].map(|n| (n, v.params[n])) {
         let e = &rep.parameters[name];
         let dev = (e.value - truth) / e.stderr;
         println!(

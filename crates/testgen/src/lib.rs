@@ -455,3 +455,45 @@ pub fn damped_2mode_plan() -> (Values, Vec<Design>) {
     ];
     (v, d)
 }
+
+/// One Duffing mode at 1 MHz with nonlinear damping `eta1 q1² q̇1` (issue 20), as a model file.
+pub const DAMPED_DUFFING: &str = "
+    mode q1 at 1 MHz
+    param beta1, eta1
+    potential: beta1/4*q1^4
+    eom q1 += eta1*q1^2*d(q1)
+";
+
+/// Values of [`DAMPED_DUFFING`]: Q = 2e4, `beta1` shifting the resonance by about a linewidth
+/// at 10 nm, and the given `eta1` (5e18 adds 0.4 linewidth of damping at 10 nm).
+pub fn damped_duffing_values(eta1: f64) -> Values {
+    Values {
+        f_hz: vec![1.0e6],
+        q: vec![2.0e4],
+        params: [("beta1", 2.6e25), ("eta1", eta1)]
+            .iter()
+            .map(|(k, x)| (k.to_string(), *x))
+            .collect(),
+    }
+}
+
+/// A stepped-sine sweep of [`DAMPED_DUFFING`] as a lock-in records it: one tone and one line
+/// per step, 40 steps over ±5 linewidths at each of four levels (linear peak response 1, 2.5,
+/// 5 and 10 nm).
+pub fn stepped_sweep_plan() -> (Values, Vec<Design>) {
+    let v = damped_duffing_values(5.0e18);
+    let (f, q) = (v.f_hz[0], v.q[0]);
+    let w = std::f64::consts::TAU * f;
+    let lw = f / q;
+    let mut d = Vec::new();
+    for (l, x) in [1e-9, 2.5e-9, 5e-9, 1e-8].iter().enumerate() {
+        for s in 0..40 {
+            d.push(Design {
+                name: format!("l{l}_s{s:02}"),
+                tones: vec![(f + lw * (s as f64 / 4.0 - 5.0), 0, x * w * w / q)],
+                observe: Vec::new(),
+            });
+        }
+    }
+    (v, d)
+}
