@@ -299,20 +299,10 @@ fn three_mode_stderrs_cover_the_truth() {
         let m = model(path);
         let clean = simulate_clean(&m, &v, &d, &[0.5, 0.5, 0.5], 20);
         let s = run(&m, &v, &clean, 5e-11, 16, seed0);
-        for (name, bias, in1, in2, _, rel) in
-            table(&s, &format!("{path}, 0.05 nm, 20 shots, 16 realisations"))
-        {
-            assert!(
-                rel <= harmonid_ident::MAX_REL_STDERR,
-                "{name}: the plan determines it ({rel:.2})"
-            );
-            assert!(bias.abs() < 0.8, "{name}: bias {bias:.2} stderr");
-            assert!(
-                (0.35..=0.97).contains(&in1),
-                "{name}: {in1:.2} within ±1 stderr"
-            );
-            assert!(in2 >= 0.75, "{name}: {in2:.2} within ±2 stderr");
-        }
+        short_targets(table(
+            &s,
+            &format!("{path}, 0.05 nm, 20 shots, 16 realisations"),
+        ));
     }
 }
 
@@ -379,9 +369,16 @@ fn nonlinear_damping_stderrs_cover_the_truth() {
     // The damping shows as a few per cent of the response at 10 nm: 2 pm of noise determines
     // every unknown to about 10 % (at 50 pm the plan leaves beta2 and eta1 undetermined).
     let s = run(&m, &v, &clean, 2e-12, 16, 500);
-    for (name, bias, in1, in2, _, rel) in
-        table(&s, &format!("{path}, 0.002 nm, 20 shots, 16 realisations"))
-    {
+    short_targets(table(
+        &s,
+        &format!("{path}, 0.002 nm, 20 shots, 16 realisations"),
+    ));
+}
+
+/// The short versions' loose targets (16 realisations): every quantity determined by the plan,
+/// |bias| < 0.8 stderr, ±1 stderr in 35–97 %, ±2 stderr in at least 75 %.
+fn short_targets(rows: Vec<(String, f64, f64, f64, f64, f64)>) {
+    for (name, bias, in1, in2, _, rel) in rows {
         assert!(
             rel <= harmonid_ident::MAX_REL_STDERR,
             "{name}: the plan determines it ({rel:.2})"
