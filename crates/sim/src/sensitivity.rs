@@ -25,7 +25,7 @@
 
 use crate::lattice::LINE_TOL_HZ;
 use crate::linalg::ColumnScratch;
-use crate::steady::{fill_velocities, term_monomial, variable_spectra, HbSolver, SteadyState};
+use crate::steady::{term_monomial, variable_spectra, HbSolver, SteadyState};
 use crate::SimError;
 use harmonid_poly::PowerProduct;
 use harmonid_spectral::{SystemPlan, SystemScratch};
@@ -266,7 +266,7 @@ impl Sensitivity {
             for n in 0..nm {
                 self.x[n * nr..(n + 1) * nr].copy_from_slice(&state.amplitudes[n]);
             }
-            fill_velocities(&state.lattice_hz, &self.x, &mut self.vel);
+            harmonid_spectral::velocity_spectrum(&state.lattice_hz, &self.x, &mut self.vel);
             let refs = variable_spectra(&self.x, &self.vel, nm, nr);
             let nv = solver.model().n_vars();
             self.monomials

@@ -51,6 +51,7 @@ mod product;
 mod system;
 #[cfg(test)]
 mod test_rng;
+mod velocity;
 
 pub use error::SpectralError;
 pub use lattice::{
@@ -65,3 +66,4 @@ pub use product::{
     MAX_PRODUCT_DEGREE,
 };
 pub use system::{SystemPlan, SystemScratch};
+pub use velocity::{velocity_spectrum, velocity_to_amplitude};

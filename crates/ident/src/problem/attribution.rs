@@ -54,11 +54,8 @@ impl Problem {
         if self.velocities {
             let freqs = &ds.measurements[mi].freqs_hz;
             for n in 0..spectra.len() {
-                let v = spectra[n]
-                    .iter()
-                    .zip(freqs)
-                    .map(|(x, &f)| Complex64::new(0.0, 2.0 * std::f64::consts::PI * f) * x)
-                    .collect();
+                let mut v = vec![Complex64::new(0.0, 0.0); freqs.len()];
+                harmonid_spectral::velocity_spectrum(freqs, &spectra[n], &mut v);
                 spectra.push(v);
             }
         }

@@ -2,7 +2,7 @@
 
 use super::{FitGroup, MeasRows, Problem, Unknown};
 use crate::dataset::Dataset;
-use harmonid_spectral::{monomial_jacobian, ProductScratch};
+use harmonid_spectral::{monomial_jacobian, velocity_to_amplitude, ProductScratch};
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 use std::f64::consts::PI;
@@ -121,14 +121,13 @@ impl Problem {
                             &mut ji,
                             &mut scratch[mi],
                         );
-                        // A velocity V = iΩX: ∂/∂Re X = Ω ∂/∂Im V, ∂/∂Im X = −Ω ∂/∂Re V.
+                        // A velocity's derivative carries back onto its mode's amplitude.
                         let (mode, velocity) = (v.index() % nm, v.index() >= nm);
                         for o in (0..nf).filter(|&o| prep.mode_of[o] == n) {
                             for s in (0..nf).filter(|&s| prep.mode_of[s] == mode) {
                                 let (mut dre, mut dim) = (jr[o * nf + s], ji[o * nf + s]);
                                 if velocity {
-                                    let w = 2.0 * PI * m.freqs_hz[s];
-                                    (dre, dim) = (dim * w, -dre * w);
+                                    (dre, dim) = velocity_to_amplitude(dre, dim, m.freqs_hz[s]);
                                 }
                                 jac[o * 2 * nf + 2 * s] += dre * b;
                                 jac[o * 2 * nf + 2 * s + 1] += dim * b;

@@ -47,8 +47,8 @@ mod two_tone;
 
 pub use backbone::backbone;
 pub use convergence::{convergence_report, ConvergenceReport};
-pub(crate) use solver::{fill_velocities, term_monomial, variable_spectra};
 pub use solver::{steady_state, HbSolver, MAX_MODES};
+pub(crate) use solver::{term_monomial, variable_spectra};
 pub use stability::check_stability;
 pub use state::{HbSettings, HbStatus, Stability, SteadyState};
 pub use sweep::{

@@ -6,7 +6,9 @@ use crate::lattice::{choose_lattice, low_order_lines, LatticeSettings, LINE_TOL_
 use crate::linalg::DenseLu;
 use crate::{Excitation, NumericModel, SimError};
 use harmonid_poly::PowerProduct;
-use harmonid_spectral::{ProductPlan, SystemPlan, SystemScratch};
+use harmonid_spectral::{
+    velocity_spectrum, velocity_to_amplitude, ProductPlan, SystemPlan, SystemScratch,
+};
 use num_complex::Complex64;
 use std::f64::consts::TAU;
 
@@ -237,7 +239,8 @@ impl HbSolver {
         let nm = self.model.n_modes();
         let nr = self.lattice.len();
         let x = if use_try { &self.x_try } else { &self.x };
-        fill_velocities(&self.lattice, x, &mut self.vel);
+        // Velocity spectra (none without velocity terms: `vel` is empty).
+        velocity_spectrum(&self.lattice, x, &mut self.vel);
         let refs = variable_spectra(x, &self.vel, nm, nr);
         let nv = self.model.n_vars();
         self.system
@@ -277,7 +280,7 @@ impl HbSolver {
             self.jac[(2 * i + 1) * nu + 2 * i] = l.im;
             self.jac[(2 * i + 1) * nu + 2 * i + 1] = l.re;
         }
-        fill_velocities(&self.lattice, &self.x, &mut self.vel);
+        velocity_spectrum(&self.lattice, &self.x, &mut self.vel);
         let refs = variable_spectra(&self.x, &self.vel, nm, nr);
         let nv = self.model.n_vars();
         let jac = &mut self.jac;
@@ -297,8 +300,7 @@ impl HbSolver {
                 if jre.iter().chain(jim).all(|z| *z == Z) {
                     return;
                 }
-                // A velocity V = iΩX of mode m: Re V = −Ω Im X, Im V = Ω Re X, so
-                // ∂F/∂Re X = Ω ∂F/∂Im V and ∂F/∂Im X = −Ω ∂F/∂Re V.
+                // A velocity's block carries back onto its mode's amplitudes.
                 let (m, velocity) = if j < nm { (j, false) } else { (j - nm, true) };
                 coupled[eq * nm + m] = true;
                 for o in 0..nr {
@@ -308,8 +310,7 @@ impl HbSolver {
                         let col0 = 2 * (m * nr + r);
                         let (mut a, mut c) = (jre[o * nr + r], jim[o * nr + r]);
                         if velocity {
-                            let w = TAU * lattice[r];
-                            (a, c) = (c * w, -a * w);
+                            (a, c) = velocity_to_amplitude(a, c, lattice[r]);
                         }
                         top[col0] += a.re;
                         bottom[col0] += a.im;
@@ -442,15 +443,6 @@ pub(crate) fn term_monomial(model: &NumericModel, factors: &[(usize, u32)]) -> P
         e[m] += k;
     }
     PowerProduct::from_exponents(&e)
-}
-
-/// Velocity spectra `vel[n·R + r] = i 2π f_r x[n·R + r]` of the amplitudes `x` on `lattice`
-/// (nothing when `vel` is empty: a model without velocity terms).
-pub(crate) fn fill_velocities(lattice: &[f64], x: &[Complex64], vel: &mut [Complex64]) {
-    let nr = lattice.len();
-    for (i, v) in vel.iter_mut().enumerate() {
-        *v = Complex64::new(0.0, TAU * lattice[i % nr]) * x[i];
-    }
 }
 
 /// The spectra of the model's variables: each mode's amplitudes in `x`, then each mode's
