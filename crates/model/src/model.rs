@@ -124,7 +124,7 @@ impl Model {
     /// (`q1, q2, d(q1), d(q2)`), as monomial names spell them.
     pub fn variable_names(&self) -> Vec<String> {
         let modes = self.modes.iter().map(|m| m.name.clone());
-        let velocities = self.modes.iter().map(|m| format!("d({})", m.name));
+        let velocities = self.modes.iter().map(|m| velocity_name(&m.name));
         modes.chain(velocities).collect()
     }
 
@@ -206,4 +206,9 @@ impl Model {
         v.dedup();
         v
     }
+}
+
+/// The name of the velocity of mode `mode` in the language and in monomial names: `d(q1)`.
+pub fn velocity_name(mode: &str) -> String {
+    format!("d({mode})")
 }

@@ -433,7 +433,10 @@ impl NumericModel {
 
     /// Names of the variables: the modes, then `d(q)` of each when there are velocity terms.
     pub fn variable_names(&self) -> Vec<String> {
-        let velocities = self.mode_names.iter().map(|m| format!("d({m})"));
+        let velocities = self
+            .mode_names
+            .iter()
+            .map(|m| harmonid_model::velocity_name(m));
         self.mode_names
             .iter()
             .cloned()
