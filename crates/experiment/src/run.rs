@@ -503,10 +503,11 @@ impl Plan {
         settings.check(self)?;
         // A self-excited mode has no steady state at the drive's frequencies to simulate (and
         // the lock-in windows would not settle on its limit cycle either).
-        if let Some(n) = (0..model.n_modes()).find(|&n| model.net_linear_damping(n) <= 0.0) {
+        let mut net = (0..model.n_modes()).map(|n| (n, model.net_linear_damping(n)));
+        if let Some((n, net_damping)) = net.find(|&(_, d)| d <= 0.0) {
             return Err(ExperimentError::SelfExcited {
                 mode: model.mode_names[n].clone(),
-                net_damping: model.net_linear_damping(n),
+                net_damping,
             });
         }
         let shapes = self.point_shapes(model);

@@ -68,6 +68,11 @@ impl Aft {
         }
     }
 
+    /// Number of modes.
+    pub(super) fn n_modes(&self) -> usize {
+        self.model.n_modes()
+    }
+
     /// Number of real unknowns.
     pub(super) fn n(&self) -> usize {
         2 * self.model.n_modes() * self.harm.len()

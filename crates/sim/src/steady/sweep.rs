@@ -287,7 +287,6 @@ struct Arclength {
     prev_t: Vec<f64>,
     /// `prev_t` holds a tangent (after the first step).
     has_prev: bool,
-    n_modes: usize,
     /// Buffers: residual, `∂R/∂u` (`nu × nu`), `∂R/∂ω`, the bordered system, corrector state.
     res: Vec<f64>,
     ju: Vec<f64>,
@@ -340,7 +339,6 @@ impl Arclength {
             tangent: vec![0.0; na],
             prev_t: vec![0.0; na],
             has_prev: false,
-            n_modes: nm,
             res: vec![0.0; nu],
             ju: vec![0.0; nu * nu],
             jw: vec![0.0; nu],
@@ -402,7 +400,7 @@ impl Arclength {
         } else {
             0.0
         };
-        let nm = self.n_modes;
+        let nm = self.aft.n_modes();
         let nh = self.aft.harm.len();
         let u = &self.u;
         let amplitudes = (0..nm)
