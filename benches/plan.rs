@@ -37,7 +37,7 @@ fn bench_design(c: &mut Criterion) {
             sigma_m,
             shots,
             max_measurements: max,
-            points: vec![harmonid_ident::Point {
+            points: vec![harmonid_data::Point {
                 name: "p0".into(),
                 shape: (0..modes)
                     .map(|n| (format!("q{}", n + 1), SHAPE[n]))

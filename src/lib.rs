@@ -2,6 +2,7 @@
 //!
 //! This facade re-exports the workspace crates.
 
+pub use harmonid_data as data;
 pub use harmonid_experiment as experiment;
 pub use harmonid_ident as ident;
 pub use harmonid_model as model;

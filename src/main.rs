@@ -18,6 +18,8 @@ enum Command {
     Check(cli::check::Args),
     /// Print the combination frequencies each term generates under a set of drive tones.
     Mix(cli::mix::Args),
+    /// Import instrument files (lock-in exports, tables, MATLAB files) into a dataset folder.
+    Import(cli::import::Args),
     /// Identify the model's coefficients from a measured dataset.
     Identify(cli::identify::Args),
     /// Fit one dataset by several models: which one the data support, and does it fit?
@@ -39,6 +41,7 @@ fn main() -> miette::Result<()> {
     match cli.command {
         Command::Check(args) => cli::check::run(args),
         Command::Mix(args) => cli::mix::run(args),
+        Command::Import(args) => cli::import::run(args),
         Command::Identify(args) => cli::identify::run(args),
         Command::Compare(args) => cli::compare::run(args),
         Command::Simulate(args) => cli::simulate::run(args),

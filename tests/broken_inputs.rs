@@ -5,7 +5,7 @@
 //! of every refusal is snapshotted (insta, `tests/snapshots/broken_inputs__*.snap`).
 //! `tests/fixtures/valid/` holds the dataset and the plan they are each one change away from.
 
-use harmonid::ident::Dataset;
+use harmonid::data::Dataset;
 use harmonid_experiment::Plan;
 use miette::{Diagnostic, GraphicalReportHandler, GraphicalTheme};
 use std::path::{Path, PathBuf};

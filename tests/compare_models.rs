@@ -43,7 +43,7 @@ fn models() -> Vec<(String, harmonid_model::Model)> {
 }
 
 /// The fold plan's data (0.01 nm, 20 shots) from `model` with `v`.
-fn data(model: &harmonid_model::Model, v: &Values, seed: u64) -> harmonid_ident::Dataset {
+fn data(model: &harmonid_model::Model, v: &Values, seed: u64) -> harmonid_data::Dataset {
     let (_, d) = nanostring_2mode_fold_plan();
     simulate(model, v, &d, &[0.309, 0.588], 1e-11, 20, seed)
 }

@@ -8,7 +8,8 @@
 use harmonid_testgen as gen;
 
 use gen::{add_noise, nanostring_2mode_plan, simulate, simulate_clean, Design, Values};
-use harmonid_ident::{identify, Dataset, Settings, P_DOES_NOT_FIT};
+use harmonid_data::Dataset;
+use harmonid_ident::{identify, Settings, P_DOES_NOT_FIT};
 use std::path::PathBuf;
 
 fn model(path: &str) -> harmonid_model::Model {
@@ -214,7 +215,8 @@ fn held_out_measurements_are_predicted_by_a_correct_model_only() {
     let e = identify_with_holdout(&truth, &ds, &["nope".to_string()], &Settings::default())
         .expect_err("unknown measurement");
     assert!(
-        matches!(e, IdentError::Holdout(_)) && e.to_string().contains("no measurement \"nope\""),
+        matches!(e, IdentError::Holdout(_))
+            && e.to_string().contains("no measurement or sweep \"nope\""),
         "{e}"
     );
     let all: Vec<String> = ds

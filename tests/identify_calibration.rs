@@ -48,7 +48,7 @@ fn get<'a>(r: &'a Report, name: &str) -> &'a Estimate {
 fn run(
     model: &harmonid_model::Model,
     v: &Values,
-    clean: &harmonid_ident::Dataset,
+    clean: &harmonid_data::Dataset,
     sigma: f64,
     realisations: u64,
     seed0: u64,
@@ -154,7 +154,7 @@ fn long_realisations(default: u64) -> u64 {
 /// Runs one case of the long calibration and adds every missed target to `failures`.
 fn long_case(
     model_path: &str,
-    (v, clean): &(Values, harmonid_ident::Dataset),
+    (v, clean): &(Values, harmonid_data::Dataset),
     sigma: f64,
     n: u64,
     seed0: u64,
@@ -223,7 +223,7 @@ fn calibration_long() {
             )
         }
     };
-    type Prepare<'a> = Box<dyn Fn(&str) -> (Values, harmonid_ident::Dataset) + 'a>;
+    type Prepare<'a> = Box<dyn Fn(&str) -> (Values, harmonid_data::Dataset) + 'a>;
     // The noise levels of every case but the damped one, whose damping shows as a few per cent
     // of the response: at 0.05 nm its plan leaves beta2 and eta1 undetermined.
     const LEVELS: [f64; 3] = [1e-11, 5e-11, 1e-10];

@@ -9,8 +9,9 @@
 use harmonid_testgen as gen;
 
 use gen::{nanostring_2mode_plan, simulate, Design, Values};
+use harmonid_data::Dataset;
 use harmonid_ident::{consistency_threshold as threshold, Compared, Comparison, FAMILY_ALPHA};
-use harmonid_ident::{identify, Dataset, Report, Settings};
+use harmonid_ident::{identify, Report, Settings};
 use std::path::PathBuf;
 
 fn root() -> PathBuf {

@@ -3,7 +3,8 @@
 //! harmonid; `.ci/check-shared-data` keeps them equal to the published ones). These are the
 //! identification rows of the README's accuracy table. Each test prints what it measured.
 
-use harmonid_ident::{identify, Dataset, Estimate, ForceModel, Report, Settings};
+use harmonid_data::Dataset;
+use harmonid_ident::{identify, Estimate, ForceModel, Report, Settings};
 use std::path::{Path, PathBuf};
 
 fn root() -> PathBuf {

@@ -1,7 +1,7 @@
 //! `harmonid simulate` and `harmonid sweep` end to end: the nanostring example model, a values
 //! file and a measurement plan (the three measurements of `nanostring_ls50_2mode`).
 
-use harmonid::ident::Dataset;
+use harmonid::data::Dataset;
 use std::process::Command;
 
 const VALUES: &str = r#"

@@ -2,7 +2,7 @@
 //! demodulated gives each quadrature of each amplitude the std `rms·sqrt(2/N)` (N samples per
 //! lock-in window), scattered across shots around the noise-free amplitude.
 
-use harmonid::ident::Dataset;
+use harmonid::data::Dataset;
 use std::process::Command;
 
 const MODEL: &str = "mode q at 1 kHz\nparam beta\npotential: beta/4*q^4\n";

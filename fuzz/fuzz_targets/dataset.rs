@@ -17,7 +17,7 @@ fuzz_target!(|data: &[u8]| {
         return;
     };
     let result =
-        harmonid_ident::Dataset::from_readers(Path::new("fuzz"), manifest, None, |_| Ok(csv));
+        harmonid_data::Dataset::from_readers(Path::new("fuzz"), manifest, None, |_| Ok(csv));
     match result {
         Ok(ds) => {
             let _ = ds.check_modes(&["q1", "q2"]);

@@ -3,7 +3,7 @@
 
 use crate::convert::json_to_py;
 use crate::errors::{dataset_error, DatasetError};
-use harmonid_ident::{Manifest, Measurement, MeasurementSpec, Point};
+use harmonid_data::{Manifest, Measurement, MeasurementSpec, Point};
 use num_complex::Complex64;
 use numpy::{IntoPyArray, PyArray3, PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::PyTypeError;
@@ -20,11 +20,11 @@ use std::sync::Arc;
 /// written back in its declared unit). A complex amplitude `X` at `f` is `Re[X e^{i2πft}]`, peak.
 #[pyclass(module = "harmonid._harmonid", frozen)]
 pub struct Dataset {
-    pub(crate) inner: Arc<harmonid_ident::Dataset>,
+    pub(crate) inner: Arc<harmonid_data::Dataset>,
 }
 
 impl Dataset {
-    pub(crate) fn wrap(ds: harmonid_ident::Dataset) -> Self {
+    pub(crate) fn wrap(ds: harmonid_data::Dataset) -> Self {
         Dataset {
             inner: Arc::new(ds),
         }
@@ -127,6 +127,7 @@ fn measurement_from_dict(
             drive_levels_v: opt(d, "drive_levels_v")?,
             drive_phases_rad: opt(d, "drive_phases_rad")?,
             bandwidth_hz: opt(d, "bandwidth_hz")?,
+            sweep: None,
         },
         freqs_hz,
         points,
@@ -141,7 +142,7 @@ impl Dataset {
     #[staticmethod]
     fn from_folder(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
         let ds = py
-            .detach(|| harmonid_ident::Dataset::load(&path))
+            .detach(|| harmonid_data::Dataset::load(&path))
             .map_err(|e| dataset_error(&e))?;
         Ok(Dataset::wrap(ds))
     }
@@ -205,7 +206,7 @@ impl Dataset {
             .map(|(name, d)| measurement_from_dict(py, name, &d, &manifest, scale))
             .collect::<PyResult<Vec<_>>>()?;
         let ds = py
-            .detach(|| harmonid_ident::Dataset::from_parts("<arrays>", manifest, ms, None))
+            .detach(|| harmonid_data::Dataset::from_parts("<arrays>", manifest, ms, None))
             .map_err(|e| dataset_error(&e))?;
         Ok(Dataset::wrap(ds))
     }

@@ -21,7 +21,7 @@ create_exception!(
     harmonid,
     DatasetError,
     HarmonidError,
-    "A dataset folder or arrays that break the data contract (DATA_FORMAT.md)."
+    "A dataset folder or arrays that break the data contract (docs/data-format.md)."
 );
 create_exception!(
     harmonid,
@@ -60,7 +60,7 @@ pub fn model_error(e: &harmonid_model::ModelErrors) -> PyErr {
 }
 
 /// A dataset error (its message names the file and row).
-pub fn dataset_error(e: &harmonid_ident::DatasetError) -> PyErr {
+pub fn dataset_error(e: &harmonid_data::DatasetError) -> PyErr {
     DatasetError::new_err(e.to_string())
 }
 

@@ -60,3 +60,13 @@ pub fn check_outputs(outputs: &[&Path], inputs: &[&Path]) -> miette::Result<()> 
     }
     Ok(())
 }
+
+/// Reads the dataset folder `dir` and prints what reading did that the user should know of
+/// (one `note:` line per stepped sweep's settling samples dropped) on standard error.
+pub fn load_dataset(dir: &Path) -> miette::Result<harmonid_data::Dataset> {
+    let ds = harmonid_data::Dataset::load(dir).map_err(miette::Report::new)?;
+    for note in &ds.notes {
+        eprintln!("note: {note}");
+    }
+    Ok(ds)
+}

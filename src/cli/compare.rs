@@ -3,7 +3,7 @@
 //! (`harmonid_ident::compare`).
 
 use crate::cli::common::{check_outputs, print_out, write_output, ForceArgs};
-use harmonid_ident::{compare, Dataset, Settings};
+use harmonid_ident::{compare, Settings};
 use std::path::PathBuf;
 
 /// Arguments of `harmonid compare`.
@@ -26,7 +26,7 @@ pub struct Args {
 
 /// Runs the subcommand.
 pub fn run(args: Args) -> miette::Result<()> {
-    let ds = Dataset::load(&args.dataset).map_err(miette::Report::new)?;
+    let ds = super::common::load_dataset(&args.dataset)?;
     let mut models = Vec::with_capacity(args.models.len());
     for path in &args.models {
         let m = harmonid_model::load(path).map_err(miette::Report::new)?;

@@ -2,7 +2,7 @@
 //! measured dataset (sequential stages by default), print a summary table, write the result.
 
 use crate::cli::common::{check_outputs, print_out, write_output, ForceArgs};
-use harmonid_ident::{identify, identify_with_holdout, Dataset, Estimator, Settings};
+use harmonid_ident::{identify, identify_with_holdout, Estimator, Settings};
 use miette::miette;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -63,7 +63,7 @@ fn estimator_parser() -> impl clap::builder::TypedValueParser<Value = Estimator>
 /// Runs the subcommand.
 pub fn run(args: Args) -> miette::Result<()> {
     let model = harmonid_model::load(&args.model).map_err(miette::Report::new)?;
-    let ds = Dataset::load(&args.dataset).map_err(miette::Report::new)?;
+    let ds = super::common::load_dataset(&args.dataset)?;
     // Refuse unwritable outputs (or ones that are inputs) before the fit, not after it.
     let dataset_files = ds.input_files();
     let mut inputs: Vec<&std::path::Path> = vec![args.model.as_path()];

@@ -5,7 +5,7 @@
 //! lines those responses make in turn are marked `second order, via <mode>`. Drive tones are
 //! named Ω1, Ω2, ... (mode frequencies are f_n).
 
-use harmonid_ident::Manifest;
+use harmonid_data::Manifest;
 use harmonid_model::Model;
 use harmonid_poly::PowerProduct;
 use harmonid_spectral::{

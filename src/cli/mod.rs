@@ -5,6 +5,7 @@ pub mod common;
 pub mod compare;
 pub mod figure;
 pub mod identify;
+pub mod import;
 pub mod mix;
 pub mod noise_study;
 pub mod plan;

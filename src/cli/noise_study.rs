@@ -13,10 +13,11 @@
 
 use crate::cli::common::{check_outputs, write_output};
 use crate::cli::simulate::read_plan;
+use harmonid_data::Dataset;
 use harmonid_experiment::{
     add_noise, values_from_toml, Engine, NoiseLevel, Plan, Settings, TimeDomain,
 };
-use harmonid_ident::{Dataset, ForceModel, Problem, Report, Settings as IdentSettings};
+use harmonid_ident::{ForceModel, Problem, Report, Settings as IdentSettings};
 use harmonid_sim::{self as sim, NoiseGen, NumericModel};
 use miette::{miette, IntoDiagnostic, WrapErr};
 use rayon::prelude::*;
@@ -141,27 +142,14 @@ pub struct Args {
     pub quiet: bool,
 }
 
-/// A length with an optional unit suffix (`m`, `um`, `nm`, `pm`, `fm`), in metres.
+/// A length with an optional unit suffix (`harmonid_data::units`), in metres.
 fn parse_length(s: &str, option: &str) -> miette::Result<f64> {
-    let t = s.trim();
-    let (num, scale) = [
-        ("fm", 1e-15),
-        ("pm", 1e-12),
-        ("nm", 1e-9),
-        ("um", 1e-6),
-        ("µm", 1e-6),
-        ("m", 1.0),
-    ]
-    .iter()
-    .find_map(|(u, k)| t.strip_suffix(u).map(|n| (n.trim(), *k)))
-    .unwrap_or((t, 1.0));
-    let v: f64 = num.parse().map_err(|_| {
-        miette!("{option} {s}: expected a number in metres or with a unit (fm, pm, nm, um, m)")
-    })?;
-    if !(v.is_finite() && v >= 0.0) {
-        return Err(miette!("{option} {s}: not a noise level (finite, ≥ 0)"));
-    }
-    Ok(v * scale)
+    harmonid_data::parse_length(s).map_err(|e| match e {
+        harmonid_data::LengthError::OutOfRange => {
+            miette!("{option} {s}: not a noise level (finite, ≥ 0)")
+        }
+        e => miette!("{option} {s}: {e}"),
+    })
 }
 
 /// The study's noise levels as given, sorted.

@@ -3,8 +3,8 @@
 //! model's unknowns (`harmonid_plan`).
 
 use crate::cli::common::{check_outputs, print_out, write_output};
+use harmonid_data::Point;
 use harmonid_experiment::{read_values, Plan};
-use harmonid_ident::Point;
 use harmonid_plan::{design_with_progress, evaluate, DesignSettings};
 use miette::{miette, IntoDiagnostic, WrapErr};
 use std::path::PathBuf;
@@ -62,32 +62,13 @@ pub struct Args {
     pub plot: Option<PathBuf>,
 }
 
-/// Parses `0.05nm`, `50pm`, `1e-10`, `1e-10m` into metres.
+/// Parses `0.05nm`, `50pm`, `1e-10`, `1e-10m` into metres (a positive σ).
 fn parse_sigma(s: &str) -> miette::Result<f64> {
-    let t = s.trim();
-    let split = t
-        .find(|c: char| c.is_ascii_alphabetic() && c != 'e' && c != 'E')
-        .unwrap_or(t.len());
-    let (num, unit) = t.split_at(split);
-    // Units per metre: dividing keeps `0.05nm` exactly 5e-11.
-    let per_m = match unit.trim() {
-        "" | "m" => 1.0,
-        "um" | "µm" => 1e6,
-        "nm" => 1e9,
-        "pm" => 1e12,
-        u => {
-            return Err(miette!(
-                "--noise {s}: unknown unit `{u}` (use m, um, nm or pm)"
-            ))
-        }
-    };
-    let v: f64 = num
-        .trim()
-        .parse()
-        .ok()
-        .filter(|v: &f64| v.is_finite() && *v > 0.0)
-        .ok_or_else(|| miette!("--noise {s}: expected a positive σ, e.g. 0.05nm"))?;
-    Ok(v / per_m)
+    match harmonid_data::parse_length(s) {
+        Ok(v) if v > 0.0 => Ok(v),
+        Ok(_) => Err(miette!("--noise {s}: expected a positive σ, e.g. 0.05nm")),
+        Err(e) => Err(miette!("--noise {s}: {e}")),
+    }
 }
 
 fn parse_point(i: usize, s: &str) -> miette::Result<Point> {

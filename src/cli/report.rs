@@ -1,7 +1,7 @@
 //! `harmonid report MODEL DATASET [--result r.json] --out DIR`: one self-contained HTML page
 //! with every figure of the identification (the work is in `harmonid_report`).
 
-use harmonid_ident::{Dataset, Settings};
+use harmonid_ident::Settings;
 use harmonid_report::Source;
 use miette::{miette, IntoDiagnostic, WrapErr};
 use std::path::PathBuf;
@@ -25,7 +25,7 @@ pub struct Args {
 /// Runs the subcommand.
 pub fn run(args: Args) -> miette::Result<()> {
     let model = harmonid_model::load(&args.model).map_err(miette::Report::new)?;
-    let ds = Dataset::load(&args.dataset).map_err(miette::Report::new)?;
+    let ds = super::common::load_dataset(&args.dataset)?;
     let source = match &args.result {
         Some(path) => {
             let text = std::fs::read_to_string(path)

@@ -9,8 +9,9 @@
 //! balance is deterministic, so its state does not depend on the seed and is solved once.
 //! `noisy_equals_simulate` in `tests/plan_roundtrip_mc.rs` checks the two are the same dataset.
 
+use harmonid_data::{Dataset, Point, TruthNoise};
 use harmonid_experiment::{add_noise, read_values, Plan, Settings};
-use harmonid_ident::{identify, Dataset, Estimate, Point, Report, TruthNoise};
+use harmonid_ident::{identify, Estimate, Report};
 use harmonid_model::Model;
 use harmonid_plan::{design, evaluate, DesignSettings, Evaluation};
 use harmonid_sim::{ModelValues, NoiseGen};

@@ -2,7 +2,7 @@
 //!
 //! A measurement [`Plan`] (the TOML file `harmonid simulate --plan` reads) lists measurement
 //! points, drive configurations and the lock-in noise; [`Plan::simulate`] turns it, with a model
-//! and its parameter values, into the [`Dataset`](harmonid_ident::Dataset) a lab would record:
+//! and its parameter values, into the [`Dataset`](harmonid_data::Dataset) a lab would record:
 //! every mode `n` obeys
 //!
 //! ```text

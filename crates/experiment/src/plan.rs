@@ -2,8 +2,8 @@
 //! `harmonid simulate --plan` reads (docs/simulation.md), checked once when read.
 
 use crate::PlanError;
+use harmonid_data::{metres_per, Point};
 use harmonid_files::QuotedSource;
-use harmonid_ident::dataset::{unit_scale, Point};
 use harmonid_spectral::FREQ_TOLERANCE_HZ;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -429,10 +429,14 @@ impl Plan {
     }
 
     pub(crate) fn issues(&self) -> Result<(), Issue> {
-        if unit_scale(&self.displacement_unit).is_none() {
+        if metres_per(&self.displacement_unit).is_none() {
             return Err(issue(
                 vec![key("displacement_unit")],
-                format!("`{}`: expected m, um, nm or pm", self.displacement_unit),
+                format!(
+                    "`{}`: expected a length unit ({}) or V",
+                    self.displacement_unit,
+                    harmonid_data::units::length_unit_names()
+                ),
             ));
         }
         let s = self.noise.sigma_per_quadrature;
@@ -518,7 +522,7 @@ impl Plan {
 
     /// Metres per `displacement_unit` (checked by [`Plan::check`]; 1 for an unknown unit).
     pub fn unit_m(&self) -> f64 {
-        unit_scale(&self.displacement_unit).unwrap_or(1.0)
+        metres_per(&self.displacement_unit).unwrap_or(1.0)
     }
 
     /// The noise's per-quadrature σ, metres.

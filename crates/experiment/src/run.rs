@@ -2,7 +2,7 @@
 //! each steady state checked (convergence, truncation, stability) before it is written.
 
 use crate::{ExperimentError, Plan, PlanError, PlanMeasurement};
-use harmonid_ident::dataset::{
+use harmonid_data::dataset::{
     Dataset, Manifest, Measurement, MeasurementSpec, Truth, TruthForce, TruthMode, TruthNoise,
 };
 use harmonid_sim::{
@@ -299,6 +299,7 @@ impl PlanMeasurement {
             drive_levels_v: self.drive_levels_v.clone(),
             drive_phases_rad: self.drive_phases_rad.clone(),
             bandwidth_hz: self.bandwidth_hz,
+            sweep: None,
         }
     }
 
@@ -631,6 +632,7 @@ impl Plan {
                 manifest: self.manifest(model),
                 measurements,
                 truth: Some(truth),
+                notes: Vec::new(),
             },
             reports,
         })

@@ -19,12 +19,12 @@
 //! freedom if A is right, which gives the p-value: a small one says the data need B's extra
 //! terms.
 
-use crate::dataset::Dataset;
 use crate::finalize::Report;
 use crate::identify::identify;
 use crate::problem::IdentError;
 use crate::settings::Settings;
 use crate::uncertainty::{chi2_tail, p_text};
+use harmonid_data::Dataset;
 use harmonid_model::Model;
 use serde::Serialize;
 use std::collections::BTreeSet;

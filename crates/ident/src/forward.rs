@@ -28,10 +28,10 @@
 //! frequency. Its steady state is warm-started from the previous evaluation's (or from a start
 //! set by [`ForwardModel::start_from_data`]); the drive ramp from rest is the fall-back.
 
-use crate::dataset::Dataset;
 use crate::layout::{Unknown, UnknownTable};
 use crate::problem::{nearest_mode, nominal_frequencies, IdentError};
 use crate::settings::ForceModel;
+use harmonid_data::Dataset;
 use harmonid_model::{Linear, Model, ParamKind};
 use harmonid_sim::{
     choose_lattice, Excitation, HbSettings, HbSolver, ModeValues, ModelValues, NumericModel,
@@ -174,7 +174,10 @@ impl ForwardModel {
             .measurements
             .iter()
             .all(|m| m.spec.drive_levels_and_phases().is_some());
-        let force_model = force_model.resolved(all_levels);
+        let force_model = force_model.resolved_for(
+            all_levels,
+            ds.measurements.iter().any(|m| m.spec.sweep.is_some()),
+        );
         let tone_modes = ds
             .measurements
             .iter()

@@ -8,11 +8,11 @@
 //! the measured amplitudes, is the prediction error: a model that only fits the data it saw
 //! predicts the others badly.
 
-use crate::dataset::Dataset;
 use crate::finalize::Report;
 use crate::identify::identify;
 use crate::problem::IdentError;
 use crate::settings::Settings;
+use harmonid_data::Dataset;
 use harmonid_model::{Linear, Model, ParamKind};
 use serde::{Deserialize, Serialize};
 
@@ -39,15 +39,26 @@ pub fn identify_with_holdout(
     held: &[String],
     settings: &Settings,
 ) -> Result<Report, IdentError> {
+    // A name holds out one measurement, or every step of a sweep.
+    let is_held = |m: &harmonid_data::Measurement| {
+        held.iter()
+            .any(|h| &m.spec.name == h || m.spec.sweep.as_ref().is_some_and(|s| &s.sweep == h))
+    };
     for name in held {
-        if !ds.measurements.iter().any(|m| &m.spec.name == name) {
-            return Err(IdentError::Holdout(format!(
-                "--holdout {name}: the dataset has no measurement \"{name}\" (measurements: {})",
+        if !ds.measurements.iter().any(|m| {
+            &m.spec.name == name || m.spec.sweep.as_ref().is_some_and(|s| &s.sweep == name)
+        }) {
+            let mut names: Vec<String> =
+                ds.manifest.sweeps.iter().map(|s| s.name.clone()).collect();
+            names.extend(
                 ds.measurements
                     .iter()
-                    .map(|m| m.spec.name.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", ")
+                    .filter(|m| m.spec.sweep.is_none())
+                    .map(|m| m.spec.name.clone()),
+            );
+            return Err(IdentError::Holdout(format!(
+                "--holdout {name}: the dataset has no measurement or sweep \"{name}\" (it has: {})",
+                harmonid_data::text::first_and_more(names, 12).join(", ")
             )));
         }
     }
@@ -55,7 +66,7 @@ pub fn identify_with_holdout(
         let ms = ds
             .measurements
             .iter()
-            .filter(|m| held.contains(&m.spec.name) == keep_held)
+            .filter(|m| is_held(m) == keep_held)
             .cloned()
             .collect();
         Ok(Dataset::from_parts(
@@ -65,7 +76,7 @@ pub fn identify_with_holdout(
             ds.truth.clone(),
         )?)
     };
-    if ds.measurements.iter().all(|m| held.contains(&m.spec.name)) {
+    if ds.measurements.iter().all(is_held) {
         return Err(IdentError::Holdout(format!(
             "--holdout {}: that is every measurement of the dataset; hold out fewer so some are left to fit",
             held.join(",")

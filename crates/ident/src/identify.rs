@@ -2,13 +2,13 @@
 //! pooled shots ([`crate::Problem`]), the output-error fit started from the pooled one
 //! ([`crate::output_error`]), and the result built once from both ([`crate::finalize`]).
 
-use crate::dataset::Dataset;
 use crate::finalize::{finalize, Found, Report};
 use crate::forward::{ForwardModel, ForwardSettings};
 use crate::output_error::{self, OutputErrorFailure, POOR_STAGE};
 use crate::problem::{IdentError, Problem};
 use crate::settings::Settings;
 use crate::shots::pool;
+use harmonid_data::Dataset;
 use harmonid_model::Model;
 
 /// Identifies `model`'s unknowns from `ds`: the output-error maximum-likelihood estimate

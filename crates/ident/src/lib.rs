@@ -26,10 +26,11 @@
 //! `output_error` (starts and the fit) → `uncertainty` (Fisher bounds, jackknife, drift,
 //! consistency) → `forward` (the dataset-shaped harmonic balance both use) → `shots` (pooling,
 //! robust statistics) → `problem` (the linear fit) → `layout` (the one table of unknowns,
-//! [`UnknownTable`]); the dataset reader is [`dataset`].
+//! [`UnknownTable`]); the dataset reader is `harmonid_data`.
 //!
 //! ```
-//! use harmonid_ident::{identify, Dataset, Estimator, Settings};
+//! use harmonid_data::Dataset;
+//! use harmonid_ident::{identify, Estimator, Settings};
 //! use std::path::Path;
 //! let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/nanostring_2mode");
 //! let model = harmonid_model::load(&dir.join("model.hb")).expect("model");
@@ -44,8 +45,7 @@
 #![warn(missing_docs)]
 
 mod compare;
-pub mod dataset;
-mod finalize;
+pub mod finalize;
 mod forward;
 mod holdout;
 mod identify;
@@ -58,10 +58,6 @@ mod solve;
 mod uncertainty;
 
 pub use compare::{compare, CompareError, ModelComparison, ModelFit, NestedTest};
-pub use dataset::{
-    Dataset, DatasetError, Manifest, Measurement, MeasurementSpec, Point, Truth, TruthForce,
-    TruthMode, TruthNoise,
-};
 pub use finalize::{
     Estimate, FitReport, ForceResult, GainResult, ModeResult, Report, JACKKNIFE_TOL,
     MAX_REL_STDERR, RESULT_FORMAT,

@@ -84,7 +84,8 @@ pub struct UnknownEstimator {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ForceModel {
-    /// Drive levels when every measurement gives them, free forces otherwise.
+    /// Drive levels when every measurement gives them (one gain per mode and measurement, or
+    /// per mode for the whole dataset when it holds stepped sweeps), free forces otherwise.
     #[default]
     Auto,
     /// Every tone's force a free complex unknown (the paper's model).
@@ -134,7 +135,15 @@ impl ForceModel {
     /// measurement gives drive levels (`all_levels`), [`ForceModel::Free`] otherwise; the
     /// others stay.
     pub fn resolved(self, all_levels: bool) -> ForceModel {
+        self.resolved_for(all_levels, false)
+    }
+
+    /// [`ForceModel::resolved`] for a dataset that holds stepped sweeps (`sweeps`) or not:
+    /// with drive levels everywhere, `Auto` is then one gain per mode for the whole dataset
+    /// (a sweep's steps share one actuator; a gain per step would leave Q undetermined).
+    pub fn resolved_for(self, all_levels: bool, sweeps: bool) -> ForceModel {
         match self {
+            ForceModel::Auto if all_levels && sweeps => ForceModel::GainPerMode,
             ForceModel::Auto if all_levels => ForceModel::GainPerMeasurement,
             ForceModel::Auto => ForceModel::Free,
             f => f,

@@ -2,8 +2,9 @@
 //! physics check, the bounds of the public noisy nanostring dataset against an independent
 //! computation.
 
+use harmonid_data::Dataset;
 use harmonid_ident::{crlb, Noise};
-use harmonid_ident::{Dataset, ForceModel, ForwardModel, ForwardSettings, Unknown};
+use harmonid_ident::{ForceModel, ForwardModel, ForwardSettings, Unknown};
 use harmonid_sim::{ModeValues, ModelValues};
 use num_complex::Complex64;
 use std::path::PathBuf;

@@ -4,9 +4,8 @@
 //! (the accuracy tests do that), only that nothing panics and that what is returned is finite
 //! where it claims to be determined.
 
-use harmonid_ident::{
-    disturbed_shots, drift_check, identify, solve_ls, Dataset, Estimator, Settings,
-};
+use harmonid_data::Dataset;
+use harmonid_ident::{disturbed_shots, drift_check, identify, solve_ls, Estimator, Settings};
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 use proptest::prelude::*;

@@ -11,7 +11,8 @@
 //! parameters at zero are the same one). The same data scaled to 5 nm are below it and get
 //! the `ml` estimate: the fallback is caused by the amplitude, nothing else.
 
-use harmonid_ident::{identify, Dataset, Manifest, Measurement, MeasurementSpec, Report, Settings};
+use harmonid_data::{Dataset, Manifest, Measurement, MeasurementSpec};
+use harmonid_ident::{identify, Report, Settings};
 use harmonid_sim::NoiseGen;
 use num_complex::Complex64;
 use std::f64::consts::TAU;
@@ -32,6 +33,7 @@ fn dataset(f0: f64, q: f64, amp: f64) -> Dataset {
         drive_levels_v: Some(vec![1.0, 1.0]),
         drive_phases_rad: Some(vec![0.0, 0.0]),
         bandwidth_hz: None,
+        sweep: None,
     };
     let shots = 10;
     let mut m = Measurement::zeros(spec, lines.clone(), vec![], shots);

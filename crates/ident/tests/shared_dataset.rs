@@ -1,6 +1,7 @@
 //! Reads the shared datasets of `../shared/data` when they exist (skipped otherwise).
 
-use harmonid_ident::{identify, Dataset, ForceModel, Settings};
+use harmonid_data::Dataset;
+use harmonid_ident::{identify, ForceModel, Settings};
 use std::path::PathBuf;
 
 fn shared(name: &str) -> Option<PathBuf> {

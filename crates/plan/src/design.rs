@@ -13,8 +13,9 @@ use crate::info::{
 };
 use crate::level::{pair_fold_estimate, strongest};
 use crate::PlanError;
+use harmonid_data::{Dataset, Point};
 use harmonid_experiment::{Plan, PlanMeasurement, PlanNoise};
-use harmonid_ident::{Dataset, Point, Unknown};
+use harmonid_ident::Unknown;
 use harmonid_model::{Linear, Model};
 use harmonid_sim::{ModelValues, NumericModel};
 use std::collections::BTreeMap;

@@ -1,9 +1,10 @@
 //! Fisher information of one planned measurement on the shared unknowns.
 
 use crate::PlanError;
+use harmonid_data::Dataset;
 use harmonid_experiment::{ExperimentError, Plan, PlanMeasurement, Settings, Truncation};
 use harmonid_ident::{information, Noise};
-use harmonid_ident::{Dataset, ForceModel, ForwardModel, ForwardSettings, Unknown};
+use harmonid_ident::{ForceModel, ForwardModel, ForwardSettings, Unknown};
 use harmonid_model::Model;
 use harmonid_sim::{ModelValues, NumericModel};
 use nalgebra::DMatrix;

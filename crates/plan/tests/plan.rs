@@ -82,7 +82,7 @@ fn a_budget_too_small_is_refused() {
 fn two_mode_settings() -> DesignSettings {
     DesignSettings {
         max_measurements: Some(3),
-        points: vec![harmonid_ident::Point {
+        points: vec![harmonid_data::Point {
             name: "p0".into(),
             shape: [
                 ("q1".to_string(), 0.3090169943749474),
@@ -211,7 +211,7 @@ fn the_shipped_five_mode_plan_is_designed_cheap_and_determines_everything() {
     let s = DesignSettings {
         sigma_m: 1e-10,
         shots: 30,
-        points: vec![harmonid_ident::Point {
+        points: vec![harmonid_data::Point {
             name: "p0".into(),
             shape,
         }],

@@ -2,8 +2,8 @@
 //! network.
 
 use crate::PageFigure;
+use harmonid_data::{Dataset, Truth};
 use harmonid_ident::FitReport as FitView;
-use harmonid_ident::{Dataset, Truth};
 use harmonid_ident::{Estimate, Report};
 use harmonid_model::Model;
 use harmonid_plot::style::num;

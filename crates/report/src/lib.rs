@@ -22,7 +22,8 @@ pub mod spectra;
 /// only when it holds this file, or is empty).
 pub const MARKER: &str = ".harmonid-report";
 
-use harmonid_ident::{Dataset, Report, Settings};
+use harmonid_data::Dataset;
+use harmonid_ident::{Report, Settings};
 use harmonid_model::Model;
 use harmonid_plot::{Figure, Histogram, PlotError, PotentialMatrix, Spectrum};
 use harmonid_sim::NumericModel;

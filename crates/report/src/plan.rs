@@ -2,7 +2,7 @@
 //! planned tones and the lines the plan's noise-free simulation predicts, named and classed as
 //! the report's spectra are ([`crate::spectra::classify`]).
 
-use harmonid_ident::Dataset;
+use harmonid_data::Dataset;
 use harmonid_plot::{ModeResponse, PlanFigure, PlannedMeasurement, SpectrumLine};
 use harmonid_sim::{Excitation, NumericModel};
 

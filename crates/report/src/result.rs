@@ -1,7 +1,8 @@
 //! What the report needs from an identification result ([`harmonid_ident::Report`], read with
 //! the same type that writes it: `Report::from_json`).
 
-use harmonid_ident::{Report, Truth};
+use harmonid_data::Truth;
+use harmonid_ident::Report;
 
 /// The numbers a simulation needs: `[modes]` and `[eom]` (terms reported as null dropped).
 pub fn model_values(r: &Report) -> harmonid_sim::ModelValues {

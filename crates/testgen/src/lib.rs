@@ -5,8 +5,8 @@
 //! A dev-only crate (`publish = false`): the root package's tests and benches use it as
 //! `use harmonid_testgen as gen;`, one compiled copy instead of a `#[path]` module in each.
 
+use harmonid_data::{Dataset, Measurement, Point};
 use harmonid_experiment::{Plan, PlanMeasurement, PlanNoise, Settings};
-use harmonid_ident::{Dataset, Measurement, Point};
 use harmonid_model::Model;
 use harmonid_sim::{ModeValues, ModelValues, NoiseGen};
 use std::collections::BTreeMap;

@@ -9,12 +9,12 @@ mod tables;
 
 pub use result::{Estimate, FitReport, ForceResult, GainResult, ModeResult, Report, RESULT_FORMAT};
 
-use crate::dataset::{first_and_more, index_list, Dataset};
 use crate::layout::{Quantity, Unknown};
 use crate::output_error::{OutputError, OutputErrorFailure};
 use crate::problem::{Fit, Problem};
 use crate::settings::{Estimator, Settings};
 use crate::shots::Pooled;
+use harmonid_data::{text::first_and_more, text::index_list, Dataset};
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
 use tables::FIXED_BY_THE_MODEL;

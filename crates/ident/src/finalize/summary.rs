@@ -1,8 +1,8 @@
 //! The result as people read it: a summary table and the per-shot CSV.
 
 use super::result::{Estimate, Report};
-use crate::dataset::{index_list, Truth};
 use crate::settings::Estimator;
+use harmonid_data::{text::index_list, Truth};
 use std::fmt::Write as _;
 
 impl Report {
@@ -116,7 +116,7 @@ impl Report {
                 s,
                 "  stage {} [{}]: {} unknowns, {} rows, cond {:.2e}, rel. residual {:.2e}{}",
                 f.stage,
-                f.measurements.join(", "),
+                harmonid_data::text::first_and_more(f.measurements.clone(), 8).join(", "),
                 f.unknowns.len(),
                 f.rows,
                 f.condition_number,

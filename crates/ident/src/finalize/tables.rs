@@ -6,10 +6,10 @@
 use super::result::{
     Estimate, FitReport, ForceResult, GainResult, ModeResult, Report, RESULT_FORMAT,
 };
-use crate::dataset::Dataset;
 use crate::layout::Unknown;
 use crate::problem::{Fit, GroupDiagnostics, Problem};
 use crate::shots::shot_stats;
+use harmonid_data::Dataset;
 use num_complex::Complex64;
 use std::collections::BTreeMap;
 use std::f64::consts::PI;

@@ -6,7 +6,6 @@
 
 pub mod ml;
 
-use crate::dataset::Dataset;
 use crate::forward::{ForwardError, ForwardModel};
 use crate::layout::{Quantity, Unknown};
 use crate::problem::Problem;
@@ -16,6 +15,7 @@ use crate::uncertainty::{
     self, consistency, drift_warnings, expected_reduced_chi2, goodness_of_fit, jackknife,
     FisherError, GoodnessOfFit, Noise,
 };
+use harmonid_data::Dataset;
 use ml::{MlFit, MlSettings};
 use num_complex::Complex64;
 

@@ -1,7 +1,7 @@
 //! Attribution of measured frequencies to modes, modal conversion, drive forces.
 
 use super::{ForceModel, IdentError, Problem, Settings, Unknown};
-use crate::dataset::{Dataset, DatasetError};
+use harmonid_data::{Dataset, DatasetError};
 use harmonid_model::{Linear, Model};
 use harmonid_spectral::ProductPlan;
 use num_complex::Complex64;

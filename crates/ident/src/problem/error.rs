@@ -1,6 +1,6 @@
 //! Errors of the identification.
 
-use crate::dataset::DatasetError;
+use harmonid_data::DatasetError;
 
 /// Errors of the identification (bad model/dataset combinations, detected before fitting).
 #[derive(Debug, thiserror::Error, miette::Diagnostic)]

@@ -2,8 +2,8 @@
 
 use super::weighting::shot_mean;
 use super::{FitGroup, IdentError, MeasRows, Problem, Unknown};
-use crate::dataset::Dataset;
 use crate::solve::{solve_ls, FitStatus, LsSolution};
+use harmonid_data::Dataset;
 use harmonid_spectral::ProductScratch;
 use std::collections::BTreeMap;
 

@@ -1,8 +1,8 @@
 //! The force model in use for a dataset (`Auto` resolved), or why the one asked for cannot be.
 
 use super::IdentError;
-use crate::dataset::Dataset;
 use crate::settings::ForceModel;
+use harmonid_data::Dataset;
 
 /// The force model in use: `Auto` resolves to drive levels when every measurement gives them;
 /// a gain model without drive levels is an error naming the measurement.
@@ -15,20 +15,25 @@ pub(super) fn resolve_force_model(
         .measurements
         .iter()
         .all(|m| m.spec.drive_levels_and_phases().is_some());
-    Ok(match requested.resolved(all_levels) {
-        f @ (ForceModel::GainPerMeasurement | ForceModel::GainPerMode) if !all_levels => {
-            let missing = ds
-                .measurements
-                .iter()
-                .find(|m| m.spec.drive_levels_and_phases().is_none())
-                .map(|m| m.spec.name.clone())
-                .unwrap_or_default();
-            return Err(IdentError::Unsupported(format!(
+    Ok(
+        match requested.resolved_for(
+            all_levels,
+            ds.measurements.iter().any(|m| m.spec.sweep.is_some()),
+        ) {
+            f @ (ForceModel::GainPerMeasurement | ForceModel::GainPerMode) if !all_levels => {
+                let missing = ds
+                    .measurements
+                    .iter()
+                    .find(|m| m.spec.drive_levels_and_phases().is_none())
+                    .map(|m| m.spec.name.clone())
+                    .unwrap_or_default();
+                return Err(IdentError::Unsupported(format!(
                 "{manifest_path}: the force model \"{f}\" needs drive_levels_v and drive_phases_rad in every measurement; \"{missing}\" has none (use the free-force model)"
             )));
-        }
-        f => f,
-    })
+            }
+            f => f,
+        },
+    )
 }
 
 #[cfg(test)]

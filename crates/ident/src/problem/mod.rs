@@ -52,11 +52,11 @@ pub use error::IdentError;
 pub use fit::{Fit, GroupDiagnostics};
 pub use stages::{FitGroup, NotIdentifiable};
 
-use crate::dataset::Dataset;
 use crate::layout::UnknownTable;
 use crate::settings::{ForceModel, Settings};
 use attribution::MeasPrep;
 use equations::Term;
+use harmonid_data::Dataset;
 use harmonid_model::Model;
 use harmonid_poly::PowerProduct;
 use regressors::MeasRows;

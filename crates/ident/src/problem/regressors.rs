@@ -1,7 +1,7 @@
 //! Regressors: the complex equations of one shot and the real least-squares system of a group.
 
 use super::{ForceModel, Problem, Unknown};
-use crate::dataset::Dataset;
+use harmonid_data::Dataset;
 use harmonid_spectral::{monomial_amplitudes, ProductScratch};
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;

@@ -1,8 +1,8 @@
 //! Stages: which measurements determine which unknowns, fitted in which order.
 
 use super::{IdentError, Problem, Unknown};
-use crate::dataset::{first_and_more, Dataset};
 use crate::solve::solve_ls;
+use harmonid_data::{text::first_and_more, Dataset};
 use nalgebra::{DMatrix, DVector};
 
 /// A group of measurements fitted together, with its free unknowns.
@@ -257,7 +257,7 @@ fn mode_sets_text(sets: &[Vec<usize>], mode_names: &[String]) -> String {
 #[cfg(test)]
 mod tests {
     use super::super::testkit;
-    use crate::dataset::{Dataset, Manifest, Measurement, MeasurementSpec};
+    use harmonid_data::{Dataset, Manifest, Measurement, MeasurementSpec};
 
     #[test]
     fn long_measurement_lists_are_cut_with_a_count() {

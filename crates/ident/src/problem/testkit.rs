@@ -6,7 +6,7 @@
 //! `beta = g = 0`, seen at one point with shapes `a: 0.5`, `b: 0.8`. Every equation then holds
 //! exactly at the truth, which the tests check to rounding.
 
-use crate::dataset::{Dataset, Manifest, Measurement, MeasurementSpec, Point};
+use harmonid_data::{Dataset, Manifest, Measurement, MeasurementSpec, Point};
 use harmonid_model::Model;
 use num_complex::Complex64;
 use rand::SeedableRng;
@@ -81,6 +81,7 @@ pub(super) fn dataset(with_pair: bool, shots: usize, sigma: f64, seed: u64) -> D
             drive_levels_v: Some(drives.iter().map(|d| d.2).collect()),
             drive_phases_rad: Some(vec![0.0; drives.len()]),
             bandwidth_hz: None,
+            sweep: None,
         };
         let mut m = Measurement::zeros(spec, freqs.clone(), vec![0], shots);
         for s in 0..shots {
@@ -103,6 +104,7 @@ pub(super) fn dataset(with_pair: bool, shots: usize, sigma: f64, seed: u64) -> D
         manifest,
         measurements,
         truth: None,
+        notes: Vec::new(),
     }
 }
 

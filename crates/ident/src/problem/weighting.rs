@@ -1,7 +1,7 @@
 //! Weighting: the covariance of the equation errors that noise on the measured amplitudes causes.
 
 use super::{FitGroup, MeasRows, Problem, Unknown};
-use crate::dataset::Dataset;
+use harmonid_data::Dataset;
 use harmonid_spectral::{monomial_jacobian, velocity_to_amplitude, ProductScratch};
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;

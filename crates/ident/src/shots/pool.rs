@@ -15,7 +15,7 @@
 //! The noise of a line is the sample standard deviation per quadrature of the kept shots,
 //! `σ_o² = Σ_s |x_{s,o} − x̄_o|² / (2(n − 1))` (m); the mean's is `σ_o/√n`.
 
-use crate::dataset::Dataset;
+use harmonid_data::Dataset;
 use num_complex::Complex64;
 
 /// The pooled dataset and what pooling found.
@@ -225,7 +225,7 @@ mod tests {
 
     #[test]
     fn pooling_averages_kept_shots_and_measures_their_noise() {
-        use crate::dataset::{Manifest, Measurement, MeasurementSpec};
+        use harmonid_data::{Manifest, Measurement, MeasurementSpec};
         let spec = MeasurementSpec::new("m", vec![10.0]);
         let s = shots(400, 3, 0.2, 9);
         let mut m = Measurement::zeros(spec.clone(), vec![10.0, 11.0, 12.0], vec![], 400);
@@ -243,6 +243,7 @@ mod tests {
             manifest,
             measurements: vec![m],
             truth: None,
+            notes: Vec::new(),
         };
         let p = pool(&ds);
         assert_eq!(p.rejected, vec![vec![7]]);

@@ -446,7 +446,7 @@ pub fn warnings(comparisons: &[Comparison]) -> Vec<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dataset::{Dataset, Manifest, Measurement, MeasurementSpec, Point};
+    use harmonid_data::{Dataset, Manifest, Measurement, MeasurementSpec, Point};
     use rand::SeedableRng;
     use rand_distr::{Distribution, Normal};
     use std::f64::consts::PI;
@@ -503,6 +503,7 @@ mod tests {
                     drive_levels_v: Some(vec![level; 2]),
                     drive_phases_rad: Some(vec![0.0; 2]),
                     bandwidth_hz: None,
+                    sweep: None,
                 };
                 let shots = 10;
                 let mut m = Measurement::zeros(spec, tones.to_vec(), vec![0], shots);
@@ -520,6 +521,7 @@ mod tests {
         manifest.measurements = specs.collect();
         Dataset {
             truth: None,
+            notes: Vec::new(),
             manifest,
             measurements,
             dir: "two_measurements".into(),

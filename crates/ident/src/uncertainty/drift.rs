@@ -11,10 +11,10 @@
 //! Needs at least 5 shots.
 
 use super::AtEstimate;
-use crate::dataset::Dataset;
 use crate::forward::ForwardModel;
 use crate::layout::Unknown;
 use crate::shots::Pooled;
+use harmonid_data::Dataset;
 use std::f64::consts::TAU;
 
 /// What the check found for one quantity.

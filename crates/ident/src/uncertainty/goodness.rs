@@ -15,7 +15,7 @@
 //! a noise estimate (one shot, or shots that do not scatter) the noise is the fit's residual
 //! and nothing can be judged: `p_value` is `None`.
 
-use crate::dataset::Dataset;
+use harmonid_data::Dataset;
 use num_complex::Complex64;
 use serde::{Deserialize, Serialize};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
@@ -341,7 +341,7 @@ fn sig3(x: f64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dataset::{Manifest, Measurement, MeasurementSpec};
+    use harmonid_data::{Manifest, Measurement, MeasurementSpec};
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
     use rand_distr::{Distribution, StandardNormal};

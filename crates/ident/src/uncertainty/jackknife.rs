@@ -1,10 +1,10 @@
 //! The linearised delete-one-shot jackknife of the output-error estimate.
 
 use super::AtEstimate;
-use crate::dataset::Dataset;
 use crate::forward::ForwardModel;
 use crate::layout::{Quantity, Unknown};
 use crate::shots::Pooled;
+use harmonid_data::Dataset;
 use nalgebra::DMatrix;
 use std::f64::consts::TAU;
 

@@ -20,8 +20,8 @@ pub(crate) use goodness::{chi2_tail, goodness_of_fit, p_text};
 pub use goodness::{GoodnessOfFit, LineResidual, MeasurementFit, P_DOES_NOT_FIT};
 pub(crate) use jackknife::jackknife;
 
-use crate::dataset::Dataset;
 use crate::shots::Pooled;
+use harmonid_data::Dataset;
 use num_complex::Complex64;
 
 /// The output-error fit at its estimate, as the linearised checks ([`jackknife`] and
@@ -74,7 +74,7 @@ pub(crate) fn expected_reduced_chi2(ds: &Dataset, pooled: &Pooled) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dataset::{Manifest, Measurement, MeasurementSpec};
+    use harmonid_data::{Manifest, Measurement, MeasurementSpec};
 
     fn measurement(name: &str, lines: usize, shots: usize) -> Measurement {
         let spec = MeasurementSpec::new(name, vec![1000.0]);

@@ -50,7 +50,7 @@ pub(super) fn check_measurement(
     if np == 0 || m.points.iter().any(|&p| p >= n_points.max(1)) {
         return Err(bad(format!(
             "point indices {} do not fit the {n_points} declared points",
-            super::index_list(&m.points)
+            crate::text::index_list(&m.points)
         )));
     }
     if m.data.len() != m.n_shots * nf * np {

@@ -167,7 +167,10 @@ fn bad_manifests_are_reported() {
             MANIFEST.replace("harmonid-dataset/1", "v0"),
             "format is \"v0\"",
         ),
-        (MANIFEST.replace("\"nm\"", "\"mm\""), "displacement_unit"),
+        (
+            MANIFEST.replace("\"nm\"", "\"furlong\""),
+            "displacement_unit",
+        ),
         (
             MANIFEST.replace("drive_levels_v = [1.0, 1.0]", "drive_levels_v = [1.0]"),
             "1 entries",
@@ -247,7 +250,10 @@ fn empty_and_degenerate_manifests_are_refused() {
     // No measurement gave an all-null result with exit 0.
     let head = MANIFEST.split("[[measurement]]").next().expect("head");
     let s = manifest_err(head, CSV_OK);
-    assert!(s.contains("no [[measurement]] is listed"), "{s}");
+    assert!(
+        s.contains("no [[measurement]] or [[sweep]] is listed"),
+        "{s}"
+    );
     // `file = "."` named the folder itself.
     let s = manifest_err(
         &MANIFEST.replace("name = \"m1\"", "name = \"m1\"\nfile = \".\""),

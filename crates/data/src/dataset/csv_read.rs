@@ -11,12 +11,22 @@ pub const MAX_FREQ_HZ: f64 = 1e15;
 
 /// One CSV value as kept while reading.
 #[derive(Clone, Copy)]
-struct Cell {
-    freq_hz: f64,
-    x: Complex64,
-    shot: u32,
-    point: u32,
-    row: u32,
+pub(super) struct Cell {
+    pub(super) freq_hz: f64,
+    pub(super) x: Complex64,
+    pub(super) shot: u32,
+    pub(super) point: u32,
+    pub(super) row: u32,
+    /// The sweep step (0 for a measurement's CSV).
+    pub(super) step: u32,
+}
+
+/// Which CSV is read: a measurement's, or a sweep's (with its `step` column, `steps` steps,
+/// and an optional `time_s` column whose rows before `settle_s` are dropped).
+#[derive(Clone, Copy)]
+pub(super) enum Columns {
+    Measurement,
+    Sweep { steps: usize, settle_s: Option<f64> },
 }
 
 /// At most this many characters of a field or header are quoted in a message.
@@ -50,12 +60,23 @@ pub(super) fn read_csv<R: std::io::Read>(
     manifest: &Manifest,
     scale: f64,
 ) -> Result<Measurement, DatasetError> {
+    let (mut cells, _) = read_cells(reader, path, manifest, scale, Columns::Measurement)?;
+    assemble(&mut cells, path, spec, manifest)
+}
+
+/// One measurement from its CSV's cells: grouped by shot and point, every group checked to
+/// list the same frequencies and every drive tone, shots numbered 0..S-1.
+pub(super) fn assemble(
+    cells: &mut [Cell],
+    path: &Path,
+    spec: &MeasurementSpec,
+    manifest: &Manifest,
+) -> Result<Measurement, DatasetError> {
     let row_err = |row: usize, message: String| DatasetError::Row {
         path: path.to_path_buf(),
         row,
         message,
     };
-    let mut cells = read_cells(reader, path, manifest, scale)?;
     if cells.is_empty() {
         return Err(DatasetError::Inconsistent {
             path: path.to_path_buf(),
@@ -140,7 +161,6 @@ pub(super) fn read_csv<R: std::io::Read>(
         }
     }
     drop(groups);
-    drop(cells);
     Ok(Measurement {
         spec: spec.clone(),
         freqs_hz: freqs,
@@ -150,16 +170,18 @@ pub(super) fn read_csv<R: std::io::Read>(
     })
 }
 
-/// Every row of a measurement's CSV as a [`Cell`], in file order: the header's columns found
-/// (`shot`, `freq_hz`, `re`, `im`, optional `point`), each value parsed and checked (a
-/// positive, finite frequency below [`MAX_FREQ_HZ`], amplitudes times `scale` below
-/// [`MAX_AMPLITUDE_M`], a declared point).
-fn read_cells<R: std::io::Read>(
+/// Every row of a measurement's or sweep's CSV as a [`Cell`], in file order: the header's
+/// columns found (`shot`, `freq_hz`, `re`, `im`, optional `point`; for a sweep `step` and
+/// optional `time_s`), each value parsed and checked (a positive, finite frequency below
+/// [`MAX_FREQ_HZ`], amplitudes times `scale` below [`MAX_AMPLITUDE_M`], a declared point, a
+/// step of the sweep). Also returns how many rows were dropped as earlier than `settle_s`.
+pub(super) fn read_cells<R: std::io::Read>(
     reader: R,
     path: &Path,
     manifest: &Manifest,
     scale: f64,
-) -> Result<Vec<Cell>, DatasetError> {
+    columns: Columns,
+) -> Result<(Vec<Cell>, usize), DatasetError> {
     let row_err = |row: usize, message: String| DatasetError::Row {
         path: path.to_path_buf(),
         row,
@@ -194,6 +216,25 @@ fn read_cells<R: std::io::Read>(
     };
     let (c_shot, c_freq, c_re, c_im) = (req("shot")?, req("freq_hz")?, req("re")?, req("im")?);
     let c_point = col("point")?;
+    let (c_step, steps, settle) = match columns {
+        Columns::Measurement => (None, 0, None),
+        Columns::Sweep { steps, settle_s } => {
+            let c_time = match settle_s {
+                Some(t) => Some((
+                    col("time_s")?.ok_or_else(|| {
+                        row_err(
+                            1,
+                            format!("settle_s = {t} needs a time_s column (the time since the step began, s); add it, or drop settling samples by count with settle_samples"),
+                        )
+                    })?,
+                    t,
+                )),
+                None => None,
+            };
+            (Some(req("step")?), steps, c_time)
+        }
+    };
+    let mut early = 0usize;
     let point_index: HashMap<&str, usize> = manifest
         .points
         .iter()
@@ -244,6 +285,31 @@ fn read_cells<R: std::io::Read>(
             }
             Ok(v)
         };
+        let step = match c_step {
+            Some(c) => {
+                let t = field(c, "step")?;
+                match t.parse::<u32>() {
+                    Ok(k) if (k as usize) < steps => k,
+                    _ => {
+                        return Err(row_err(
+                            row,
+                            format!(
+                                "column \"step\": \"{}\" is not a step of this sweep (0 to {}, one per drives_hz list)",
+                                shown(t),
+                                steps.saturating_sub(1)
+                            ),
+                        ))
+                    }
+                }
+            }
+            None => 0,
+        };
+        if let Some((c, settle_s)) = settle {
+            if num(c, "time_s")? < settle_s {
+                early += 1;
+                continue;
+            }
+        }
         let st = field(c_shot, "shot")?;
         let shot: u32 = st.parse().map_err(|_| {
             row_err(
@@ -295,9 +361,10 @@ fn read_cells<R: std::io::Read>(
             // Fewer than 2^32 points: the manifest holds them.
             point: u32::try_from(p).unwrap_or(u32::MAX),
             row: row32,
+            step,
         });
     }
-    Ok(cells)
+    Ok((cells, early))
 }
 
 /// Every (shot, point) group lists the frequencies `freqs` of the first group (to

@@ -21,8 +21,9 @@ pub(super) fn validate_manifest(m: &Manifest, path: &Path) -> Result<(), Dataset
     }
     if m.unit_scale().is_none() {
         return Err(err(format!(
-            "displacement_unit = \"{}\" is not one of \"m\", \"um\", \"nm\", \"pm\"",
-            m.displacement_unit
+            "displacement_unit = \"{}\" is not a length unit ({}) nor \"V\" (volts, no sensor calibration)",
+            m.displacement_unit,
+            crate::units::length_unit_names()
         )));
     }
     let mut seen = std::collections::HashSet::new();
@@ -48,9 +49,9 @@ pub(super) fn validate_manifest(m: &Manifest, path: &Path) -> Result<(), Dataset
             )));
         }
     }
-    if m.measurements.is_empty() {
+    if m.measurements.is_empty() && m.sweeps.is_empty() {
         return Err(err(
-            "no [[measurement]] is listed; add one per drive configuration, with its name and drives_hz (DATA_FORMAT.md)"
+            "no [[measurement]] or [[sweep]] is listed; add one per drive configuration, with its name and drives_hz (docs/data-format.md)"
                 .into(),
         ));
     }
@@ -67,88 +68,113 @@ pub(super) fn validate_manifest(m: &Manifest, path: &Path) -> Result<(), Dataset
                 ms.name
             )));
         }
-        let file = ms.file_name();
-        let fp = Path::new(&file);
-        if fp.is_absolute()
-            || fp
-                .components()
-                .any(|c| !matches!(c, Component::Normal(_) | Component::CurDir))
-            || !matches!(fp.components().next_back(), Some(Component::Normal(_)))
-        {
+        check_spec(ms).map_err(err)?;
+    }
+    for sw in &m.sweeps {
+        if sw.name.trim().is_empty() {
+            return Err(err(
+                "a [[sweep]] has an empty name; give each a unique name".into(),
+            ));
+        }
+        if !names.insert(sw.name.as_str()) {
             return Err(err(format!(
+                "sweep \"{}\" has the name of another sweep or measurement; names must be unique",
+                sw.name
+            )));
+        }
+        super::sweep::check_sweep(sw).map_err(err)?;
+        for k in 0..sw.drives_hz.len() {
+            check_spec(&sw.step_spec(k)).map_err(err)?;
+        }
+    }
+    Ok(())
+}
+
+/// The checks of one measurement's entry (file inside the folder, drive tones, levels and
+/// phases), as a message naming it.
+pub(super) fn check_spec(ms: &MeasurementSpec) -> Result<(), String> {
+    let err = |m: String| m;
+    let file = ms.file_name();
+    let fp = Path::new(&file);
+    if fp.is_absolute()
+        || fp
+            .components()
+            .any(|c| !matches!(c, Component::Normal(_) | Component::CurDir))
+        || !matches!(fp.components().next_back(), Some(Component::Normal(_)))
+    {
+        return Err(err(format!(
                 "measurement \"{}\": file \"{}\" must name a CSV file inside the dataset folder, e.g. file = \"{}.csv\"",
                 shown(&ms.name),
                 shown(&file),
                 shown(&ms.name)
             )));
-        }
-        if ms.drives_hz.is_empty() {
+    }
+    if ms.drives_hz.is_empty() {
+        return Err(err(format!(
+            "measurement \"{}\": drives_hz is empty; list every drive tone in Hz",
+            ms.name
+        )));
+    }
+    for d in &ms.drives_hz {
+        if !(d.is_finite() && *d > 0.0 && *d <= MAX_FREQ_HZ) {
             return Err(err(format!(
-                "measurement \"{}\": drives_hz is empty; list every drive tone in Hz",
-                ms.name
-            )));
-        }
-        for d in &ms.drives_hz {
-            if !(d.is_finite() && *d > 0.0 && *d <= MAX_FREQ_HZ) {
-                return Err(err(format!(
                     "measurement \"{}\": drive frequency {} is not a positive number of Hz (at most {MAX_FREQ_HZ:e})",
                     ms.name,
                     num(*d)
                 )));
-            }
         }
-        for (i, a) in ms.drives_hz.iter().enumerate() {
-            for (j, b) in ms.drives_hz.iter().enumerate().skip(i + 1) {
-                if (a - b).abs() <= FREQ_REL_TOL * a.max(*b) {
-                    return Err(err(format!(
+    }
+    for (i, a) in ms.drives_hz.iter().enumerate() {
+        for (j, b) in ms.drives_hz.iter().enumerate().skip(i + 1) {
+            if (a - b).abs() <= FREQ_REL_TOL * a.max(*b) {
+                return Err(err(format!(
                         "measurement \"{}\": drive tones {} and {} are the same frequency ({a} Hz and {b} Hz); list each tone once (two tones closer than 1e-9 relative cannot be told apart)",
                         ms.name,
                         i + 1,
                         j + 1
                     )));
-                }
             }
         }
-        for (key, v) in [
-            ("drive_levels_v", &ms.drive_levels_v),
-            ("drive_phases_rad", &ms.drive_phases_rad),
-        ] {
-            if let Some(v) = v {
-                if v.len() != ms.drives_hz.len() {
-                    return Err(err(format!(
+    }
+    for (key, v) in [
+        ("drive_levels_v", &ms.drive_levels_v),
+        ("drive_phases_rad", &ms.drive_phases_rad),
+    ] {
+        if let Some(v) = v {
+            if v.len() != ms.drives_hz.len() {
+                return Err(err(format!(
                         "measurement \"{}\": {key} has {} entries but drives_hz has {}; give one per drive tone, in drives_hz order",
                         ms.name,
                         v.len(),
                         ms.drives_hz.len()
                     )));
-                }
-                if let Some(x) = v.iter().find(|x| !x.is_finite()) {
+            }
+            if let Some(x) = v.iter().find(|x| !x.is_finite()) {
+                return Err(err(format!(
+                    "measurement \"{}\": {key} contains {x}, expected finite numbers",
+                    ms.name
+                )));
+            }
+            if key == "drive_levels_v" {
+                if let Some((i, x)) = v
+                    .iter()
+                    .enumerate()
+                    .find(|(_, x)| **x == 0.0 || x.abs() > MAX_DRIVE_LEVEL)
+                {
                     return Err(err(format!(
-                        "measurement \"{}\": {key} contains {x}, expected finite numbers",
-                        ms.name
-                    )));
-                }
-                if key == "drive_levels_v" {
-                    if let Some((i, x)) = v
-                        .iter()
-                        .enumerate()
-                        .find(|(_, x)| **x == 0.0 || x.abs() > MAX_DRIVE_LEVEL)
-                    {
-                        return Err(err(format!(
                             "measurement \"{}\": drive_levels_v[{i}] = {}; a drive level must be non-zero and at most {MAX_DRIVE_LEVEL:e} in magnitude (remove a tone that was not driven from drives_hz)",
                             ms.name,
                             num(*x)
                         )));
-                    }
                 }
             }
         }
-        if ms.drive_levels_v.is_some() != ms.drive_phases_rad.is_some() {
-            return Err(err(format!(
-                "measurement \"{}\": give both drive_levels_v and drive_phases_rad, or neither",
-                ms.name
-            )));
-        }
+    }
+    if ms.drive_levels_v.is_some() != ms.drive_phases_rad.is_some() {
+        return Err(err(format!(
+            "measurement \"{}\": give both drive_levels_v and drive_phases_rad, or neither",
+            ms.name
+        )));
     }
     Ok(())
 }

@@ -40,7 +40,7 @@ pub enum DatasetError {
     #[error("{path}: {message}")]
     #[diagnostic(
         code(harmonid::dataset::toml),
-        help("the manifest's keys are described in DATA_FORMAT.md (format, displacement_unit, [[point]], [nominal_hz], [[measurement]])")
+        help("the manifest's keys are described in docs/data-format.md (format, displacement_unit, [[point]], [nominal_hz], [[measurement]])")
     )]
     Toml {
         /// File concerned.
@@ -98,7 +98,7 @@ pub enum DatasetError {
     #[error("{path}: {message}")]
     #[diagnostic(
         code(harmonid::dataset::inconsistent),
-        help("every shot and point of a measurement lists the same frequencies (DATA_FORMAT.md)")
+        help("every shot and point of a measurement lists the same frequencies (docs/data-format.md)")
     )]
     Inconsistent {
         /// CSV path.
@@ -202,6 +202,10 @@ pub struct MeasurementSpec {
     /// Measurement bandwidth, Hz (metadata, carried to reports).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bandwidth_hz: Option<f64>,
+    /// The sweep and step this measurement is, when it was read from a `[[sweep]]` (never
+    /// written as a key: the sweep is).
+    #[serde(skip)]
+    pub sweep: Option<SweepStep>,
 }
 
 impl MeasurementSpec {
@@ -215,6 +219,7 @@ impl MeasurementSpec {
             drive_levels_v: None,
             drive_phases_rad: None,
             bandwidth_hz: None,
+            sweep: None,
         }
     }
 
@@ -247,7 +252,8 @@ pub struct Manifest {
     /// Free text.
     #[serde(default)]
     pub description: String,
-    /// Unit of `re`/`im` in the CSV files: "m", "um", "nm" or "pm".
+    /// Unit of `re`/`im` in the CSV files: a length unit of [`crate::units::LENGTH_UNITS`]
+    /// ("m", "um", "nm", "pm", ...), or "V" for data kept in the instrument's volts.
     #[serde(default = "default_unit")]
     pub displacement_unit: String,
     /// Measurement points (may be empty: then the data are modal amplitudes directly).
@@ -257,8 +263,14 @@ pub struct Manifest {
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub nominal_hz: BTreeMap<String, f64>,
     /// The measurements.
-    #[serde(default, rename = "measurement")]
+    #[serde(default, rename = "measurement", skip_serializing_if = "Vec::is_empty")]
     pub measurements: Vec<MeasurementSpec>,
+    /// The stepped sweeps (each step read as one measurement).
+    #[serde(default, rename = "sweep", skip_serializing_if = "Vec::is_empty")]
+    pub sweeps: Vec<SweepSpec>,
+    /// How `harmonid import` made this dataset: format, inputs, every convention applied.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub import: Option<crate::import::ImportRecord>,
 }
 
 impl Manifest {
@@ -271,12 +283,14 @@ impl Manifest {
             points: Vec::new(),
             nominal_hz: BTreeMap::new(),
             measurements: Vec::new(),
+            sweeps: Vec::new(),
+            import: None,
         }
     }
 
-    /// Metres per `displacement_unit`, or `None` for an unknown unit.
+    /// Metres per `displacement_unit` (1 for volts), or `None` for an unknown unit.
     pub fn unit_scale(&self) -> Option<f64> {
-        unit_scale(&self.displacement_unit)
+        crate::units::metres_per(&self.displacement_unit)
     }
 
     /// Every mode name the manifest mentions (points' shapes and `nominal_hz`), sorted.
@@ -290,17 +304,6 @@ impl Manifest {
         v.sort();
         v.dedup();
         v
-    }
-}
-
-/// Metres per unit for the units `DATA_FORMAT.md` allows.
-pub fn unit_scale(unit: &str) -> Option<f64> {
-    match unit {
-        "m" => Some(1.0),
-        "um" | "µm" => Some(1e-6),
-        "nm" => Some(1e-9),
-        "pm" => Some(1e-12),
-        _ => None,
     }
 }
 
@@ -437,6 +440,9 @@ pub struct Dataset {
     pub measurements: Vec<Measurement>,
     /// `truth.toml`, if present.
     pub truth: Option<Truth>,
+    /// What reading did that a user should know of, one line each (settling samples dropped
+    /// per sweep).
+    pub notes: Vec<String>,
 }
 
 impl Dataset {
@@ -487,6 +493,15 @@ impl Dataset {
             let reader = open_csv(&file)?;
             measurements.push(read_csv(reader, &path, spec, &manifest, scale)?);
         }
+        let mut notes = Vec::new();
+        for sw in &manifest.sweeps {
+            let file = sw.file_name();
+            let path = dir.join(&file);
+            let reader = open_csv(&file)?;
+            let (steps, note) = read_sweep_csv(reader, &path, sw, &manifest, scale)?;
+            measurements.extend(steps);
+            notes.extend(note);
+        }
         let truth = match truth_text {
             Some(text) => {
                 let tpath = dir.join("truth.toml");
@@ -504,6 +519,7 @@ impl Dataset {
             manifest,
             measurements,
             truth,
+            notes,
         })
     }
 
@@ -511,11 +527,12 @@ impl Dataset {
     /// under [`Dataset::dir`]: the inputs a command must never overwrite.
     pub fn input_files(&self) -> Vec<PathBuf> {
         let mut v = vec![self.dir.join("dataset.toml")];
-        v.extend(
-            self.measurements
-                .iter()
-                .map(|m| self.dir.join(m.spec.file_name())),
-        );
+        for m in &self.measurements {
+            let p = self.dir.join(m.spec.file_name());
+            if !v.contains(&p) {
+                v.push(p);
+            }
+        }
         if self.truth.is_some() {
             v.push(self.dir.join("truth.toml"));
         }
@@ -535,7 +552,7 @@ impl Dataset {
         truth: Option<Truth>,
     ) -> Result<Dataset, DatasetError> {
         let dir = dir.into();
-        manifest.measurements = measurements.iter().map(|m| m.spec.clone()).collect();
+        entries_from(&mut manifest, &measurements, &dir)?;
         validate_manifest(&manifest, &dir)?;
         for m in &mut measurements {
             check_measurement(m, manifest.points.len(), &dir)?;
@@ -545,6 +562,7 @@ impl Dataset {
             manifest,
             measurements,
             truth,
+            notes: Vec::new(),
         })
     }
 
@@ -592,8 +610,13 @@ impl Dataset {
     ) -> Result<(), DatasetError> {
         let dir = dir.as_ref();
         let mut manifest = self.manifest.clone();
-        manifest.measurements = self.measurements.iter().map(|m| m.spec.clone()).collect();
         let mpath = dir.join("dataset.toml");
+        entries_from(&mut manifest, &self.measurements, &mpath)?;
+        for sw in &mut manifest.sweeps {
+            // The settling samples were dropped when read: what is written is settled.
+            sw.settle_s = None;
+            sw.settle_samples = None;
+        }
         validate_manifest(&manifest, &mpath)?;
         let scale = manifest.unit_scale().unwrap_or(1.0);
         let manifest_text = toml::to_string(&manifest).map_err(|e| DatasetError::Toml {
@@ -610,12 +633,24 @@ impl Dataset {
         harmonid_files::replace_dir(dir, opts, |tmp| -> Result<(), DatasetError> {
             let p = tmp.join("dataset.toml");
             std::fs::write(&p, &manifest_text).map_err(io_err(&p))?;
-            for m in &self.measurements {
+            for m in self.measurements.iter().filter(|m| m.spec.sweep.is_none()) {
                 let p = tmp.join(m.spec.file_name());
                 if let Some(d) = p.parent() {
                     std::fs::create_dir_all(d).map_err(io_err(d))?;
                 }
                 std::fs::write(&p, csv_text(m, &manifest, scale)).map_err(io_err(&p))?;
+            }
+            for sw in &manifest.sweeps {
+                let p = tmp.join(sw.file_name());
+                if let Some(d) = p.parent() {
+                    std::fs::create_dir_all(d).map_err(io_err(d))?;
+                }
+                let steps: Vec<&Measurement> = self
+                    .measurements
+                    .iter()
+                    .filter(|m| m.spec.sweep.as_ref().is_some_and(|s| s.sweep == sw.name))
+                    .collect();
+                std::fs::write(&p, sweep_csv_text(&steps, &manifest, scale)).map_err(io_err(&p))?;
             }
             if let Some(text) = &truth_text {
                 let p = tmp.join("truth.toml");
@@ -626,33 +661,83 @@ impl Dataset {
     }
 }
 
-/// Shot or point indices for a message: `3, 7, 12`.
-pub(crate) fn index_list(xs: &[usize]) -> String {
-    xs.iter()
-        .map(usize::to_string)
-        .collect::<Vec<_>>()
-        .join(", ")
-}
-
-/// The first `shown` of `items`, then `"N more"` for the rest, so that a message about a
-/// stepped sweep's hundreds of measurements (or unknowns) stays readable.
-pub(crate) fn first_and_more(mut items: Vec<String>, shown: usize) -> Vec<String> {
-    if items.len() > shown {
-        let more = items.len() - shown;
-        items.truncate(shown);
-        items.push(format!("{more} more"));
+/// The manifest's entries from the measurements in memory: `[[measurement]]` from those read
+/// from no sweep, and each `[[sweep]]`'s steps (tones, levels, phases) from its step
+/// measurements, which must be steps of a sweep the manifest declares, in measurement order
+/// (a subset of them is fine: steps left out are left out of the sweep).
+fn entries_from(
+    manifest: &mut Manifest,
+    measurements: &[Measurement],
+    path: &Path,
+) -> Result<(), DatasetError> {
+    let bad = |message: String| DatasetError::Manifest {
+        path: path.to_path_buf(),
+        message,
+    };
+    manifest.measurements = measurements
+        .iter()
+        .filter(|m| m.spec.sweep.is_none())
+        .map(|m| m.spec.clone())
+        .collect();
+    let mut steps: Vec<Vec<&MeasurementSpec>> = vec![Vec::new(); manifest.sweeps.len()];
+    for m in measurements {
+        let Some(st) = &m.spec.sweep else { continue };
+        let i = manifest
+            .sweeps
+            .iter()
+            .position(|s| s.name == st.sweep)
+            .ok_or_else(|| {
+                bad(format!(
+                    "measurement \"{}\" is a step of sweep \"{}\", which the manifest does not declare; add its [[sweep]]",
+                    m.spec.name, st.sweep
+                ))
+            })?;
+        if let Some(prev) = steps[i].last().and_then(|s| s.sweep.as_ref()) {
+            if st.step <= prev.step {
+                return Err(bad(format!(
+                    "sweep \"{}\": step {} comes after step {}; give the steps in measurement order",
+                    st.sweep, st.step, prev.step
+                )));
+            }
+        }
+        steps[i].push(&m.spec);
     }
-    items
+    // A sweep none of whose steps is among the measurements (a subset, a holdout) is dropped.
+    let mut kept = steps.iter().map(|s| !s.is_empty());
+    manifest.sweeps.retain(|_| kept.next().unwrap_or(false));
+    steps.retain(|s| !s.is_empty());
+    for (sw, specs) in manifest.sweeps.iter_mut().zip(&steps) {
+        sw.drives_hz = specs.iter().map(|s| s.drives_hz.clone()).collect();
+        let per_step = |f: &dyn Fn(&MeasurementSpec) -> Option<Vec<f64>>| -> Option<PerStep> {
+            let v: Option<Vec<Vec<f64>>> = specs.iter().map(|s| f(s)).collect();
+            v.map(|v| {
+                if v.windows(2).all(|w| w[0] == w[1]) {
+                    PerStep::Same(v[0].clone())
+                } else {
+                    PerStep::Each(v)
+                }
+            })
+        };
+        sw.drive_levels_v = per_step(&|s| s.drive_levels_v.clone());
+        sw.drive_phases_rad = per_step(&|s| s.drive_phases_rad.clone());
+    }
+    Ok(())
 }
 
 mod csv_read;
 mod parts;
+mod sweep;
+#[cfg(test)]
+mod sweep_tests;
 #[cfg(test)]
 mod tests;
 mod validate;
 mod write;
 
+use sweep::read_sweep_csv;
+pub use sweep::{Direction, PerStep, SweepSpec, SweepStep};
+
 use csv_read::read_csv;
 use parts::{check_drives_measured, check_measurement};
 use validate::validate_manifest;
-use write::csv_text;
+use write::{csv_text, sweep_csv_text};

@@ -1,0 +1,405 @@
+//! `harmonid import table`: any delimited text table (CSV, TSV, whitespace) or MATLAB v5/v7
+//! file, with a mapping file naming where frequency, X and Y (or R and θ), drive level and
+//! phase, step, time and sweep are, and every convention.
+//!
+//! ```toml
+//! [columns]                    # CSV header names, or MAT paths (a.b.c, a.b(*).c)
+//! freq_hz = "Frequency_of_MFLI__Hz_"
+//! x = "X1__V_"                 # or r = "...", theta = "..."
+//! y = "Y1__V_"
+//! drive_level = "Amplitude_of_Excitation__V_"   # optional
+//! [conventions]
+//! amplitude = "rms"            # "peak" or "rms"
+//! quadrature = "x+iy"          # or "x-iy"
+//! displacement_unit = "V"      # or "m" with metres_per_unit = ...
+//! [settle]
+//! settle_samples = 40          # or settle_s = 0.5 (needs columns.time_s)
+//! ```
+
+use super::{build, mat, Conventions, Grouping, ImportError, Record, Settle};
+use crate::dataset::Dataset;
+use num_complex::Complex64;
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// Where each quantity is: a column name (text tables) or a variable path (MAT files).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Columns {
+    /// The drive (and measured) frequency.
+    pub freq_hz: String,
+    /// In-phase part (with `y`).
+    pub x: Option<String>,
+    /// Quadrature part (with `x`).
+    pub y: Option<String>,
+    /// Magnitude (with `theta`).
+    pub r: Option<String>,
+    /// Phase (with `r`), in `conventions.phase_unit`.
+    pub theta: Option<String>,
+    /// Drive level per row.
+    pub drive_level: Option<String>,
+    /// Drive phase per row, in `conventions.phase_unit`.
+    pub drive_phase: Option<String>,
+    /// Step number per row (else a step is a run of rows at one frequency and level).
+    pub step: Option<String>,
+    /// Sample time per row, s (for `settle.settle_s`).
+    pub time_s: Option<String>,
+    /// Sweep label per row (else each input file or struct element is a sweep, and a single
+    /// one is cut where the drive level changes).
+    pub sweep: Option<String>,
+}
+
+/// Constants of the drive when the file has no column for them.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Drive {
+    /// The drive level of every row.
+    pub level: Option<f64>,
+    /// The drive phase of every row, rad.
+    pub phase_rad: Option<f64>,
+}
+
+/// Per-input constants, keyed by the input's file name.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FileConstants {
+    /// The drive level of every row of this file.
+    pub drive_level: Option<f64>,
+}
+
+/// The mapping file.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Mapping {
+    /// Where each quantity is.
+    pub columns: Columns,
+    /// Every convention.
+    pub conventions: Conventions,
+    /// Which samples are settling.
+    #[serde(default)]
+    pub settle: Settle,
+    /// Drive constants.
+    #[serde(default)]
+    pub drive: Drive,
+    /// Per-file constants.
+    #[serde(default)]
+    pub files: BTreeMap<String, FileConstants>,
+    /// Field separator of text tables: "," ";" "\t" or " " (any run of whitespace); default
+    /// by extension (`.csv` comma, else whitespace).
+    pub delimiter: Option<String>,
+}
+
+impl Mapping {
+    /// Reads and checks the mapping file.
+    pub fn load(path: &Path) -> Result<Mapping, ImportError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ImportError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let origin = path.display().to_string();
+        let m: Mapping = toml::from_str(&text).map_err(|e| ImportError::Convention {
+            origin: origin.clone(),
+            message: e.to_string(),
+        })?;
+        m.conventions.check(&origin)?;
+        let c = &m.columns;
+        let bad = |message: &str| ImportError::Convention {
+            origin: origin.clone(),
+            message: message.to_string(),
+        };
+        match (&c.x, &c.y, &c.r, &c.theta) {
+            (Some(_), Some(_), None, None) | (None, None, Some(_), Some(_)) => {}
+            _ => {
+                return Err(bad(
+                    "[columns] names x and y, or r and theta (exactly one pair)",
+                ))
+            }
+        }
+        if (c.theta.is_some() || c.drive_phase.is_some()) && m.conventions.phase_unit.is_none() {
+            return Err(bad(
+                "a phase column needs [conventions] phase_unit = \"rad\", \"deg\" or \"cycles\"",
+            ));
+        }
+        if m.settle.settle_s.is_some() && c.time_s.is_none() {
+            return Err(bad(
+                "[settle] settle_s needs [columns] time_s; or use settle_samples",
+            ));
+        }
+        if m.settle.settle_s.is_some() && m.settle.settle_samples.is_some() {
+            return Err(bad("[settle]: give settle_s or settle_samples, not both"));
+        }
+        Ok(m)
+    }
+}
+
+/// The columns of one input, per group (a text table is one group; a MAT path with `(*)` one
+/// group per element), with each group's name.
+type Groups = Vec<(String, BTreeMap<String, Vec<f64>>)>;
+
+/// Imports `inputs` with `mapping` (read from `mapping_path`) into a dataset named `out`.
+pub fn import(
+    inputs: &[PathBuf],
+    mapping: &Mapping,
+    out: &Path,
+) -> Result<(Dataset, String), ImportError> {
+    let c = &mapping.columns;
+    let wanted: Vec<&String> = [
+        Some(&c.freq_hz),
+        c.x.as_ref(),
+        c.y.as_ref(),
+        c.r.as_ref(),
+        c.theta.as_ref(),
+        c.drive_level.as_ref(),
+        c.drive_phase.as_ref(),
+        c.step.as_ref(),
+        c.time_s.as_ref(),
+        c.sweep.as_ref(),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    let unit = mapping.conventions.phase_unit;
+    let mut records = Vec::new();
+    let mut names = Vec::new();
+    let mut sweep_labels: Vec<u64> = Vec::new();
+    for (fi, path) in inputs.iter().enumerate() {
+        let groups = if path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("mat"))
+        {
+            read_mat(path, &wanted)?
+        } else {
+            read_text(path, &wanted, mapping.delimiter.as_deref())?
+        };
+        let file_name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().to_string())
+            .unwrap_or_default();
+        let file_level = mapping.files.get(&file_name).and_then(|f| f.drive_level);
+        for (gname, cols) in groups {
+            let get = |k: &Option<String>| k.as_ref().and_then(|k| cols.get(k));
+            let f = &cols[&c.freq_hz];
+            let n = f.len();
+            for (key, v) in &cols {
+                if v.len() != n {
+                    return Err(ImportError::Input {
+                        path: path.clone(),
+                        row: None,
+                        message: format!("\"{key}\" has {} values but \"{}\" has {n}; the columns must be as long", v.len(), c.freq_hz),
+                    });
+                }
+            }
+            let group = names.len();
+            names.push(sanitize(&if gname.is_empty() {
+                path.file_stem()
+                    .map(|s| s.to_string_lossy().to_string())
+                    .unwrap_or_default()
+            } else {
+                gname
+            }));
+            for i in 0..n {
+                let z = match (get(&c.x), get(&c.y), get(&c.r), get(&c.theta)) {
+                    (Some(x), Some(y), _, _) => Complex64::new(x[i], y[i]),
+                    (_, _, Some(r), Some(t)) => {
+                        Complex64::from_polar(r[i], unit.map_or(t[i], |u| u.to_rad(t[i])))
+                    }
+                    _ => Complex64::new(f64::NAN, f64::NAN),
+                };
+                let group = match get(&c.sweep) {
+                    Some(s) => {
+                        let label = s[i].to_bits();
+                        match sweep_labels.iter().position(|&l| l == label) {
+                            Some(p) => p,
+                            None => {
+                                sweep_labels.push(label);
+                                sweep_labels.len() - 1
+                            }
+                        }
+                    }
+                    None => group,
+                };
+                records.push(Record {
+                    drive: f[i],
+                    line: f[i],
+                    z,
+                    level: get(&c.drive_level)
+                        .map(|v| v[i])
+                        .or(file_level)
+                        .or(mapping.drive.level),
+                    drive_phase_rad: get(&c.drive_phase)
+                        .map(|v| unit.map_or(v[i], |u| u.to_rad(v[i])))
+                        .or(mapping.drive.phase_rad),
+                    group,
+                    step: get(&c.step).map(|v| v[i] as u64),
+                    time_s: get(&c.time_s).map(|v| v[i]),
+                    origin: (fi, i + 2),
+                });
+            }
+        }
+    }
+    let grouping = Grouping {
+        split_on_level: c.sweep.is_none() && names.len() == 1,
+        group_names: if c.sweep.is_some() {
+            sweep_labels
+                .iter()
+                .map(|l| format!("sweep_{}", f64::from_bits(*l)))
+                .collect()
+        } else {
+            names
+        },
+    };
+    build(
+        "table",
+        inputs,
+        &records,
+        &mapping.conventions,
+        mapping.settle,
+        &grouping,
+        out,
+    )
+}
+
+/// A name usable as a sweep name and file stem: letters, digits, `-`, `_` and `.` kept.
+fn sanitize(name: &str) -> String {
+    name.chars()
+        .map(|c| {
+            if c.is_alphanumeric() || "-_.".contains(c) {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+fn read_mat(path: &Path, wanted: &[&String]) -> Result<Groups, ImportError> {
+    let file = mat::load(path)?;
+    let mut groups: Groups = Vec::new();
+    for key in wanted {
+        let per_group = mat::column(&file, key).map_err(|message| ImportError::Input {
+            path: path.to_path_buf(),
+            row: None,
+            message,
+        })?;
+        if groups.is_empty() {
+            let element = key
+                .split('.')
+                .find(|s| s.ends_with("(*)"))
+                .map(|s| s.trim_end_matches("(*)").to_string());
+            groups = (0..per_group.len())
+                .map(|k| {
+                    let name = element
+                        .as_ref()
+                        .map_or(String::new(), |e| format!("{e}_{}", k + 1));
+                    (name, BTreeMap::new())
+                })
+                .collect();
+        }
+        if per_group.len() != groups.len() && per_group.len() != 1 {
+            return Err(ImportError::Input {
+                path: path.to_path_buf(),
+                row: None,
+                message: format!(
+                    "\"{key}\" has {} elements where the other columns have {}",
+                    per_group.len(),
+                    groups.len()
+                ),
+            });
+        }
+        for (k, g) in groups.iter_mut().enumerate() {
+            let v = per_group
+                .get(k)
+                .or(per_group.first())
+                .cloned()
+                .unwrap_or_default();
+            g.1.insert((*key).clone(), v);
+        }
+    }
+    Ok(groups)
+}
+
+fn read_text(
+    path: &Path,
+    wanted: &[&String],
+    delimiter: Option<&str>,
+) -> Result<Groups, ImportError> {
+    let text = std::fs::read_to_string(path).map_err(|source| ImportError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let bad = |row: Option<usize>, message: String| ImportError::Input {
+        path: path.to_path_buf(),
+        row,
+        message,
+    };
+    let delim = match delimiter {
+        Some(d) => d.to_string(),
+        None if path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("csv")) =>
+        {
+            ",".into()
+        }
+        None => " ".into(),
+    };
+    let split = |line: &str| -> Vec<String> {
+        if delim == " " {
+            line.split_whitespace().map(str::to_string).collect()
+        } else {
+            line.split(delim.as_str())
+                .map(|s| s.trim().to_string())
+                .collect()
+        }
+    };
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty());
+    let (_, header) = lines
+        .next()
+        .ok_or_else(|| bad(None, "the file is empty".into()))?;
+    let header = split(header.trim_start().trim_start_matches(['%', '#']));
+    let mut idx = Vec::new();
+    for key in wanted {
+        let i = header.iter().position(|h| h == *key).ok_or_else(|| {
+            bad(
+                Some(1),
+                format!(
+                    "no column \"{key}\" in the header (found: {})",
+                    header.join(", ")
+                ),
+            )
+        })?;
+        idx.push(((*key).clone(), i));
+    }
+    let mut cols: BTreeMap<String, Vec<f64>> =
+        idx.iter().map(|(k, _)| (k.clone(), Vec::new())).collect();
+    for (n, line) in lines {
+        let t = line.trim_start();
+        if t.starts_with('%') || t.starts_with('#') {
+            continue;
+        }
+        let fields = split(line);
+        for (key, i) in &idx {
+            let cell = fields.get(*i).ok_or_else(|| {
+                bad(
+                    Some(n + 1),
+                    format!(
+                        "{} fields, but column \"{key}\" is field {}",
+                        fields.len(),
+                        i + 1
+                    ),
+                )
+            })?;
+            let v: f64 = cell.parse().map_err(|_| {
+                bad(
+                    Some(n + 1),
+                    format!("column \"{key}\": \"{cell}\" is not a number"),
+                )
+            })?;
+            cols.get_mut(key).expect("every wanted column").push(v);
+        }
+    }
+    Ok(vec![(String::new(), cols)])
+}

@@ -1,0 +1,253 @@
+//! Round trips: a known stepped sweep written in a vendor's layout, with that vendor's
+//! conventions (RMS, x−iy, degrees, acceleration, a volts-to-metres scale), imported back,
+//! equals the original to 1e-12.
+
+use harmonid_data::import::{table, zi_csv, Amplitude, Conventions, Quadrature, Response, Settle};
+use harmonid_data::Dataset;
+use num_complex::Complex64;
+use std::f64::consts::PI;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// A Duffing-like response of step `k` (drive `f`) at harmonic `h`, sample `j`, in metres.
+fn truth(f: f64, h: usize, j: usize) -> Complex64 {
+    let w0 = 2.0 * PI * 100.0;
+    let w = 2.0 * PI * f;
+    let lin = 1.0 / Complex64::new(w0 * w0 - w * w, w * w0 / 50.0);
+    lin * (1e-3 / h as f64).powi(h as i32 - 1) * (1.0 + 1e-4 * j as f64)
+}
+
+const STEPS: [f64; 4] = [98.0, 99.5, 100.25, 101.0];
+
+/// Every amplitude of `ds`, against [`truth`], to `tol` relative.
+fn assert_equal(ds: &Dataset, samples: usize, first_sample: usize, harmonics: usize, tol: f64) {
+    assert_eq!(ds.measurements.len(), STEPS.len());
+    for (k, m) in ds.measurements.iter().enumerate() {
+        assert_eq!(m.spec.drives_hz, vec![STEPS[k]]);
+        assert_eq!(m.n_shots, samples);
+        assert_eq!(m.freqs_hz.len(), harmonics);
+        for j in 0..samples {
+            for h in 1..=harmonics {
+                let want = truth(STEPS[k], h, j + first_sample);
+                let got = m.amplitude(j, h - 1, 0);
+                assert!(
+                    (got - want).norm() <= tol * want.norm(),
+                    "step {k} sample {j} harmonic {h}: {got} vs {want}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn zi_csv_round_trip_rms_conjugate_scaled_with_settling() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let clock = 60e6;
+    let k_m_per_v = 2.5e-7;
+    let mut files = Vec::new();
+    for h in 1..=2 {
+        let mut s = String::from("chunk;timestamp;x;y;freq;phase;dio;trigger;auxin0;auxin1\n");
+        let mut tick: u64 = 1_000_000;
+        for &f in &STEPS {
+            for j in 0..5 {
+                // The file: RMS volts, x − iy.
+                let z = truth(f, h, j).conj() / std::f64::consts::SQRT_2 / k_m_per_v;
+                let _ = writeln!(
+                    s,
+                    "0;{tick};{:e};{:e};{:?};0;0;0;0;0",
+                    z.re,
+                    z.im,
+                    f * h as f64
+                );
+                tick += 6_000_000; // 0.1 s
+            }
+            tick += 60_000_000;
+        }
+        let p = dir
+            .path()
+            .join(format!("dev4955_demods_{}_sample_00000.csv", h - 1));
+        std::fs::write(&p, s).expect("write");
+        files.push(p);
+    }
+    let conv = Conventions {
+        amplitude: Amplitude::Rms,
+        quadrature: Quadrature::XMinusIY,
+        response: Response::Displacement,
+        metres_per_unit: Some(k_m_per_v),
+        displacement_unit: "m".into(),
+        phase_unit: None,
+        frequency_scale: None,
+    };
+    let settle = Settle {
+        settle_s: Some(0.15),
+        settle_samples: None,
+    };
+    let opts = zi_csv::Options {
+        clockbase_hz: clock,
+        drive_level: Some(0.2),
+        drive_phase_rad: None,
+    };
+    let (ds, note) =
+        zi_csv::import(&files, &conv, settle, &opts, Path::new("out")).expect("import");
+    // Samples at 0, 0.1 s dropped: 3 of 5 kept per step.
+    assert_equal(&ds, 3, 2, 2, 1e-12);
+    assert!(note.contains("8 of 20 samples dropped"), "{note}");
+    assert_eq!(
+        ds.manifest.sweeps[0].direction,
+        harmonid_data::Direction::Up
+    );
+    // Written and read back: the same dataset.
+    let out = dir.path().join("ds");
+    ds.write(&out).expect("write");
+    let back = Dataset::load(&out).expect("read back");
+    assert_eq!(back.measurements.len(), 4);
+    assert_equal(&back, 3, 2, 2, 1e-12);
+
+    // A timestamp going backwards (sample loss, mixed files) is refused with its row.
+    let text = std::fs::read_to_string(&files[0]).expect("read");
+    let mut lines: Vec<&str> = text.lines().collect();
+    lines.swap(3, 4);
+    std::fs::write(&files[0], lines.join("\n")).expect("write");
+    let e = zi_csv::import(&files, &conv, settle, &opts, Path::new("out"))
+        .expect_err("backwards")
+        .to_string();
+    assert!(e.contains("row 5") && e.contains("samples lost"), "{e}");
+}
+
+#[test]
+fn table_csv_round_trip_polar_degrees_acceleration() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut s = String::from("%f\tR\tphase_deg\tlevel\n");
+    for &f in &STEPS {
+        for j in 0..2 {
+            // The file: acceleration, peak, polar in degrees.
+            let w = 2.0 * PI * f;
+            let a = truth(f, 1, j) * -(w * w);
+            let _ = writeln!(s, "{f:?}\t{:e}\t{:e}\t0.3", a.norm(), a.arg().to_degrees());
+        }
+    }
+    let p = dir.path().join("sweep.txt");
+    std::fs::write(&p, s).expect("write");
+    let mapping_text = r#"
+[columns]
+freq_hz = "f"
+r = "R"
+theta = "phase_deg"
+drive_level = "level"
+[conventions]
+amplitude = "peak"
+quadrature = "x+iy"
+phase_unit = "deg"
+response = "acceleration"
+displacement_unit = "m"
+metres_per_unit = 1.0
+"#;
+    let map = dir.path().join("map.toml");
+    std::fs::write(&map, mapping_text).expect("write");
+    let mapping = table::Mapping::load(&map).expect("mapping");
+    let (ds, _) =
+        table::import(std::slice::from_ref(&p), &mapping, Path::new("out")).expect("import");
+    assert_equal(&ds, 2, 0, 1, 1e-12);
+    assert_eq!(
+        ds.measurements[0].spec.drive_levels_v,
+        Some(vec![0.3]),
+        "the level column"
+    );
+
+    // A missing convention names its key; nothing is guessed.
+    std::fs::write(&map, mapping_text.replace("phase_unit = \"deg\"\n", "")).expect("write");
+    let e = table::Mapping::load(&map)
+        .expect_err("no phase unit")
+        .to_string();
+    assert!(e.contains("phase_unit"), "{e}");
+    std::fs::write(&map, mapping_text.replace("metres_per_unit = 1.0\n", "")).expect("write");
+    let e = table::Mapping::load(&map)
+        .expect_err("no scale")
+        .to_string();
+    assert!(e.contains("metres_per_unit"), "{e}");
+    // A NaN row is refused with its row.
+    std::fs::write(&map, mapping_text).expect("write");
+    let mapping = table::Mapping::load(&map).expect("mapping");
+    std::fs::write(
+        &p,
+        "f\tR\tphase_deg\tlevel\n98\t1e-3\t10\t0.3\n98\tNaN\t10\t0.3\n",
+    )
+    .expect("write");
+    let e = table::import(&[p], &mapping, Path::new("out"))
+        .expect_err("NaN")
+        .to_string();
+    assert!(
+        e.contains("row 3") && e.contains("NaN rows must be removed"),
+        "{e}"
+    );
+}
+
+#[test]
+fn table_mat_round_trip_struct_array_one_sweep_per_element() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut elements = Vec::new();
+    for level in [0.1, 0.4] {
+        let (mut f, mut x, mut y, mut l) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for &fs in &STEPS {
+            let z = truth(fs, 1, 0);
+            f.push(fs);
+            x.push(z.re);
+            y.push(z.im);
+            l.push(level);
+        }
+        let mut map = matrw::__private::IndexMap::new();
+        map.insert("freq".to_string(), matrw::MatVariable::from(f));
+        map.insert("x".to_string(), matrw::MatVariable::from(x));
+        map.insert("y".to_string(), matrw::MatVariable::from(y));
+        map.insert("level".to_string(), matrw::MatVariable::from(l));
+        elements.push(matrw::MatVariable::Structure(matrw::Structure::new(map)));
+    }
+    let array = matrw::StructureArray::from_structures(vec![1, 2], elements);
+    let mut top = matrw::__private::IndexMap::new();
+    top.insert(
+        "runs".to_string(),
+        matrw::MatVariable::StructureArray(array),
+    );
+    let mut file = matrw::MatFile::new();
+    file.insert(
+        "S",
+        matrw::MatVariable::Structure(matrw::Structure::new(top)),
+    );
+    let p: PathBuf = dir.path().join("runs.mat");
+    matrw::save_matfile_v7(p.to_str().expect("utf-8 path"), file, true).expect("save");
+    let mapping_text = r#"
+[columns]
+freq_hz = "S.runs(*).freq"
+x = "S.runs(*).x"
+y = "S.runs(*).y"
+drive_level = "S.runs(*).level"
+[conventions]
+amplitude = "peak"
+quadrature = "x+iy"
+displacement_unit = "m"
+metres_per_unit = 1.0
+"#;
+    let map = dir.path().join("map.toml");
+    std::fs::write(&map, mapping_text).expect("write");
+    let mapping = table::Mapping::load(&map).expect("mapping");
+    let (ds, _) =
+        table::import(std::slice::from_ref(&p), &mapping, Path::new("out")).expect("import");
+    assert_eq!(ds.manifest.sweeps.len(), 2);
+    assert_eq!(ds.manifest.sweeps[1].name, "runs_2");
+    assert_eq!(ds.measurements.len(), 8);
+    for (i, m) in ds.measurements.iter().enumerate() {
+        let want = truth(STEPS[i % 4], 1, 0);
+        assert!((m.amplitude(0, 0, 0) - want).norm() <= 1e-12 * want.norm());
+        assert_eq!(m.spec.drive_levels_v, Some(vec![[0.1, 0.4][i / 4]]));
+    }
+    // A path that does not exist names what does.
+    std::fs::write(&map, mapping_text.replace("S.runs(*).y", "S.runs(*).z")).expect("write");
+    let mapping = table::Mapping::load(&map).expect("mapping");
+    let e = table::import(&[p], &mapping, Path::new("out"))
+        .expect_err("no field z")
+        .to_string();
+    assert!(
+        e.contains("no field \"z\"") && e.contains("freq, x, y, level"),
+        "{e}"
+    );
+}

@@ -1,0 +1,177 @@
+//! `harmonid import FORMAT INPUT… --out DIR`: instrument files into a dataset folder.
+
+use clap::{Parser, ValueEnum};
+use harmonid_data::import::{
+    table, zi_csv, Amplitude, Conventions, ImportError, PhaseUnit, Quadrature, Response, Settle,
+};
+use miette::WrapErr;
+use std::path::PathBuf;
+
+/// The input formats.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Format {
+    /// Any CSV/TSV/whitespace table or MATLAB v5/v7 file, with a mapping file (--map).
+    Table,
+    /// Zurich Instruments LabOne demodulator CSV (one file per demodulator, the drive's first).
+    ZiCsv,
+}
+
+/// Import instrument files into a harmonid dataset folder.
+#[derive(Debug, Parser)]
+pub struct Args {
+    /// The input format.
+    #[arg(value_enum)]
+    pub format: Format,
+    /// Input files (table: one or more; zi-csv: one per demodulator, the drive's first).
+    #[arg(required = true)]
+    pub inputs: Vec<PathBuf>,
+    /// The dataset folder to write.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Replace --out even if it is a non-empty folder that is not a harmonid dataset.
+    #[arg(long)]
+    pub force: bool,
+    /// table: the mapping file (columns, conventions, settling; docs/data-format.md).
+    #[arg(long, value_name = "MAPPING.toml")]
+    pub map: Option<PathBuf>,
+    /// zi-csv: are x, y peak or RMS amplitudes? (not confirmed by the vendor: required)
+    #[arg(long, value_enum)]
+    pub amplitude: Option<AmplitudeArg>,
+    /// zi-csv: x+iy (harmonid's convention) or x-iy (the file's phase rises through a resonance).
+    #[arg(long, value_name = "x+iy|x-iy")]
+    pub quadrature: Option<String>,
+    /// zi-csv: what the sensor measured.
+    #[arg(long, value_enum, default_value = "displacement")]
+    pub response: ResponseArg,
+    /// zi-csv: metres of displacement per volt; without it, --volts keeps volts.
+    #[arg(long, value_name = "M_PER_V", conflicts_with = "volts")]
+    pub metres_per_unit: Option<f64>,
+    /// zi-csv: keep the instrument's volts (no sensor calibration; results in volts).
+    #[arg(long)]
+    pub volts: bool,
+    /// zi-csv: device ticks per second (60e6 on the MFLI, 1.8e9 on the UHFLI).
+    #[arg(long, value_name = "HZ")]
+    pub clockbase_hz: Option<f64>,
+    /// zi-csv: the drive's output level (V); without it, every step's force is free.
+    #[arg(long, value_name = "V")]
+    pub drive_level: Option<f64>,
+    /// zi-csv: samples earlier than this after their step began are settling: dropped.
+    #[arg(long, value_name = "S", conflicts_with = "settle_samples")]
+    pub settle_s: Option<f64>,
+    /// zi-csv: the first this many samples of each step are settling: dropped.
+    #[arg(long, value_name = "N")]
+    pub settle_samples: Option<usize>,
+}
+
+/// `--amplitude`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum AmplitudeArg {
+    /// Peak amplitudes.
+    Peak,
+    /// RMS amplitudes (multiplied by √2).
+    Rms,
+}
+
+/// `--response`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ResponseArg {
+    /// Displacement.
+    Displacement,
+    /// Velocity (divided by i·2πf).
+    Velocity,
+    /// Acceleration (divided by −(2πf)²).
+    Acceleration,
+}
+
+/// The conventions the zi-csv flags give; a missing one is an error naming its flag.
+fn conventions(args: &Args) -> Result<Conventions, ImportError> {
+    let missing = |flag: &str, what: &str| ImportError::Convention {
+        origin: flag.to_string(),
+        message: format!("{what} is not in the file and is never guessed: give {flag}"),
+    };
+    let amplitude = match args
+        .amplitude
+        .ok_or_else(|| missing("--amplitude", "peak or RMS"))?
+    {
+        AmplitudeArg::Peak => Amplitude::Peak,
+        AmplitudeArg::Rms => Amplitude::Rms,
+    };
+    let quadrature = match args.quadrature.as_deref() {
+        Some("x+iy") => Quadrature::XPlusIY,
+        Some("x-iy") => Quadrature::XMinusIY,
+        Some(q) => {
+            return Err(ImportError::Convention {
+                origin: "--quadrature".into(),
+                message: format!("\"{q}\": use x+iy or x-iy"),
+            })
+        }
+        None => return Err(missing("--quadrature", "the quadrature sign")),
+    };
+    if args.metres_per_unit.is_none() && !args.volts {
+        return Err(missing(
+            "--metres-per-unit (or --volts)",
+            "the sensor's volts-to-metres factor",
+        ));
+    }
+    let conv = Conventions {
+        amplitude,
+        quadrature,
+        response: match args.response {
+            ResponseArg::Displacement => Response::Displacement,
+            ResponseArg::Velocity => Response::Velocity,
+            ResponseArg::Acceleration => Response::Acceleration,
+        },
+        metres_per_unit: args.metres_per_unit,
+        displacement_unit: if args.volts { "V" } else { "m" }.into(),
+        phase_unit: Some(PhaseUnit::Rad),
+        frequency_scale: None,
+    };
+    conv.check("the options")?;
+    Ok(conv)
+}
+
+/// Runs the subcommand.
+pub fn run(args: Args) -> miette::Result<()> {
+    let mut inputs: Vec<&std::path::Path> = args.inputs.iter().map(|p| p.as_path()).collect();
+    if let Some(m) = &args.map {
+        inputs.push(m);
+    }
+    let opts = harmonid_files::DirWrite {
+        force: args.force,
+        inputs: &inputs,
+    };
+    harmonid_files::check_output_dir(&args.out, opts).map_err(miette::Report::new)?;
+    let (ds, note) = match args.format {
+        Format::Table => {
+            let map = args.map.as_ref().ok_or_else(|| {
+                miette::miette!("import table needs --map MAPPING.toml (the columns and conventions; docs/data-format.md)")
+            })?;
+            let mapping = table::Mapping::load(map).map_err(miette::Report::new)?;
+            table::import(&args.inputs, &mapping, &args.out)
+        }
+        Format::ZiCsv => conventions(&args).and_then(|conv| {
+            let settle = Settle {
+                settle_s: args.settle_s,
+                settle_samples: args.settle_samples,
+            };
+            let opts = zi_csv::Options {
+                clockbase_hz: args.clockbase_hz.unwrap_or(f64::NAN),
+                drive_level: args.drive_level,
+                drive_phase_rad: None,
+            };
+            zi_csv::import(&args.inputs, &conv, settle, &opts, &args.out)
+        }),
+    }
+    .map_err(miette::Report::new)?;
+    ds.write_with(&args.out, opts)
+        .map_err(miette::Report::new)
+        .wrap_err_with(|| format!("cannot write the dataset {}", args.out.display()))?;
+    eprintln!("note: {note}");
+    eprintln!(
+        "wrote {} ({} steps in {} sweeps)",
+        args.out.display(),
+        ds.measurements.len(),
+        ds.manifest.sweeps.len()
+    );
+    Ok(())
+}
