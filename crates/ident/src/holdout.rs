@@ -40,14 +40,12 @@ pub fn identify_with_holdout(
     settings: &Settings,
 ) -> Result<Report, IdentError> {
     // A name holds out one measurement, or every step of a sweep.
-    let is_held = |m: &harmonid_data::Measurement| {
-        held.iter()
-            .any(|h| &m.spec.name == h || m.spec.sweep.as_ref().is_some_and(|s| &s.sweep == h))
+    let named = |m: &harmonid_data::Measurement, name: &String| {
+        &m.spec.name == name || m.spec.sweep.as_ref().is_some_and(|s| &s.sweep == name)
     };
+    let is_held = |m: &harmonid_data::Measurement| held.iter().any(|h| named(m, h));
     for name in held {
-        if !ds.measurements.iter().any(|m| {
-            &m.spec.name == name || m.spec.sweep.as_ref().is_some_and(|s| &s.sweep == name)
-        }) {
+        if !ds.measurements.iter().any(|m| named(m, name)) {
             let mut names: Vec<String> =
                 ds.manifest.sweeps.iter().map(|s| s.name.clone()).collect();
             names.extend(

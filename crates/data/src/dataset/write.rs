@@ -1,19 +1,43 @@
-//! Writing a measurement's CSV text.
+//! Writing a measurement's or a sweep's CSV text.
 
 use super::*;
 
 pub(super) fn csv_text(m: &Measurement, manifest: &Manifest, scale: f64) -> String {
-    let with_point = !manifest.points.is_empty();
-    let mut s = String::new();
-    s.push_str(if with_point {
-        "shot,freq_hz,point,re,im\n"
+    let mut s = header(false, manifest);
+    rows(&mut s, None, m, manifest, scale);
+    s
+}
+
+/// A sweep's CSV text: its steps' rows, with the `step` column.
+pub(super) fn sweep_csv_text(steps: &[&Measurement], manifest: &Manifest, scale: f64) -> String {
+    let mut s = header(true, manifest);
+    for (k, m) in steps.iter().enumerate() {
+        rows(&mut s, Some(k), m, manifest, scale);
+    }
+    s
+}
+
+/// The header row: `step` for a sweep, `point` when the manifest declares points.
+fn header(step: bool, manifest: &Manifest) -> String {
+    let point = if manifest.points.is_empty() {
+        ""
     } else {
-        "shot,freq_hz,re,im\n"
-    });
+        "point,"
+    };
+    let step = if step { "step," } else { "" };
+    format!("{step}shot,freq_hz,{point}re,im\n")
+}
+
+/// Appends `m`'s rows (amplitudes divided by `scale`), each led by `step` when given.
+fn rows(s: &mut String, step: Option<usize>, m: &Measurement, manifest: &Manifest, scale: f64) {
+    let with_point = !manifest.points.is_empty();
     for shot in 0..m.n_shots {
         for (f, hz) in m.freqs_hz.iter().enumerate() {
             for (p, &pi) in m.points.iter().enumerate() {
                 let x = m.amplitude(shot, f, p) / scale;
+                if let Some(k) = step {
+                    let _ = write!(s, "{k},");
+                }
                 if with_point {
                     let _ = writeln!(
                         s,
@@ -26,35 +50,4 @@ pub(super) fn csv_text(m: &Measurement, manifest: &Manifest, scale: f64) -> Stri
             }
         }
     }
-    s
-}
-
-/// A sweep's CSV text: its steps' rows, with the `step` column.
-pub(super) fn sweep_csv_text(steps: &[&Measurement], manifest: &Manifest, scale: f64) -> String {
-    let with_point = !manifest.points.is_empty();
-    let mut s = String::new();
-    s.push_str(if with_point {
-        "step,shot,freq_hz,point,re,im\n"
-    } else {
-        "step,shot,freq_hz,re,im\n"
-    });
-    for (k, m) in steps.iter().enumerate() {
-        for shot in 0..m.n_shots {
-            for (f, hz) in m.freqs_hz.iter().enumerate() {
-                for (p, &pi) in m.points.iter().enumerate() {
-                    let x = m.amplitude(shot, f, p) / scale;
-                    if with_point {
-                        let _ = writeln!(
-                            s,
-                            "{k},{shot},{hz:?},{},{:e},{:e}",
-                            manifest.points[pi].name, x.re, x.im
-                        );
-                    } else {
-                        let _ = writeln!(s, "{k},{shot},{hz:?},{:e},{:e}", x.re, x.im);
-                    }
-                }
-            }
-        }
-    }
-    s
 }

@@ -62,6 +62,14 @@ pub enum ImportError {
     Dataset(#[from] DatasetError),
 }
 
+/// Reads an input file as text; an I/O failure names it.
+fn read_input(path: &Path) -> Result<String, ImportError> {
+    std::fs::read_to_string(path).map_err(|source| ImportError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
 /// Peak or RMS amplitudes in the file. harmonid's amplitudes are peak.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -301,6 +309,12 @@ pub fn build(
             message: "no data rows were read".into(),
         });
     }
+    if settle.settle_s.is_some() && records.iter().any(|r| r.time_s.is_none()) {
+        return Err(ImportError::Convention {
+            origin: "--settle-s".into(),
+            message: "the input has no sample times; drop settling samples by count (settle_samples) instead".into(),
+        });
+    }
     let fscale = conv.frequency_scale.unwrap_or(1.0);
     // Steps: consecutive records with the same group, explicit step, drive and level.
     // Frequencies recorded per sample jitter in their last digits (a PLL, a float
@@ -369,20 +383,13 @@ pub fn build(
     for s in &mut steps {
         let t0 = s.samples.first().and_then(|x| x.0);
         if let Some(t) = settle.settle_s {
-            s.samples.retain(|x| match (x.0, t0) {
-                (Some(ti), Some(t0)) => ti - t0 >= t,
-                _ => true,
-            });
+            // Every sample has its time (checked above).
+            s.samples
+                .retain(|x| x.0.zip(t0).is_none_or(|(ti, t0)| ti - t0 >= t));
         } else if let Some(n) = settle.settle_samples {
             let n = n.min(s.samples.len());
             s.samples.drain(..n);
         }
-    }
-    if settle.settle_s.is_some() && records.iter().any(|r| r.time_s.is_none()) {
-        return Err(ImportError::Convention {
-            origin: "--settle-s".into(),
-            message: "the input has no sample times; drop settling samples by count (settle_samples) instead".into(),
-        });
     }
     let kept: usize = steps.iter().map(|s| s.samples.len()).sum();
     if let Some(k) = steps.iter().position(|s| s.samples.is_empty()) {

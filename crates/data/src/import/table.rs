@@ -16,7 +16,7 @@
 //! settle_samples = 40          # or settle_s = 0.5 (needs columns.time_s)
 //! ```
 
-use super::{build, mat, Conventions, Grouping, ImportError, Record, Settle};
+use super::{build, mat, read_input, Conventions, Grouping, ImportError, Record, Settle};
 use crate::dataset::Dataset;
 use num_complex::Complex64;
 use serde::Deserialize;
@@ -93,10 +93,7 @@ pub struct Mapping {
 impl Mapping {
     /// Reads and checks the mapping file.
     pub fn load(path: &Path) -> Result<Mapping, ImportError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ImportError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let text = read_input(path)?;
         let origin = path.display().to_string();
         let m: Mapping = toml::from_str(&text).map_err(|e| ImportError::Convention {
             origin: origin.clone(),
@@ -324,10 +321,7 @@ fn read_text(
     wanted: &[&String],
     delimiter: Option<&str>,
 ) -> Result<Groups, ImportError> {
-    let text = std::fs::read_to_string(path).map_err(|source| ImportError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let text = read_input(path)?;
     let bad = |row: Option<usize>, message: String| ImportError::Input {
         path: path.to_path_buf(),
         row,

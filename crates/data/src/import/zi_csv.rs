@@ -8,7 +8,7 @@
 //! 1.8 GHz on the UHFLI) turns them into seconds; a timestamp that goes backwards is sample
 //! loss or a mixed file, and refused.
 
-use super::{build, Conventions, Grouping, ImportError, Record, Settle};
+use super::{build, read_input, Conventions, Grouping, ImportError, Record, Settle};
 use crate::dataset::Dataset;
 use num_complex::Complex64;
 use std::path::{Path, PathBuf};
@@ -32,10 +32,7 @@ struct Demod {
 }
 
 fn read_demod(path: &Path) -> Result<Demod, ImportError> {
-    let text = std::fs::read_to_string(path).map_err(|source| ImportError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let text = read_input(path)?;
     let bad = |row: Option<usize>, message: String| ImportError::Input {
         path: path.to_path_buf(),
         row,
