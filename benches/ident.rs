@@ -11,6 +11,9 @@
 //! Duffing mode with nonlinear damping, 40 single-tone steps at each of 4 drive levels, each
 //! step a measurement of one line, 10 shots, one actuator gain for the whole sweep; the whole
 //! default identification.
+//! `long_record_1m_rows`: one Duffing mode driven by two tones (the nanostring's `single_q1`),
+//! 125 000 shots of its 8 lines at 0.05 nm, 1 million rows, as a long lock-in record gives;
+//! the whole default identification.
 #![allow(missing_docs)] // criterion_group! generates an undocumented pub fn
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
@@ -66,5 +69,38 @@ fn bench_stepped_sweep(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_identify, bench_stepped_sweep);
+fn bench_long_record(c: &mut Criterion) {
+    let model = harmonid_model::parse_str(
+        "mode q1 at 207.58 kHz\nparam beta1\npotential: beta1/4*q1^4\n",
+        "duffing.hb",
+    )
+    .expect("model");
+    let (mut v, d) = gen::nanostring_2mode_plan();
+    v.f_hz.truncate(1);
+    v.q.truncate(1);
+    v.params.retain(|k, _| k == "beta1");
+    // More shots than a simulation plan takes: the clean state repeated, then the noise.
+    let mut clean = gen::simulate_clean(&model, &v, &d[..1], &[1.0], 1);
+    for m in &mut clean.measurements {
+        m.data = m.data.repeat(125_000);
+        m.n_shots = 125_000;
+    }
+    let ds = gen::add_noise(&clean, 5e-11, 11);
+    let rows: usize = ds.measurements.iter().map(|m| m.data.len()).sum();
+    assert!(rows >= 900_000, "{rows} rows");
+    let settings = Settings::default();
+    let mut group = c.benchmark_group("identify/long_record");
+    group.sample_size(10);
+    group.bench_function("long_record_1m_rows", |b| {
+        b.iter(|| black_box(identify(&model, black_box(&ds), &settings).expect("identify")))
+    });
+    group.finish();
+}
+
+criterion_group!(
+    benches,
+    bench_identify,
+    bench_stepped_sweep,
+    bench_long_record
+);
 criterion_main!(benches);

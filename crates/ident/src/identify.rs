@@ -11,16 +11,60 @@ use crate::shots::pool;
 use harmonid_data::Dataset;
 use harmonid_model::Model;
 
+/// Shots fitted one by one for the per-shot spread (`std`, outlier shots, the `linear`
+/// estimator's median): every shot up to this many. A longer record (a lock-in stream of 10⁵
+/// samples) is represented by this many shots spread evenly over it: their spread is known to
+/// about 1/√(2·1000) ≈ 2 %, and fitting every shot would cost time and memory in proportion to
+/// the record for no better answer. The pooled mean, the noise, the output-error fit and its
+/// standard errors use every shot.
+pub const MAX_SHOT_FITS: usize = 1000;
+
+/// The shots of `ds` fitted one by one (see [`MAX_SHOT_FITS`]): `None` when that is all of
+/// them, else the dataset of those shots and their indices (of a measurement with the most
+/// shots; a measurement with fewer keeps the nearest of its own).
+fn shot_sample(ds: &Dataset) -> Option<(Dataset, Vec<usize>)> {
+    let n = ds.measurements.iter().map(|m| m.n_shots).max().unwrap_or(1);
+    if n <= MAX_SHOT_FITS {
+        return None;
+    }
+    let index: Vec<usize> = (0..MAX_SHOT_FITS).map(|k| k * n / MAX_SHOT_FITS).collect();
+    let measurements = ds
+        .measurements
+        .iter()
+        .map(|m| {
+            let own: Vec<usize> = index.iter().map(|&s| s * m.n_shots / n).collect();
+            m.select_shots(&own)
+        })
+        .collect();
+    let sample = Dataset {
+        dir: ds.dir.clone(),
+        manifest: ds.manifest.clone(),
+        measurements,
+        truth: ds.truth.clone(),
+        notes: ds.notes.clone(),
+    };
+    Some((sample, index))
+}
+
 /// Identifies `model`'s unknowns from `ds`: the output-error maximum-likelihood estimate
 /// (or the pooled equation-error one, [`Settings::estimator`]) with its standard errors, the
 /// per-shot spread, the tables of the result file and its warnings. See
 /// `docs/identification.md`.
 pub fn identify(model: &Model, ds: &Dataset, settings: &Settings) -> Result<Report, IdentError> {
     let prob = Problem::new(model, ds, settings)?;
-    let per_shot = prob.fit(ds)?;
+    let sample = shot_sample(ds);
+    let per_shot = prob.fit(sample.as_ref().map_or(ds, |s| &s.0))?;
+    let shot_index = sample.map(|s| s.1).unwrap_or_default();
     let pooled = pool(ds);
     let start = prob.fit(&pooled.mean)?;
     let mut notes = Vec::new();
+    if !shot_index.is_empty() {
+        notes.push(format!(
+            "per-shot fits (std, outlier shots) on {} of the {} shots, spread evenly over the record; the pooled mean and its fit use every shot",
+            shot_index.len(),
+            ds.measurements.iter().map(|m| m.n_shots).max().unwrap_or(1)
+        ));
+    }
     if !pooled.noise_from_shots() {
         notes.push(if per_shot.values.len() <= 1 {
             "one shot: no shot scatter; the noise is taken from the fit's residual".to_string()
@@ -63,6 +107,7 @@ pub fn identify(model: &Model, ds: &Dataset, settings: &Settings) -> Result<Repo
         ds,
         prob: &prob,
         per_shot: &per_shot,
+        shot_index: &shot_index,
         pooled: &pooled,
         linear,
         asked: settings.estimator,

@@ -64,7 +64,7 @@ pub use finalize::{
 };
 pub use forward::{ForwardError, ForwardModel, ForwardSettings};
 pub use holdout::{identify_with_holdout, HeldOut};
-pub use identify::identify;
+pub use identify::{identify, MAX_SHOT_FITS};
 pub use layout::{Quantity, Unknown, UnknownTable};
 pub use output_error::ml::{refine, MlFit, MlSettings};
 pub use problem::{

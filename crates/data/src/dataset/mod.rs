@@ -421,6 +421,23 @@ impl Measurement {
         out
     }
 
+    /// The measurement with only the shots `shots` (indices, in the order given; each below
+    /// `n_shots`).
+    pub fn select_shots(&self, shots: &[usize]) -> Measurement {
+        let per = self.freqs_hz.len() * self.points.len();
+        let mut data = Vec::with_capacity(shots.len() * per);
+        for &s in shots {
+            data.extend_from_slice(&self.data[s * per..(s + 1) * per]);
+        }
+        Measurement {
+            spec: self.spec.clone(),
+            freqs_hz: self.freqs_hz.clone(),
+            points: self.points.clone(),
+            n_shots: shots.len(),
+            data,
+        }
+    }
+
     /// Index of the measured frequency matching `hz` (relative tolerance [`FREQ_REL_TOL`]).
     pub fn freq_index(&self, hz: f64) -> Option<usize> {
         self.freqs_hz

@@ -34,6 +34,8 @@ pub(crate) struct Found<'a> {
     pub prob: &'a Problem,
     /// The per-shot equation-error fits (the spread reported as `std`).
     pub per_shot: &'a Fit,
+    /// The shot of each of `per_shot`'s rows, when not every shot was fitted (empty: all).
+    pub shot_index: &'a [usize],
     /// The pooled shots.
     pub pooled: &'a Pooled,
     /// The pooled equation-error estimate (layout of `prob.table`).
@@ -55,6 +57,7 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
         ds,
         prob,
         per_shot,
+        shot_index,
         pooled,
         linear,
         asked,
@@ -116,6 +119,17 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
         };
         judge.apply(Quantity::Param(p), e, v, &mut jackknife_warnings);
     }
+    if !shot_index.is_empty() {
+        let estimates = modes
+            .values_mut()
+            .flat_map(|m| [&mut m.f_hz, &mut m.q])
+            .chain(parameters.values_mut());
+        for e in estimates {
+            for s in &mut e.outlier_shots {
+                *s = shot_index[*s];
+            }
+        }
+    }
     let fits = tables::fit_reports(ds, prob, &per_shot.groups);
     let mut rejected_shots = BTreeMap::new();
     let goodness_of_fit = fo
@@ -167,7 +181,9 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
         notes: all_notes,
         goodness_of_fit,
         holdout: Vec::new(),
-        shots: per_shot.values.len(),
+        shots: ds.measurements.iter().map(|m| m.n_shots).max().unwrap_or(1),
+        shots_fitted: (!shot_index.is_empty()).then_some(per_shot.values.len()),
+        shot_index: shot_index.to_vec(),
         outlier_shots: tables::outlier_shots(&modes, &parameters),
         eom: tables::eom_table(prob, &one),
         forces: tables::force_table(ds, prob, &one),

@@ -174,6 +174,15 @@ pub struct Report {
     /// Number of shots.
     #[serde(default)]
     pub shots: usize,
+    /// Shots fitted one by one for the per-shot spread (`std`, outlier shots), when fewer than
+    /// `shots`: a long record is represented by [`crate::MAX_SHOT_FITS`] shots spread evenly
+    /// over it (the pooled mean and the output-error fit use every shot).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shots_fitted: Option<usize>,
+    /// The shot of every per-shot estimate (`per_shot[k]` is shot `shot_index[k]`); empty: shot
+    /// `k`.
+    #[serde(skip)]
+    pub shot_index: Vec<usize>,
     /// Linear parameters per mode.
     pub modes: BTreeMap<String, ModeResult>,
     /// Parameters by their model names.
@@ -262,6 +271,8 @@ mod tests {
             goodness_of_fit: None,
             holdout: Vec::new(),
             shots: 3,
+            shots_fitted: None,
+            shot_index: Vec::new(),
             modes: [("q1".to_string(), mode)].into(),
             parameters: [
                 ("beta1".to_string(), est(2.68e22, 1.1e21)),

@@ -29,14 +29,15 @@ impl Report {
             s.push_str(c);
         }
         s.push_str(",outlier\n");
-        for shot in 0..self.shots {
+        let fitted = if self.shot_index.is_empty() {
+            (0..self.shots).collect()
+        } else {
+            self.shot_index.clone()
+        };
+        for (k, shot) in fitted.into_iter().enumerate() {
             let _ = write!(s, "{shot}");
             for (_, e) in &cols {
-                let _ = write!(
-                    s,
-                    ",{:e}",
-                    e.per_shot.get(shot).copied().unwrap_or(f64::NAN)
-                );
+                let _ = write!(s, ",{:e}", e.per_shot.get(k).copied().unwrap_or(f64::NAN));
             }
             let _ = writeln!(s, ",{}", u8::from(self.outlier_shots.contains(&shot)));
         }

@@ -376,6 +376,8 @@ impl Report {
             goodness_of_fit: None,
             holdout: Vec::new(),
             shots: fit.values.len(),
+            shots_fitted: None,
+            shot_index: Vec::new(),
             outlier_shots: outlier_shots(&modes, &parameters),
             eom: eom_table(prob, &fit.values),
             forces: force_table(ds, prob, &fit.values),

@@ -29,6 +29,13 @@ pub(crate) const POOR_STAGE: f64 = 1e-2;
 /// plan at 0.01 nm: 10⁴ times); a correct one scatters by `√(2/dof)` around 1.
 const GOOD_FIT: f64 = 2.0;
 
+/// The harmonic balance's truncation error allowed at a measured line, in units of that
+/// line's noise: well below it, so the model's own error never shows as misfit.
+const TRUNCATION_SIGMA: f64 = 0.1;
+
+/// Most widenings of a measurement's lattice after the fit (each order +2).
+const MAX_WIDENINGS: usize = 4;
+
 /// Where the output-error fit starts, tried in this order. A linear estimate far off in a
 /// poorly determined coupling can put the harmonic balance past a fold, or the fit into
 /// another minimum; a weaker nonlinearity always has a steady state near the data, and the
@@ -205,8 +212,43 @@ pub(crate) fn fit(
         bounds: prob.table.bounds(),
         e0,
     };
-    let (fit, mut notes) =
+    let (mut fit, mut notes) =
         tries.best(fwd, &pooled.mean, &starts(prob, linear, linear_var, poor))?;
+    // The lattice chosen at the start may be truncated too coarsely for the data's precision
+    // at the estimate: widened where it shows, and the fit refined on the wider lattice.
+    let mut widening_notes: Vec<(String, String)> = Vec::new();
+    for _ in 0..MAX_WIDENINGS {
+        let scale = if from_shots {
+            1.0
+        } else {
+            (fit.chi2 / fit.dof.max(1) as f64).sqrt()
+        };
+        let tol: Vec<f64> = sigma.iter().map(|s| TRUNCATION_SIGMA * s * scale).collect();
+        let widened = fwd
+            .widen_where_truncated(&fit.theta, &tol)
+            .map_err(OutputErrorFailure::Fit)?;
+        if widened.is_empty() {
+            break;
+        }
+        // One note per measurement: its last widening.
+        for (name, note) in widened {
+            match widening_notes.iter_mut().find(|(n, _)| *n == name) {
+                Some(e) => e.1 = note,
+                None => widening_notes.push((name, note)),
+            }
+        }
+        fit = ml::refine(
+            fwd,
+            &meas,
+            &sigma,
+            &fit.theta,
+            &cols,
+            prob.table.bounds(),
+            &MlSettings::default(),
+        )
+        .map_err(OutputErrorFailure::Fit)?;
+    }
+    notes.extend(widening_notes.into_iter().map(|(_, n)| n));
     let dof = fit.dof.max(1) as f64;
     let (noise, inflation) = if from_shots {
         let red = fit.chi2 / dof / e0;
