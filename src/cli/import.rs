@@ -2,7 +2,8 @@
 
 use clap::{Parser, ValueEnum};
 use harmonid_data::import::{
-    table, zi_csv, Amplitude, Conventions, ImportError, PhaseUnit, Quadrature, Response, Settle,
+    moku_csv, table, zi_csv, Amplitude, Conventions, ImportError, PhaseUnit, Quadrature, Response,
+    Settle,
 };
 use miette::WrapErr;
 use std::path::PathBuf;
@@ -14,6 +15,8 @@ pub enum Format {
     Table,
     /// Zurich Instruments LabOne demodulator CSV (one file per demodulator, the drive's first).
     ZiCsv,
+    /// Liquid Instruments Moku lock-in record converted to CSV (one file per frequency step).
+    MokuCsv,
 }
 
 /// Import instrument files into a harmonid dataset folder.
@@ -22,7 +25,8 @@ pub struct Args {
     /// The input format.
     #[arg(value_enum)]
     pub format: Format,
-    /// Input files (table: one or more; zi-csv: one per demodulator, the drive's first).
+    /// Input files (table: one or more; zi-csv: one per demodulator, the drive's first;
+    /// moku-csv: one per frequency step, in sweep order).
     #[arg(required = true)]
     pub inputs: Vec<PathBuf>,
     /// The dataset folder to write.
@@ -34,33 +38,72 @@ pub struct Args {
     /// table: the mapping file (columns, conventions, settling; docs/data-format.md).
     #[arg(long, value_name = "MAPPING.toml")]
     pub map: Option<PathBuf>,
-    /// zi-csv: are x, y peak or RMS amplitudes? (not confirmed by the vendor: required)
+    /// zi-csv, moku-csv: are the amplitudes peak or RMS? (not confirmed by the vendors: required)
     #[arg(long, value_enum)]
     pub amplitude: Option<AmplitudeArg>,
-    /// zi-csv: x+iy (harmonid's convention) or x-iy (the file's phase rises through a resonance).
+    /// zi-csv, moku-csv: x+iy (harmonid's convention) or x-iy (the file's phase rises through a
+    /// resonance).
     #[arg(long, value_name = "x+iy|x-iy")]
     pub quadrature: Option<String>,
-    /// zi-csv: what the sensor measured.
+    /// zi-csv, moku-csv: what the sensor measured.
     #[arg(long, value_enum, default_value = "displacement")]
     pub response: ResponseArg,
-    /// zi-csv: metres of displacement per volt; without it, --volts keeps volts.
+    /// zi-csv, moku-csv: metres of displacement per volt; without it, --volts keeps volts.
     #[arg(long, value_name = "M_PER_V", conflicts_with = "volts")]
     pub metres_per_unit: Option<f64>,
-    /// zi-csv: keep the instrument's volts (no sensor calibration; results in volts).
+    /// zi-csv, moku-csv: keep the instrument's volts (no sensor calibration; results in volts).
     #[arg(long)]
     pub volts: bool,
     /// zi-csv: device ticks per second (60e6 on the MFLI, 1.8e9 on the UHFLI).
     #[arg(long, value_name = "HZ")]
     pub clockbase_hz: Option<f64>,
-    /// zi-csv: the drive's output level (V); without it, every step's force is free.
+    /// zi-csv, moku-csv: the drive's output level (V); without it, every step's force is free.
     #[arg(long, value_name = "V")]
     pub drive_level: Option<f64>,
-    /// zi-csv: samples earlier than this after their step began are settling: dropped.
+    /// zi-csv, moku-csv: samples earlier than this after their step began are settling: dropped.
     #[arg(long, value_name = "S", conflicts_with = "settle_samples")]
     pub settle_s: Option<f64>,
-    /// zi-csv: the first this many samples of each step are settling: dropped.
+    /// zi-csv, moku-csv: the first this many samples of each step are settling: dropped.
     #[arg(long, value_name = "N")]
     pub settle_samples: Option<usize>,
+    /// moku-csv: what channels 1 and 2 carry (the file does not say).
+    #[arg(long, value_enum)]
+    pub channels: Option<ChannelsArg>,
+    /// moku-csv: the lock-in output gain (V per V; 1 for 0 dB), divided out.
+    #[arg(long, value_name = "V_PER_V")]
+    pub output_gain: Option<f64>,
+    /// moku-csv: the lock-in output offset (V), subtracted.
+    #[arg(long, value_name = "V", default_value_t = 0.0)]
+    pub output_offset: f64,
+    /// moku-csv: unit of a Theta channel (the Moku writes 1 V per cycle).
+    #[arg(long, value_enum)]
+    pub phase_unit: Option<PhaseUnitArg>,
+    /// moku-csv: the demodulation frequency of each file, Hz, comma-separated (default: each
+    /// file's `% ... demodulation ... Hz` header line).
+    #[arg(long, value_name = "HZ,...", value_delimiter = ',')]
+    pub demod_hz: Vec<f64>,
+}
+
+/// `--channels`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ChannelsArg {
+    /// Channel 1 = X, channel 2 = Y.
+    #[value(name = "x,y")]
+    XY,
+    /// Channel 1 = R, channel 2 = Theta.
+    #[value(name = "r,theta")]
+    RTheta,
+}
+
+/// `--phase-unit`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum PhaseUnitArg {
+    /// Radians.
+    Rad,
+    /// Degrees.
+    Deg,
+    /// Cycles.
+    Cycles,
 }
 
 /// `--amplitude`.
@@ -141,6 +184,10 @@ pub fn run(args: Args) -> miette::Result<()> {
         inputs: &inputs,
     };
     harmonid_files::check_output_dir(&args.out, opts).map_err(miette::Report::new)?;
+    let settle = Settle {
+        settle_s: args.settle_s,
+        settle_samples: args.settle_samples,
+    };
     let (ds, note) = match args.format {
         Format::Table => {
             let map = args.map.as_ref().ok_or_else(|| {
@@ -150,16 +197,40 @@ pub fn run(args: Args) -> miette::Result<()> {
             table::import(&args.inputs, &mapping, &args.out)
         }
         Format::ZiCsv => conventions(&args).and_then(|conv| {
-            let settle = Settle {
-                settle_s: args.settle_s,
-                settle_samples: args.settle_samples,
-            };
             let opts = zi_csv::Options {
                 clockbase_hz: args.clockbase_hz.unwrap_or(f64::NAN),
                 drive_level: args.drive_level,
                 drive_phase_rad: None,
             };
             zi_csv::import(&args.inputs, &conv, settle, &opts, &args.out)
+        }),
+        Format::MokuCsv => conventions(&args).and_then(|mut conv| {
+            let missing = |flag: &str, what: &str| ImportError::Convention {
+                origin: flag.into(),
+                message: format!("{what} is not in the file and is never guessed: give {flag}"),
+            };
+            let opts = moku_csv::Options {
+                channels: match args
+                    .channels
+                    .ok_or_else(|| missing("--channels", "what channels 1 and 2 carry"))?
+                {
+                    ChannelsArg::XY => moku_csv::Channels::XY,
+                    ChannelsArg::RTheta => moku_csv::Channels::RTheta,
+                },
+                output_gain: args
+                    .output_gain
+                    .ok_or_else(|| missing("--output-gain", "the lock-in's output gain"))?,
+                output_offset_v: args.output_offset,
+                phase_unit: args.phase_unit.map(|u| match u {
+                    PhaseUnitArg::Rad => PhaseUnit::Rad,
+                    PhaseUnitArg::Deg => PhaseUnit::Deg,
+                    PhaseUnitArg::Cycles => PhaseUnit::Cycles,
+                }),
+                demod_hz: args.demod_hz.clone(),
+                drive_level: args.drive_level,
+            };
+            conv.phase_unit = opts.phase_unit;
+            moku_csv::import(&args.inputs, &conv, settle, &opts, &args.out)
         }),
     }
     .map_err(miette::Report::new)?;

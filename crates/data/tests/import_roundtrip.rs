@@ -251,3 +251,108 @@ metres_per_unit = 1.0
         "{e}"
     );
 }
+
+#[test]
+fn moku_csv_round_trip_polar_cycles_gain_offset_rms_conjugate() {
+    use harmonid_data::import::{moku_csv, PhaseUnit};
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (gain, offset, k_m_per_v) = (10.0, 0.125, 4e-8);
+    let mut files = Vec::new();
+    for (k, &f) in STEPS.iter().enumerate() {
+        let mut s = String::from("% Moku:Go Lock-in Amplifier\n");
+        // The last file's header has no frequency: --demod-hz gives them all then.
+        if k < 3 {
+            let _ = writeln!(s, "% Demodulation frequency {} kHz, phase 0 deg", f / 1e3);
+        }
+        s.push_str(
+            "% Acquisition rate: 1.0000000000e+01 Hz\n% Time (s), Channel 1 (V), Channel 2 (V)\n",
+        );
+        for j in 0..5 {
+            // The file: RMS, x − iy, polar with θ in cycles, after the output gain and offset.
+            let z = truth(f, 1, j).conj() / std::f64::consts::SQRT_2 / k_m_per_v;
+            let cycles = z.arg() / (2.0 * PI);
+            let _ = writeln!(
+                s,
+                "{:e}, {:e}, {:e}",
+                0.1 * j as f64,
+                z.norm() * gain + offset,
+                cycles * gain + offset
+            );
+        }
+        let p = dir.path().join(format!("step{k}.csv"));
+        std::fs::write(&p, s).expect("write");
+        files.push(p);
+    }
+    let conv = Conventions {
+        amplitude: Amplitude::Rms,
+        quadrature: Quadrature::XMinusIY,
+        response: Response::Displacement,
+        metres_per_unit: Some(k_m_per_v),
+        displacement_unit: "m".into(),
+        phase_unit: Some(PhaseUnit::Cycles),
+        frequency_scale: None,
+    };
+    let settle = Settle {
+        settle_s: Some(0.15),
+        settle_samples: None,
+    };
+    let mut opts = moku_csv::Options {
+        channels: moku_csv::Channels::RTheta,
+        output_gain: gain,
+        output_offset_v: offset,
+        phase_unit: Some(PhaseUnit::Cycles),
+        demod_hz: Vec::new(),
+        drive_level: Some(0.5),
+    };
+    // Without --demod-hz, the file lacking the header line is refused by name.
+    let e = moku_csv::import(&files, &conv, settle, &opts, Path::new("out"))
+        .expect_err("no frequency")
+        .to_string();
+    assert!(e.contains("step3.csv") && e.contains("--demod-hz"), "{e}");
+    opts.demod_hz = STEPS.to_vec();
+    let (ds, note) =
+        moku_csv::import(&files, &conv, settle, &opts, Path::new("out")).expect("import");
+    assert_equal(&ds, 3, 2, 1, 1e-12);
+    assert!(note.contains("8 of 20 samples dropped"), "{note}");
+    let imported = ds.manifest.import.as_ref().expect("[import]");
+    assert_eq!(imported.format, "moku-csv");
+    assert_eq!(imported.conventions.phase_unit, Some(PhaseUnit::Cycles));
+    // Three headers and --demod-hz agree; a header read as Hz is the same steps.
+    opts.demod_hz.clear();
+    std::fs::remove_file(&files[3]).expect("remove");
+    let (three, _) = moku_csv::import(&files[..3], &conv, settle, &opts, Path::new("out"))
+        .expect("import from headers");
+    for (k, m) in three.measurements.iter().enumerate() {
+        assert!((m.spec.drives_hz[0] - STEPS[k]).abs() <= 1e-9 * STEPS[k]);
+    }
+
+    // A Theta channel without its unit, a zero gain, a time going backwards: refused.
+    let no_unit = moku_csv::Options {
+        phase_unit: None,
+        ..opts.clone()
+    };
+    let e = moku_csv::import(&files[..3], &conv, settle, &no_unit, Path::new("out"))
+        .expect_err("no unit")
+        .to_string();
+    assert!(e.contains("--phase-unit"), "{e}");
+    let zero_gain = moku_csv::Options {
+        output_gain: 0.0,
+        ..opts.clone()
+    };
+    let e = moku_csv::import(&files[..3], &conv, settle, &zero_gain, Path::new("out"))
+        .expect_err("zero gain")
+        .to_string();
+    assert!(e.contains("--output-gain"), "{e}");
+    let text = std::fs::read_to_string(&files[0]).expect("read");
+    let mut lines: Vec<&str> = text.lines().collect();
+    let n = lines.len();
+    lines.swap(n - 1, n - 2);
+    std::fs::write(&files[0], lines.join("\n")).expect("write");
+    let e = moku_csv::import(&files[..3], &conv, settle, &opts, Path::new("out"))
+        .expect_err("backwards")
+        .to_string();
+    assert!(
+        e.contains("step0.csv") && e.contains("does not follow"),
+        "{e}"
+    );
+}

@@ -9,6 +9,7 @@
 //! was assumed is written into the manifest's `[import]` table.
 
 pub mod mat;
+pub mod moku_csv;
 pub mod table;
 pub mod zi_csv;
 
@@ -274,6 +275,19 @@ pub struct ImportRecord {
     pub settling_dropped: usize,
     /// Samples read.
     pub samples_read: usize,
+    /// The format's own settings that were applied (a Moku's channel assignment, output gain
+    /// and offset, where the demodulation frequency came from; a LabOne clock base).
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub instrument: std::collections::BTreeMap<String, String>,
+}
+
+/// Records the format's own settings `pairs` in `ds`'s `[import.instrument]` table.
+fn record_instrument(ds: &mut Dataset, pairs: &[(&str, String)]) {
+    if let Some(imp) = ds.manifest.import.as_mut() {
+        for (k, v) in pairs {
+            imp.instrument.insert((*k).to_string(), v.clone());
+        }
+    }
 }
 
 /// One sample of a step: its time (if known) and its (line, amplitude) pairs.
@@ -480,6 +494,7 @@ pub fn build(
         settle,
         settling_dropped: read - kept,
         samples_read: read,
+        instrument: Default::default(),
     });
     let ds = Dataset::from_parts(out, manifest, measurements, None)?;
     let rule = match (settle.settle_s, settle.settle_samples) {

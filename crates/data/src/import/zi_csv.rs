@@ -8,7 +8,9 @@
 //! 1.8 GHz on the UHFLI) turns them into seconds; a timestamp that goes backwards is sample
 //! loss or a mixed file, and refused.
 
-use super::{build, read_input, Conventions, Grouping, ImportError, Record, Settle};
+use super::{
+    build, read_input, record_instrument, Conventions, Grouping, ImportError, Record, Settle,
+};
 use crate::dataset::Dataset;
 use num_complex::Complex64;
 use std::path::{Path, PathBuf};
@@ -170,5 +172,10 @@ pub fn import(
         group_names: vec!["sweep".into()],
         split_on_level: false,
     };
-    build("zi-csv", inputs, &records, conv, settle, &grouping, out)
+    let (mut ds, note) = build("zi-csv", inputs, &records, conv, settle, &grouping, out)?;
+    record_instrument(
+        &mut ds,
+        &[("clockbase_hz", format!("{}", opts.clockbase_hz))],
+    );
+    Ok((ds, note))
 }
