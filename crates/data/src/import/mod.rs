@@ -71,6 +71,38 @@ fn read_input(path: &Path) -> Result<String, ImportError> {
     })
 }
 
+/// Calls `each(row, line)` for every line of the text file `path` (rows 1-based), streamed
+/// through one reused buffer: a 70 MB record is never held whole.
+fn for_each_line(
+    path: &Path,
+    mut each: impl FnMut(usize, &str) -> Result<(), ImportError>,
+) -> Result<(), ImportError> {
+    use std::io::BufRead;
+    let io = |source: std::io::Error| ImportError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut reader = std::io::BufReader::new(std::fs::File::open(path).map_err(io)?);
+    let mut line = String::new();
+    let mut row = 0;
+    loop {
+        line.clear();
+        row += 1;
+        match reader.read_line(&mut line) {
+            Ok(0) => return Ok(()),
+            Ok(_) => each(row, line.trim_end_matches(['\n', '\r']))?,
+            Err(e) if e.kind() == std::io::ErrorKind::InvalidData => {
+                return Err(ImportError::Input {
+                    path: path.to_path_buf(),
+                    row: Some(row),
+                    message: "not UTF-8 text: is this the file meant (a binary export)?".into(),
+                })
+            }
+            Err(e) => return Err(io(e)),
+        }
+    }
+}
+
 /// Peak or RMS amplitudes in the file. harmonid's amplitudes are peak.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -290,54 +322,72 @@ fn record_instrument(ds: &mut Dataset, pairs: &[(&str, String)]) {
     }
 }
 
-/// One sample of a step: its time (if known) and its (line, amplitude) pairs.
-type Sample = (Option<f64>, Vec<(f64, Complex64)>);
-
-/// One step while building: its drive, level, and samples (each a list of lines).
+/// One step while building: its drive, level, lines, and samples stored flat.
 struct Step {
     group: usize,
     drive: f64,
     level: Option<f64>,
     phase: Option<f64>,
-    /// Per sample: its time and its (line, amplitude) pairs.
-    samples: Vec<Sample>,
+    /// The lines, Hz, in the order the step's first sample gave them.
+    lines: Vec<f64>,
+    /// Per sample, its time.
+    times: Vec<Option<f64>>,
+    /// `data[sample · lines.len() + line]`.
+    data: Vec<Complex64>,
+    /// Which lines the last sample has so far.
+    seen: Vec<bool>,
+    /// Where the first record of the step came from (for messages).
+    origin: (usize, usize),
+}
+
+impl Step {
+    /// Whether the last sample has every line.
+    fn complete(&self) -> bool {
+        self.seen.iter().all(|&b| b)
+    }
 }
 
 /// The dataset the records make: conventions applied, steps and sweeps cut, settling
 /// dropped. `inputs` name the files in messages; `out` names the dataset. Returns the
-/// dataset and the one-line note on settling.
+/// dataset and the one-line note on settling. Records are consumed as they come: a million
+/// samples take their 16-byte amplitudes and little else.
 pub fn build(
     format: &str,
     inputs: &[PathBuf],
-    records: &[Record],
+    records: impl IntoIterator<Item = Record>,
     conv: &Conventions,
     settle: Settle,
     grouping: &Grouping,
     out: &Path,
 ) -> Result<(Dataset, String), ImportError> {
     let first_input = inputs.first().cloned().unwrap_or_default();
-    if records.is_empty() {
-        return Err(ImportError::Input {
-            path: first_input,
-            row: None,
-            message: "no data rows were read".into(),
-        });
+    let path_of = |r: (usize, usize)| inputs.get(r.0).cloned().unwrap_or_default();
+    let incomplete = |s: &Step| {
+        ImportError::Input {
+        path: path_of(s.origin),
+        row: Some(s.origin.1),
+        message: format!(
+            "the step at {} Hz starting here has a sample without every line of its first sample ({} lines); every sample of a step must measure the same lines",
+            s.drive,
+            s.lines.len()
+        ),
     }
-    if settle.settle_s.is_some() && records.iter().any(|r| r.time_s.is_none()) {
-        return Err(ImportError::Convention {
-            origin: "--settle-s".into(),
-            message: "the input has no sample times; drop settling samples by count (settle_samples) instead".into(),
-        });
-    }
+    };
     let fscale = conv.frequency_scale.unwrap_or(1.0);
     // Steps: consecutive records with the same group, explicit step, drive and level.
     // Frequencies recorded per sample jitter in their last digits (a PLL, a float
     // conversion): one step's drive, and one line, are the same to FREQ_REL_TOL.
     let same = |a: f64, b: f64| (a - b).abs() <= FREQ_REL_TOL * a.abs().max(b.abs());
     let mut steps: Vec<Step> = Vec::new();
-    let mut last: Option<&Record> = None;
+    let mut last: Option<Record> = None;
     for r in records {
-        let new_step = match last {
+        if settle.settle_s.is_some() && r.time_s.is_none() {
+            return Err(ImportError::Convention {
+                origin: "--settle-s".into(),
+                message: "the input has no sample times; drop settling samples by count (settle_samples) instead".into(),
+            });
+        }
+        let new_step = match &last {
             None => true,
             Some(p) => {
                 p.group != r.group
@@ -348,29 +398,32 @@ pub fn build(
         };
         last = Some(r);
         if new_step {
+            if let Some(prev) = steps.last() {
+                if !prev.complete() {
+                    return Err(incomplete(prev));
+                }
+            }
             steps.push(Step {
                 group: r.group,
                 drive: r.drive * fscale,
                 level: r.level,
                 phase: r.drive_phase_rad,
-                samples: Vec::new(),
+                lines: Vec::new(),
+                times: Vec::new(),
+                data: Vec::new(),
+                seen: Vec::new(),
+                origin: r.origin,
             });
         }
         let step = steps.last_mut().expect("just pushed");
+        let f = r.line * fscale;
         // The line as first recorded in this step (see `same`).
-        let line = step
-            .samples
-            .first()
-            .and_then(|(_, ls)| {
-                ls.iter()
-                    .map(|(f, _)| *f)
-                    .find(|f| same(*f, r.line * fscale))
-            })
-            .unwrap_or(r.line * fscale);
+        let known = step.lines.iter().position(|&l| same(l, f));
+        let line = known.map_or(f, |i| step.lines[i]);
         let x = conv.apply(r.z, line);
         if !(x.re.is_finite() && x.im.is_finite() && line.is_finite() && line > 0.0) {
             return Err(ImportError::Input {
-                path: inputs.get(r.origin.0).cloned().unwrap_or_default(),
+                path: path_of(r.origin),
                 row: Some(r.origin.1),
                 message: format!(
                     "frequency {} and amplitude {} {} do not make a finite sample at a positive frequency (NaN rows must be removed, not imported)",
@@ -379,34 +432,75 @@ pub fn build(
             });
         }
         // A new sample when this line is already in the last one (or there is none yet).
-        let new_sample = match step.samples.last() {
-            None => true,
-            Some((_, lines)) => lines.iter().any(|(f, _)| *f == line),
-        };
-        if new_sample {
-            step.samples.push((r.time_s, Vec::new()));
+        if step.times.is_empty() || known.is_some_and(|i| step.seen[i]) {
+            if !step.times.is_empty() && !step.complete() {
+                return Err(incomplete(step));
+            }
+            step.times.push(r.time_s);
+            step.data.extend(std::iter::repeat_n(
+                Complex64::new(0.0, 0.0),
+                step.lines.len(),
+            ));
+            step.seen.iter_mut().for_each(|b| *b = false);
         }
-        step.samples
-            .last_mut()
-            .expect("just pushed")
-            .1
-            .push((line, x));
+        let i = match known {
+            Some(i) => i,
+            None if step.times.len() == 1 => {
+                step.lines.push(line);
+                step.seen.push(false);
+                step.data.push(Complex64::new(0.0, 0.0));
+                step.lines.len() - 1
+            }
+            None => {
+                return Err(ImportError::Input {
+                    path: path_of(r.origin),
+                    row: Some(r.origin.1),
+                    message: format!(
+                        "line {} Hz is not among the {} lines of its step's first sample; every sample of a step must measure the same lines",
+                        r.line,
+                        step.lines.len()
+                    ),
+                })
+            }
+        };
+        let base = (step.times.len() - 1) * step.lines.len();
+        step.data[base + i] = x;
+        step.seen[i] = true;
+    }
+    let Some(tail) = steps.last() else {
+        return Err(ImportError::Input {
+            path: first_input,
+            row: None,
+            message: "no data rows were read".into(),
+        });
+    };
+    if !tail.complete() {
+        return Err(incomplete(tail));
     }
     // Settling.
-    let read: usize = steps.iter().map(|s| s.samples.len()).sum();
+    let read: usize = steps.iter().map(|s| s.times.len()).sum();
     for s in &mut steps {
-        let t0 = s.samples.first().and_then(|x| x.0);
-        if let Some(t) = settle.settle_s {
-            // Every sample has its time (checked above).
-            s.samples
-                .retain(|x| x.0.zip(t0).is_none_or(|(ti, t0)| ti - t0 >= t));
-        } else if let Some(n) = settle.settle_samples {
-            let n = n.min(s.samples.len());
-            s.samples.drain(..n);
+        let nl = s.lines.len();
+        let t0 = s.times[0];
+        let mut kept = 0;
+        for j in 0..s.times.len() {
+            let keep = match (settle.settle_s, settle.settle_samples) {
+                // Every sample has its time (checked above).
+                (Some(t), _) => s.times[j].zip(t0).is_none_or(|(ti, t0)| ti - t0 >= t),
+                (None, Some(k)) => j >= k,
+                (None, None) => true,
+            };
+            if keep {
+                s.times[kept] = s.times[j];
+                s.data.copy_within(j * nl..(j + 1) * nl, kept * nl);
+                kept += 1;
+            }
         }
+        s.times.truncate(kept);
+        s.data.truncate(kept * nl);
     }
-    let kept: usize = steps.iter().map(|s| s.samples.len()).sum();
-    if let Some(k) = steps.iter().position(|s| s.samples.is_empty()) {
+    let kept: usize = steps.iter().map(|s| s.times.len()).sum();
+    if let Some(k) = steps.iter().position(|s| s.times.is_empty()) {
         return Err(ImportError::Convention {
             origin: "settling".into(),
             message: format!("step {k} (at {} Hz) keeps no sample after settling; lower settle_s or settle_samples", steps[k].drive),
@@ -462,25 +556,14 @@ pub fn build(
         }
         for (k, s) in part.iter().enumerate() {
             let spec = sw.step_spec(k);
-            let mut lines: Vec<f64> = s.samples[0].1.iter().map(|(f, _)| *f).collect();
-            lines.sort_by(f64::total_cmp);
-            let mut m = Measurement::zeros(spec, lines.clone(), Vec::new(), s.samples.len());
-            for (j, (_, xs)) in s.samples.iter().enumerate() {
-                if xs.len() != lines.len() {
-                    return Err(ImportError::Input {
-                        path: first_input.clone(),
-                        row: None,
-                        message: format!(
-                            "step {k} of sweep \"{}\": sample {j} has {} lines, sample 0 has {}; every sample of a step must measure the same lines",
-                            sw.name,
-                            xs.len(),
-                            lines.len()
-                        ),
-                    });
-                }
-                for (f, x) in xs {
-                    let i = lines.iter().position(|l| l == f).unwrap_or(0);
-                    *m.amplitude_mut(j, i, 0) = *x;
+            // The lines ascending, as a measurement keeps them.
+            let mut order: Vec<usize> = (0..s.lines.len()).collect();
+            order.sort_by(|&a, &b| s.lines[a].total_cmp(&s.lines[b]));
+            let lines: Vec<f64> = order.iter().map(|&i| s.lines[i]).collect();
+            let mut m = Measurement::zeros(spec, lines, Vec::new(), s.times.len());
+            for (j, sample) in s.data.chunks_exact(s.lines.len()).enumerate() {
+                for (to, &from) in order.iter().enumerate() {
+                    *m.amplitude_mut(j, to, 0) = sample[from];
                 }
             }
             measurements.push(m);

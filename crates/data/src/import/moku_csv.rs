@@ -225,7 +225,7 @@ pub fn import(
         group_names: vec!["sweep".into()],
         split_on_level: false,
     };
-    let (mut ds, note) = build("moku-csv", inputs, &records, conv, settle, &grouping, out)?;
+    let (mut ds, note) = build("moku-csv", inputs, records, conv, settle, &grouping, out)?;
     record_instrument(
         &mut ds,
         &[

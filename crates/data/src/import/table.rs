@@ -249,7 +249,7 @@ pub fn import(
     build(
         "table",
         inputs,
-        &records,
+        records,
         &mapping.conventions,
         mapping.settle,
         &grouping,

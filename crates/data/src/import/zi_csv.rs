@@ -9,7 +9,7 @@
 //! loss or a mixed file, and refused.
 
 use super::{
-    build, read_input, record_instrument, Conventions, Grouping, ImportError, Record, Settle,
+    build, for_each_line, record_instrument, Conventions, Grouping, ImportError, Record, Settle,
 };
 use crate::dataset::Dataset;
 use num_complex::Complex64;
@@ -34,61 +34,69 @@ struct Demod {
 }
 
 fn read_demod(path: &Path) -> Result<Demod, ImportError> {
-    let text = read_input(path)?;
     let bad = |row: Option<usize>, message: String| ImportError::Input {
         path: path.to_path_buf(),
         row,
         message,
     };
-    let mut lines = text.lines().enumerate();
-    let (_, header) = lines
-        .next()
-        .ok_or_else(|| bad(None, "the file is empty".into()))?;
-    let header: Vec<&str> = header.split(';').map(str::trim).collect();
-    let col = |name: &str| {
-        header.iter().position(|h| *h == name).ok_or_else(|| {
-            bad(
-                Some(1),
-                format!(
-                    "no column \"{name}\" (found: {}); a LabOne demodulator CSV has chunk;timestamp;x;y;freq;...",
-                    header.join(";")
-                ),
-            )
-        })
-    };
-    let (ct, cx, cy, cf) = (col("timestamp")?, col("x")?, col("y")?, col("freq")?);
     let mut d = Demod {
         timestamp: Vec::new(),
         z: Vec::new(),
         freq: Vec::new(),
     };
-    for (n, line) in lines {
+    // Column indices of timestamp, x, y, freq, once the header is read.
+    let mut cols: Option<[usize; 4]> = None;
+    const NAMES: [&str; 4] = ["timestamp", "x", "y", "freq"];
+    for_each_line(path, |row, line| {
+        let Some(cols) = cols else {
+            let header: Vec<&str> = line.split(';').map(str::trim).collect();
+            let mut found = [0; 4];
+            for (c, name) in found.iter_mut().zip(NAMES) {
+                *c = header.iter().position(|h| *h == name).ok_or_else(|| {
+                    bad(
+                        Some(1),
+                        format!(
+                            "no column \"{name}\" (found: {}); a LabOne demodulator CSV has chunk;timestamp;x;y;freq;...",
+                            header.join(";")
+                        ),
+                    )
+                })?;
+            }
+            cols = Some(found);
+            return Ok(());
+        };
         if line.trim().is_empty() {
-            continue;
+            return Ok(());
         }
-        let row = n + 1;
-        let fields: Vec<&str> = line.split(';').map(str::trim).collect();
-        let field = |c: usize, name: &str| {
-            fields.get(c).copied().ok_or_else(|| {
+        let mut fields: [Option<&str>; 4] = [None; 4];
+        for (i, field) in line.split(';').enumerate() {
+            for (k, &c) in cols.iter().enumerate() {
+                if c == i {
+                    fields[k] = Some(field.trim());
+                }
+            }
+        }
+        let field = |k: usize| {
+            fields[k].ok_or_else(|| {
                 bad(
                     Some(row),
-                    format!("no value in column \"{name}\" (a truncated row?)"),
+                    format!("no value in column \"{}\" (a truncated row?)", NAMES[k]),
                 )
             })
         };
-        let num = |c: usize, name: &str| -> Result<f64, ImportError> {
-            let t = field(c, name)?;
+        let num = |k: usize| -> Result<f64, ImportError> {
+            let t = field(k)?;
             t.parse::<f64>()
                 .ok()
                 .filter(|v| v.is_finite())
                 .ok_or_else(|| {
                     bad(
                         Some(row),
-                        format!("column \"{name}\": \"{t}\" is not a finite number"),
+                        format!("column \"{}\": \"{t}\" is not a finite number", NAMES[k]),
                     )
                 })
         };
-        let t = field(ct, "timestamp")?;
+        let t = field(0)?;
         let ts: u64 = t.parse().map_err(|_| {
             bad(
                 Some(row),
@@ -104,8 +112,12 @@ fn read_demod(path: &Path) -> Result<Demod, ImportError> {
             }
         }
         d.timestamp.push(ts);
-        d.z.push(Complex64::new(num(cx, "x")?, num(cy, "y")?));
-        d.freq.push(num(cf, "freq")?);
+        d.z.push(Complex64::new(num(1)?, num(2)?));
+        d.freq.push(num(3)?);
+        Ok(())
+    })?;
+    if cols.is_none() {
+        return Err(bad(None, "the file is empty".into()));
     }
     Ok(d)
 }
@@ -150,29 +162,26 @@ pub fn import(
             });
         }
     }
-    let mut records = Vec::with_capacity(demods.len() * drive.timestamp.len());
-    for i in 0..drive.timestamp.len() {
-        for (k, d) in demods.iter().enumerate() {
-            records.push(Record {
-                drive: drive.freq[i],
-                line: d.freq[i],
-                z: d.z[i],
-                level: opts.drive_level,
-                drive_phase_rad: opts
-                    .drive_level
-                    .map(|_| opts.drive_phase_rad.unwrap_or(0.0)),
-                group: 0,
-                step: None,
-                time_s: Some(d.timestamp[i] as f64 / opts.clockbase_hz),
-                origin: (k, i + 2),
-            });
-        }
-    }
+    let records = (0..drive.timestamp.len()).flat_map(|i| {
+        demods.iter().enumerate().map(move |(k, d)| Record {
+            drive: drive.freq[i],
+            line: d.freq[i],
+            z: d.z[i],
+            level: opts.drive_level,
+            drive_phase_rad: opts
+                .drive_level
+                .map(|_| opts.drive_phase_rad.unwrap_or(0.0)),
+            group: 0,
+            step: None,
+            time_s: Some(d.timestamp[i] as f64 / opts.clockbase_hz),
+            origin: (k, i + 2),
+        })
+    });
     let grouping = Grouping {
         group_names: vec!["sweep".into()],
         split_on_level: false,
     };
-    let (mut ds, note) = build("zi-csv", inputs, &records, conv, settle, &grouping, out)?;
+    let (mut ds, note) = build("zi-csv", inputs, records, conv, settle, &grouping, out)?;
     record_instrument(
         &mut ds,
         &[("clockbase_hz", format!("{}", opts.clockbase_hz))],
