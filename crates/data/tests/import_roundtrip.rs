@@ -356,3 +356,144 @@ fn moku_csv_round_trip_polar_cycles_gain_offset_rms_conjugate() {
         "{e}"
     );
 }
+
+/// A LabOne HDF5 save of `records` records, each with demodulators 0 (the drive) and 1 (its
+/// second harmonic) sampling the [`STEPS`] sweep: RMS, x − iy, volts at `k` m/V, 5 samples
+/// per step 0.1 s apart, `clock` ticks per second.
+fn zi_hdf5_file(path: &Path, records: usize, k: f64, clock: f64) {
+    let mut b = hdf5_pure::FileBuilder::new();
+    for rec in 0..records {
+        let mut dev = b.create_group(&format!("{rec:03}"));
+        let mut d = dev.create_group("dev4955");
+        let mut demods = d.create_group("demods");
+        for h in 1..=2usize {
+            let (mut ts, mut xs, mut ys, mut fs) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+            let mut tick: u64 = 1_000_000;
+            for &f in &STEPS {
+                for j in 0..5 {
+                    let z = truth(f, h, j).conj() / std::f64::consts::SQRT_2 / k;
+                    ts.push(tick);
+                    xs.push(z.re);
+                    ys.push(z.im);
+                    fs.push(f * h as f64);
+                    tick += (0.1 * clock) as u64;
+                }
+                tick += clock as u64;
+            }
+            let mut g = demods.create_group(&(h - 1).to_string());
+            let mut sample = g.create_group("sample");
+            sample.create_dataset("timestamp").with_u64_data(&ts);
+            sample.create_dataset("x").with_f64_data(&xs);
+            sample.create_dataset("y").with_f64_data(&ys);
+            sample.create_dataset("frequency").with_f64_data(&fs);
+            g.add_group(sample.finish());
+            demods.add_group(g.finish());
+        }
+        d.add_group(demods.finish());
+        dev.add_group(d.finish());
+        b.add_group(dev.finish());
+    }
+    b.write(path).expect("write h5");
+}
+
+#[test]
+fn zi_hdf5_round_trip_two_demodulators_two_records() {
+    use harmonid_data::import::zi_hdf5;
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (k, clock) = (2.5e-7, 1.8e9);
+    let path = dir.path().join("sweep.h5");
+    zi_hdf5_file(&path, 2, k, clock);
+    let conv = Conventions {
+        amplitude: Amplitude::Rms,
+        quadrature: Quadrature::XMinusIY,
+        response: Response::Displacement,
+        metres_per_unit: Some(k),
+        displacement_unit: "m".into(),
+        phase_unit: None,
+        frequency_scale: None,
+    };
+    let settle = Settle {
+        settle_s: Some(0.15),
+        settle_samples: None,
+    };
+    let opts = zi_hdf5::Options {
+        clockbase_hz: clock,
+        demods: Vec::new(),
+        drive_level: Some(0.2),
+    };
+    let (ds, note) = zi_hdf5::import(
+        std::slice::from_ref(&path),
+        &conv,
+        settle,
+        &opts,
+        Path::new("out"),
+    )
+    .expect("import");
+    // Two records, two sweeps of the same steps.
+    assert_eq!(ds.manifest.sweeps.len(), 2);
+    assert_eq!(ds.manifest.sweeps[0].name, "000_dev4955");
+    assert!(note.contains("16 of 40 samples dropped"), "{note}");
+    let first = Dataset {
+        measurements: ds.measurements[..4].to_vec(),
+        ..ds.clone()
+    };
+    assert_equal(&first, 3, 2, 2, 1e-12);
+    // Only demodulator 0: one line per step.
+    let one = zi_hdf5::Options {
+        demods: vec![0],
+        ..opts.clone()
+    };
+    let (ds1, _) = zi_hdf5::import(
+        std::slice::from_ref(&path),
+        &conv,
+        settle,
+        &one,
+        Path::new("out"),
+    )
+    .expect("import demod 0");
+    assert!(ds1.measurements.iter().all(|m| m.freqs_hz.len() == 1));
+    // Refused: no clock base; a demodulator that is not there; a file that is not HDF5.
+    let no_clock = zi_hdf5::Options {
+        clockbase_hz: f64::NAN,
+        ..opts.clone()
+    };
+    let e = zi_hdf5::import(
+        std::slice::from_ref(&path),
+        &conv,
+        settle,
+        &no_clock,
+        Path::new("out"),
+    )
+    .expect_err("no clock")
+    .to_string();
+    assert!(e.contains("--clockbase-hz"), "{e}");
+    let missing = zi_hdf5::Options {
+        demods: vec![0, 3],
+        ..opts.clone()
+    };
+    let e = zi_hdf5::import(
+        std::slice::from_ref(&path),
+        &conv,
+        settle,
+        &missing,
+        Path::new("out"),
+    )
+    .expect_err("no demod 3")
+    .to_string();
+    assert!(
+        e.contains("demods/3/sample/") && e.contains("need x, y"),
+        "{e}"
+    );
+    let text = dir.path().join("not.h5");
+    std::fs::write(&text, "chunk;timestamp\n").expect("write");
+    let e = zi_hdf5::import(
+        std::slice::from_ref(&text),
+        &conv,
+        settle,
+        &opts,
+        Path::new("out"),
+    )
+    .expect_err("not hdf5")
+    .to_string();
+    assert!(e.contains("not.h5") && e.contains("HDF5"), "{e}");
+}

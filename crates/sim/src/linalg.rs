@@ -233,7 +233,7 @@ impl DenseLu {
     /// `block`; otherwise one group).
     pub(crate) fn with_blocks(n: usize, block: usize) -> Self {
         use faer::linalg::lu::partial_pivoting::{factor, solve};
-        let block = if block > 0 && n % block == 0 {
+        let block = if block > 0 && n.is_multiple_of(block) {
             block
         } else {
             n.max(1)

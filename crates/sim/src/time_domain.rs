@@ -686,7 +686,7 @@ impl Stepper {
         let nm = self.u.len();
         self.u.copy_from_slice(&self.ust);
         self.g.copy_within(6 * nm..7 * nm, 0);
-        if n_in % 256 == 0 {
+        if n_in.is_multiple_of(256) {
             for (z, &c) in self.z.iter_mut().zip(&clock.tone_cyc) {
                 *z = clock.phasor(c, n_in);
             }
@@ -788,7 +788,7 @@ impl LockIn {
     /// displacements `q`, and a noise sample per point.
     fn sample(&mut self, clock: &Clock, sidx: u64, n_in: u64, q: &[f64]) {
         let nk = self.zk.len();
-        if sidx % 256 == 0 {
+        if sidx.is_multiple_of(256) {
             for (z, &c) in self.zk.iter_mut().zip(&clock.meas_cyc) {
                 *z = clock.phasor(c, n_in).conj();
             }

@@ -505,7 +505,7 @@ pub(crate) fn scatter_jacobian(
             let r = c / 2;
             row_re[r] += p;
             // ∂X/∂b = i, ∂X̄/∂b = −i.
-            if c % 2 == 0 {
+            if c.is_multiple_of(2) {
                 row_im[r] += p * i;
             } else {
                 row_im[r] -= p * i;

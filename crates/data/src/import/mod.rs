@@ -12,6 +12,7 @@ pub mod mat;
 pub mod moku_csv;
 pub mod table;
 pub mod zi_csv;
+pub mod zi_hdf5;
 
 use crate::dataset::{
     Dataset, DatasetError, Direction, Manifest, Measurement, SweepSpec, FREQ_REL_TOL,

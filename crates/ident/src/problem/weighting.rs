@@ -139,7 +139,7 @@ impl Problem {
             // Σ_block = Jr D Jrᵀ with real rows (2o: re, 2o+1: im).
             let real = |row: usize, c: usize| -> f64 {
                 let z = jac[(row / 2) * 2 * nf + c];
-                if row % 2 == 0 {
+                if row.is_multiple_of(2) {
                     z.re
                 } else {
                     z.im
