@@ -41,6 +41,8 @@ from ._harmonid import (
     sweep,
 )
 
+from . import io  # noqa: E402  (after _harmonid, which it re-exports)
+
 __version__ = _harmonid.__version__
 
 __all__ = [
@@ -56,6 +58,7 @@ __all__ = [
     "SimulationError",
     "evaluate_plan",
     "identify",
+    "io",
     "mix",
     "plan",
     "simulate",

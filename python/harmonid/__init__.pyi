@@ -19,6 +19,8 @@ from ._harmonid import (
     sweep as sweep,
 )
 
+from . import io as io
+
 __version__: str
 
 def mix(

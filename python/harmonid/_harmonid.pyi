@@ -53,6 +53,8 @@ class Dataset:
     @property
     def path(self) -> str: ...
     @property
+    def notes(self) -> list[str]: ...
+    @property
     def measurements(self) -> list[str]: ...
     def measurement(self, name: str) -> dict[str, Any]: ...
     @property
@@ -164,3 +166,45 @@ def evaluate_plan(
     noise_m: float,
     shots: int = 1,
 ) -> PlanResult: ...
+def read_table(files: Sequence[_Path], mapping: _Path) -> Dataset: ...
+def read_zi_csv(
+    files: Sequence[_Path],
+    *,
+    amplitude: str,
+    quadrature: str,
+    metres_per_unit: Optional[float],
+    clockbase_hz: float,
+    response: str = "displacement",
+    drive_level: Optional[float] = None,
+    settle_s: Optional[float] = None,
+    settle_samples: Optional[int] = None,
+) -> Dataset: ...
+def read_zi_hdf5(
+    files: Sequence[_Path],
+    *,
+    amplitude: str,
+    quadrature: str,
+    metres_per_unit: Optional[float],
+    clockbase_hz: float,
+    demods: Optional[Sequence[int]] = None,
+    response: str = "displacement",
+    drive_level: Optional[float] = None,
+    settle_s: Optional[float] = None,
+    settle_samples: Optional[int] = None,
+) -> Dataset: ...
+def read_moku_csv(
+    files: Sequence[_Path],
+    *,
+    channels: str,
+    output_gain: float,
+    amplitude: str,
+    quadrature: str,
+    metres_per_unit: Optional[float],
+    output_offset: float = 0.0,
+    phase_unit: Optional[str] = None,
+    demod_hz: Optional[Sequence[float]] = None,
+    response: str = "displacement",
+    drive_level: Optional[float] = None,
+    settle_s: Optional[float] = None,
+    settle_samples: Optional[int] = None,
+) -> Dataset: ...

@@ -223,6 +223,13 @@ impl Dataset {
         self.inner.dir.display().to_string()
     }
 
+    /// What reading or importing did that a user should know of (settling samples dropped), one
+    /// line each.
+    #[getter]
+    fn notes(&self) -> Vec<String> {
+        self.inner.notes.clone()
+    }
+
     /// The measurement names, in manifest order.
     #[getter]
     fn measurements(&self) -> Vec<String> {

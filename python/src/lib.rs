@@ -15,6 +15,7 @@ mod convert;
 mod dataset;
 mod errors;
 mod identify;
+mod io;
 mod mix;
 mod model;
 mod plan;
@@ -39,5 +40,9 @@ fn _harmonid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<plan::PlanResult>()?;
     m.add_function(wrap_pyfunction!(plan::plan, m)?)?;
     m.add_function(wrap_pyfunction!(plan::evaluate_plan, m)?)?;
+    m.add_function(wrap_pyfunction!(io::read_table, m)?)?;
+    m.add_function(wrap_pyfunction!(io::read_zi_csv, m)?)?;
+    m.add_function(wrap_pyfunction!(io::read_zi_hdf5, m)?)?;
+    m.add_function(wrap_pyfunction!(io::read_moku_csv, m)?)?;
     Ok(())
 }
