@@ -497,3 +497,49 @@ fn zi_hdf5_round_trip_two_demodulators_two_records() {
     .to_string();
     assert!(e.contains("not.h5") && e.contains("HDF5"), "{e}");
 }
+
+#[test]
+fn table_units_are_checked_against_the_conventions() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let data = dir.path().join("t.csv");
+    // Phases in degrees (up to 170), in a column whose name does not say so.
+    std::fs::write(
+        &data,
+        "f,X (V),Y (mV),R,phase,phase (deg)\n98,1e-3,2e-3,1e-3,170,170\n99,1e-3,2e-3,1e-3,-120,-120\n",
+    )
+    .expect("write");
+    let try_map = |columns: &str, phase_unit: &str| -> String {
+        let map = dir.path().join("m.toml");
+        std::fs::write(
+            &map,
+            format!(
+                "[columns]\nfreq_hz = \"f\"\n{columns}\n[conventions]\namplitude = \"peak\"\nquadrature = \"x+iy\"\ndisplacement_unit = \"V\"\nphase_unit = \"{phase_unit}\"\n"
+            ),
+        )
+        .expect("write map");
+        match table::Mapping::load(&map)
+            .and_then(|m| table::import(std::slice::from_ref(&data), &m, Path::new("out")))
+        {
+            Ok(_) => "imported".into(),
+            Err(e) => e.to_string(),
+        }
+    };
+    // x in V, y in mV: mixed units.
+    let e = try_map("x = \"X (V)\"\ny = \"Y (mV)\"", "rad");
+    assert!(e.contains("mixed units") && e.contains("mV"), "{e}");
+    // A column named in degrees declared in radians.
+    let e = try_map("r = \"R\"\ntheta = \"phase (deg)\"", "rad");
+    assert!(e.contains("phase (deg)") && e.contains("phase_unit"), "{e}");
+    // Degrees in an unnamed column declared in radians: the values give it away, by row.
+    let e = try_map("r = \"R\"\ntheta = \"phase\"", "rad");
+    assert!(
+        e.contains("t.csv, row 2") && e.contains("reaches 170"),
+        "{e}"
+    );
+    // Declared in degrees: imported.
+    assert_eq!(try_map("r = \"R\"\ntheta = \"phase\"", "deg"), "imported");
+    assert_eq!(
+        try_map("r = \"R\"\ntheta = \"phase (deg)\"", "deg"),
+        "imported"
+    );
+}

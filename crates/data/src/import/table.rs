@@ -16,7 +16,9 @@
 //! settle_samples = 40          # or settle_s = 0.5 (needs columns.time_s)
 //! ```
 
-use super::{build, mat, read_input, Conventions, Grouping, ImportError, Record, Settle};
+use super::{
+    build, mat, read_input, Conventions, Grouping, ImportError, PhaseUnit, Record, Settle,
+};
 use crate::dataset::Dataset;
 use num_complex::Complex64;
 use serde::Deserialize;
@@ -118,6 +120,7 @@ impl Mapping {
                 "a phase column needs [conventions] phase_unit = \"rad\", \"deg\" or \"cycles\"",
             ));
         }
+        check_units(&m, &origin)?;
         if m.settle.settle_s.is_some() && c.time_s.is_none() {
             return Err(bad(
                 "[settle] settle_s needs [columns] time_s; or use settle_samples",
@@ -128,6 +131,110 @@ impl Mapping {
         }
         Ok(m)
     }
+}
+
+/// The unit a column's name carries, if any: `X (V)`, `X [mV]`, or LabVIEW/TDMS's `X1__V_`
+/// (also as a component of a MATLAB path, `Data.X1__V_.data`).
+fn unit_tag(name: &str) -> Option<String> {
+    let t = name.trim();
+    for (open, close) in [('(', ')'), ('[', ']')] {
+        if let (Some(a), Some(b)) = (t.rfind(open), t.rfind(close)) {
+            if a < b {
+                return Some(t[a + 1..b].trim().to_string());
+            }
+        }
+    }
+    t.split('.').find_map(|part| {
+        let inner = part.strip_suffix('_')?;
+        let at = inner.rfind("__")?;
+        Some(inner[at + 2..].to_string()).filter(|u| !u.is_empty())
+    })
+}
+
+/// What the column names say against the conventions: x and y (or r) in different units, a
+/// phase column named in degrees declared in radians (or the reverse).
+fn check_units(m: &Mapping, origin: &str) -> Result<(), ImportError> {
+    let c = &m.columns;
+    let bad = |message: String| ImportError::Convention {
+        origin: origin.to_string(),
+        message,
+    };
+    if let (Some(x), Some(y)) = (&c.x, &c.y) {
+        if let (Some(ux), Some(uy)) = (unit_tag(x), unit_tag(y)) {
+            if ux != uy {
+                return Err(bad(format!(
+                    "mixed units: x is \"{x}\" ({ux}) but y is \"{y}\" ({uy}); both parts of the amplitude must be in one unit (convert one column first)"
+                )));
+            }
+        }
+    }
+    let Some(declared) = m.conventions.phase_unit else {
+        return Ok(());
+    };
+    for col in [&c.theta, &c.drive_phase].into_iter().flatten() {
+        let Some(tag) = unit_tag(col) else { continue };
+        let named = match tag.to_ascii_lowercase().as_str() {
+            "deg" | "degree" | "degrees" | "°" => PhaseUnit::Deg,
+            "rad" | "radian" | "radians" => PhaseUnit::Rad,
+            "cycles" | "cycle" | "turns" => PhaseUnit::Cycles,
+            _ => continue,
+        };
+        if named != declared {
+            return Err(bad(format!(
+                "column \"{col}\" is named in {tag} but phase_unit = \"{}\": set phase_unit to the column's unit",
+                phase_unit_name(declared)
+            )));
+        }
+    }
+    Ok(())
+}
+
+fn phase_unit_name(u: PhaseUnit) -> &'static str {
+    match u {
+        PhaseUnit::Rad => "rad",
+        PhaseUnit::Deg => "deg",
+        PhaseUnit::Cycles => "cycles",
+    }
+}
+
+/// A phase column's values against its declared unit: radians within ±2π, cycles within ±1
+/// (degrees declared as radians show as values up to 180 or 360). `rows` names each value's
+/// row or sample for the message.
+fn check_phase_range(
+    path: &Path,
+    key: &str,
+    values: &[f64],
+    unit: PhaseUnit,
+    text_rows: bool,
+) -> Result<(), ImportError> {
+    let limit = match unit {
+        PhaseUnit::Rad => 2.0 * std::f64::consts::PI,
+        PhaseUnit::Cycles => 1.0,
+        PhaseUnit::Deg => 360.0,
+    } * (1.0 + 1e-9);
+    let Some((i, v)) = values
+        .iter()
+        .copied()
+        .enumerate()
+        .filter(|(_, v)| v.is_finite())
+        .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+    else {
+        return Ok(());
+    };
+    if v.abs() <= limit {
+        return Ok(());
+    }
+    Err(ImportError::Input {
+        path: path.to_path_buf(),
+        row: text_rows.then_some(i + 2),
+        message: format!(
+            "phase column \"{key}\" reaches {v} (value {}), beyond ±{} for phase_unit = \"{}\": degrees declared as {}? Set phase_unit to the column's unit (a phase unwrapped over several turns must be wrapped first)",
+            i + 1,
+            limit / (1.0 + 1e-9),
+            phase_unit_name(unit),
+            phase_unit_name(unit)
+        ),
+    })
 }
 
 /// The columns of one input, per group (a text table is one group; a MAT path with `(*)` one
@@ -174,8 +281,18 @@ pub fn import(
             .map(|n| n.to_string_lossy().to_string())
             .unwrap_or_default();
         let file_level = mapping.files.get(&file_name).and_then(|f| f.drive_level);
+        let is_mat = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("mat"));
         for (gname, cols) in groups {
             let get = |k: &Option<String>| k.as_ref().and_then(|k| cols.get(k));
+            if let Some(u) = unit {
+                for key in [&c.theta, &c.drive_phase].into_iter().flatten() {
+                    if let Some(v) = cols.get(key) {
+                        check_phase_range(path, key, v, u, !is_mat)?;
+                    }
+                }
+            }
             let f = &cols[&c.freq_hz];
             let n = f.len();
             for (key, v) in &cols {
