@@ -258,3 +258,75 @@ metres_per_unit = 1e-3
         assert_eq!(g.spec.drive_levels_v, o.spec.drive_levels_v);
     }
 }
+
+#[test]
+fn zi_sweeper_from_a_simulated_sweep_with_its_noise() {
+    use harmonid::data::import::zi_sweeper;
+    let ds = simulated();
+    let steps = first_level(&ds);
+    let dir = tempfile::tempdir().expect("tempdir");
+    // The sweeper's point: the mean of the step's shots and the standard deviation of each
+    // quadrature (n − 1), RMS volts, x − iy; up then back down (bidirectional).
+    let mut s = String::from("grid;bandwidth;count;x;xstddev;y;ystddev;frequency\n");
+    let mut want: Vec<(f64, Complex64, f64)> = Vec::new();
+    let order: Vec<usize> = (0..steps.len()).chain((0..steps.len()).rev()).collect();
+    for &k in &order {
+        let m = steps[k];
+        let n = m.n_shots as f64;
+        let mean: Complex64 = (0..m.n_shots)
+            .map(|j| m.amplitude(j, 0, 0))
+            .sum::<Complex64>()
+            / n;
+        let var = |part: fn(Complex64) -> f64| {
+            (0..m.n_shots)
+                .map(|j| (part(m.amplitude(j, 0, 0)) - part(mean)).powi(2))
+                .sum::<f64>()
+                / (n - 1.0)
+        };
+        let (vx, vy) = (var(|z| z.re), var(|z| z.im));
+        let z = rms_conj_volts(mean);
+        let f = m.freqs_hz[0];
+        let _ = writeln!(
+            s,
+            "{f:?};10.0;{};{:e};{:e};{:e};{:e};{f:?}",
+            m.n_shots,
+            z.re,
+            vx.sqrt() / SQRT_2 / K_M_PER_V,
+            z.im,
+            vy.sqrt() / SQRT_2 / K_M_PER_V
+        );
+        want.push((f, mean, ((vx + vy) / 2.0).sqrt()));
+    }
+    let p = dir.path().join("dev4955_sweeper_demods_0.csv");
+    std::fs::write(&p, s).expect("write");
+    let (got, _) = zi_sweeper::import(
+        &[p],
+        &conv(Amplitude::Rms, Quadrature::XMinusIY, None),
+        &zi_sweeper::Options { drive_level: None },
+        Path::new("out"),
+    )
+    .expect("import");
+    // Up and down: two sweeps.
+    assert_eq!(got.manifest.sweeps.len(), 2);
+    assert_eq!(
+        got.manifest.sweeps[0].direction,
+        harmonid::data::Direction::Up
+    );
+    assert_eq!(
+        got.manifest.sweeps[1].direction,
+        harmonid::data::Direction::Down
+    );
+    assert_eq!(got.measurements.len(), want.len());
+    for (g, (f, mean, std)) in got.measurements.iter().zip(&want) {
+        assert_eq!(g.n_shots, 1);
+        assert!((g.spec.drives_hz[0] - f).abs() <= 1e-12 * f);
+        assert!(
+            (g.data[0] - mean).norm() <= 1e-12 * mean.norm(),
+            "{}",
+            g.spec.name
+        );
+        let noise = g.noise.as_ref().expect("noise given");
+        assert!((noise.std[0] - std).abs() <= 1e-12 * std, "{}", g.spec.name);
+        assert_eq!(noise.samples[0], 4);
+    }
+}

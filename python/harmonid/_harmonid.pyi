@@ -208,3 +208,12 @@ def read_moku_csv(
     settle_s: Optional[float] = None,
     settle_samples: Optional[int] = None,
 ) -> Dataset: ...
+def read_zi_sweeper(
+    files: Sequence[_Path],
+    *,
+    amplitude: str,
+    quadrature: str,
+    metres_per_unit: Optional[float],
+    response: str = "displacement",
+    drive_level: Optional[float] = None,
+) -> Dataset: ...

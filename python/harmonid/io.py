@@ -20,6 +20,6 @@ Example::
     ds.notes      # ["1 sweeps, 40 steps; 1600 of 8000 samples dropped as settling ..."]
 """
 
-from ._harmonid import read_moku_csv, read_table, read_zi_csv, read_zi_hdf5
+from ._harmonid import read_moku_csv, read_table, read_zi_csv, read_zi_hdf5, read_zi_sweeper
 
-__all__ = ["read_moku_csv", "read_table", "read_zi_csv", "read_zi_hdf5"]
+__all__ = ["read_moku_csv", "read_table", "read_zi_csv", "read_zi_hdf5", "read_zi_sweeper"]

@@ -119,6 +119,22 @@ fn measurement_from_dict(
     }
     let n_shots = shape[0];
     let data: Vec<Complex64> = amps.as_slice()?.iter().map(|x| x * scale).collect();
+    // A noise given with the data: `std` (per quadrature of one averaged sample) and `samples`
+    // (how many were averaged), one per frequency and point; checked by `from_parts`.
+    let std: Option<Vec<f64>> = opt(d, "std")?;
+    let samples: Option<Vec<u32>> = opt(d, "samples")?;
+    let noise = match (std, samples) {
+        (Some(std), Some(samples)) => Some(harmonid_data::GivenNoise {
+            std: std.iter().map(|s| s * scale).collect(),
+            samples,
+        }),
+        (None, None) => None,
+        _ => {
+            return Err(DatasetError::new_err(
+                "\"std\" and \"samples\" go together: the standard deviation per quadrature of the averaged samples and how many were averaged",
+            ))
+        }
+    };
     Ok(Measurement {
         spec: MeasurementSpec {
             name,
@@ -133,6 +149,7 @@ fn measurement_from_dict(
         points,
         n_shots,
         data,
+        noise,
     })
 }
 
@@ -273,6 +290,11 @@ impl Dataset {
         d.set_item("drive_levels_v", &m.spec.drive_levels_v)?;
         d.set_item("drive_phases_rad", &m.spec.drive_phases_rad)?;
         d.set_item("bandwidth_hz", m.spec.bandwidth_hz)?;
+        // A noise given with the data: per frequency and point, in data order (metres).
+        if let Some(g) = &m.noise {
+            d.set_item("std", g.std.clone().into_pyarray(py))?;
+            d.set_item("samples", g.samples.clone().into_pyarray(py))?;
+        }
         Ok(d)
     }
 

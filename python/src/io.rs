@@ -7,8 +7,8 @@
 use crate::dataset::Dataset;
 use crate::errors::DatasetError;
 use harmonid_data::import::{
-    moku_csv, table, zi_csv, zi_hdf5, Amplitude, Conventions, ImportError, PhaseUnit, Quadrature,
-    Response, Settle,
+    moku_csv, table, zi_csv, zi_hdf5, zi_sweeper, Amplitude, Conventions, ImportError, PhaseUnit,
+    Quadrature, Response, Settle,
 };
 use pyo3::prelude::*;
 use std::path::{Path, PathBuf};
@@ -196,4 +196,22 @@ pub fn read_moku_csv(
         drive_level,
     };
     done(py.detach(|| moku_csv::import(&files, &conv, settle, &opts, Path::new("<imported>"))))
+}
+
+/// Reads LabOne sweeper CSVs (one per demodulator, the drive's first): each point a step whose
+/// noise is the sweeper's standard deviation over `count` samples.
+#[pyfunction]
+#[pyo3(signature = (files, *, amplitude, quadrature, metres_per_unit, response = "displacement", drive_level = None))]
+pub fn read_zi_sweeper(
+    py: Python<'_>,
+    files: Vec<PathBuf>,
+    amplitude: &str,
+    quadrature: &str,
+    metres_per_unit: Option<f64>,
+    response: &str,
+    drive_level: Option<f64>,
+) -> PyResult<Dataset> {
+    let conv = conventions(amplitude, quadrature, response, metres_per_unit, None)?;
+    let opts = zi_sweeper::Options { drive_level };
+    done(py.detach(|| zi_sweeper::import(&files, &conv, &opts, Path::new("<imported>"))))
 }

@@ -43,6 +43,7 @@ fn _harmonid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(io::read_table, m)?)?;
     m.add_function(wrap_pyfunction!(io::read_zi_csv, m)?)?;
     m.add_function(wrap_pyfunction!(io::read_zi_hdf5, m)?)?;
+    m.add_function(wrap_pyfunction!(io::read_zi_sweeper, m)?)?;
     m.add_function(wrap_pyfunction!(io::read_moku_csv, m)?)?;
     Ok(())
 }

@@ -106,3 +106,23 @@ def test_read_table_with_a_mapping(tmp_path):
     with pytest.raises(harmonid.DatasetError, match="map.toml"):
         mapping.write_text('[columns]\nfreq_hz = "f"\n')
         harmonid.io.read_table([data], mapping)
+
+
+def test_zi_sweeper_gives_the_noise(tmp_path):
+    p = tmp_path / "sweep.csv"
+    rows = ["grid;count;x;xstddev;y;ystddev"]
+    for f in STEPS:
+        z = truth(f, 1, 0)
+        rows.append(f"{f!r};10;{z.real!r};{abs(z) * 1e-3!r};{z.imag!r};{abs(z) * 1e-3!r}")
+    p.write_text("\n".join(rows) + "\n")
+    ds = harmonid.io.read_zi_sweeper(
+        [p], amplitude="peak", quadrature="x+iy", metres_per_unit=1.0
+    )
+    assert len(ds.measurements) == 4
+    for k_step, name in enumerate(ds.measurements):
+        m = ds.measurement(name)
+        want = truth(STEPS[k_step], 1, 0)
+        assert m["amplitudes"].shape == (1, 1, 1)
+        assert abs(m["amplitudes"][0, 0, 0] - want) <= 1e-12 * abs(want)
+        assert m["samples"][0] == 10
+        assert abs(m["std"][0] - abs(want) * 1e-3) <= 1e-12 * abs(want) * 1e-3

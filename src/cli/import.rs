@@ -2,8 +2,8 @@
 
 use clap::{Parser, ValueEnum};
 use harmonid_data::import::{
-    moku_csv, table, zi_csv, zi_hdf5, Amplitude, Conventions, ImportError, PhaseUnit, Quadrature,
-    Response, Settle,
+    moku_csv, table, zi_csv, zi_hdf5, zi_sweeper, Amplitude, Conventions, ImportError, PhaseUnit,
+    Quadrature, Response, Settle,
 };
 use miette::WrapErr;
 use std::path::PathBuf;
@@ -17,6 +17,9 @@ pub enum Format {
     ZiCsv,
     /// Zurich Instruments LabOne HDF5 record (record groups 000, 001, … of demodulator samples).
     ZiHdf5,
+    /// Zurich Instruments LabOne sweeper CSV (mean and standard deviation per point; one file
+    /// per demodulator, the drive's first).
+    ZiSweeper,
     /// Liquid Instruments Moku lock-in record converted to CSV (one file per frequency step).
     MokuCsv,
 }
@@ -40,32 +43,32 @@ pub struct Args {
     /// table: the mapping file (columns, conventions, settling; docs/data-format.md).
     #[arg(long, value_name = "MAPPING.toml")]
     pub map: Option<PathBuf>,
-    /// zi-csv, zi-hdf5, moku-csv: are the amplitudes peak or RMS? (not confirmed by the vendors: required)
+    /// zi-csv, zi-hdf5, zi-sweeper, moku-csv: are the amplitudes peak or RMS? (not confirmed by the vendors: required)
     #[arg(long, value_enum)]
     pub amplitude: Option<AmplitudeArg>,
-    /// zi-csv, zi-hdf5, moku-csv: x+iy (harmonid's convention) or x-iy (the file's phase rises through a
+    /// zi-csv, zi-hdf5, zi-sweeper, moku-csv: x+iy (harmonid's convention) or x-iy (the file's phase rises through a
     /// resonance).
     #[arg(long, value_name = "x+iy|x-iy")]
     pub quadrature: Option<String>,
-    /// zi-csv, zi-hdf5, moku-csv: what the sensor measured.
+    /// zi-csv, zi-hdf5, zi-sweeper, moku-csv: what the sensor measured.
     #[arg(long, value_enum, default_value = "displacement")]
     pub response: ResponseArg,
-    /// zi-csv, zi-hdf5, moku-csv: metres of displacement per volt; without it, --volts keeps volts.
+    /// zi-csv, zi-hdf5, zi-sweeper, moku-csv: metres of displacement per volt; without it, --volts keeps volts.
     #[arg(long, value_name = "M_PER_V", conflicts_with = "volts")]
     pub metres_per_unit: Option<f64>,
-    /// zi-csv, zi-hdf5, moku-csv: keep the instrument's volts (no sensor calibration; results in volts).
+    /// zi-csv, zi-hdf5, zi-sweeper, moku-csv: keep the instrument's volts (no sensor calibration; results in volts).
     #[arg(long)]
     pub volts: bool,
     /// zi-csv, zi-hdf5: device ticks per second (60e6 on the MFLI, 1.8e9 on the UHFLI).
     #[arg(long, value_name = "HZ")]
     pub clockbase_hz: Option<f64>,
-    /// zi-csv, zi-hdf5, moku-csv: the drive's output level (V); without it, every step's force is free.
+    /// zi-csv, zi-hdf5, zi-sweeper, moku-csv: the drive's output level (V); without it, every step's force is free.
     #[arg(long, value_name = "V")]
     pub drive_level: Option<f64>,
-    /// zi-csv, zi-hdf5, moku-csv: samples earlier than this after their step began are settling: dropped.
+    /// zi-csv, zi-hdf5, zi-sweeper, moku-csv: samples earlier than this after their step began are settling: dropped.
     #[arg(long, value_name = "S", conflicts_with = "settle_samples")]
     pub settle_s: Option<f64>,
-    /// zi-csv, zi-hdf5, moku-csv: the first this many samples of each step are settling: dropped.
+    /// zi-csv, zi-hdf5, zi-sweeper, moku-csv: the first this many samples of each step are settling: dropped.
     #[arg(long, value_name = "N")]
     pub settle_samples: Option<usize>,
     /// zi-hdf5: the demodulators to read, the drive's first (default: every one, in number
@@ -217,6 +220,18 @@ pub fn run(args: Args) -> miette::Result<()> {
                 drive_level: args.drive_level,
             };
             zi_hdf5::import(&args.inputs, &conv, settle, &opts, &args.out)
+        }),
+        Format::ZiSweeper => conventions(&args).and_then(|conv| {
+            if settle.settle_s.is_some() || settle.settle_samples.is_some() {
+                return Err(ImportError::Convention {
+                    origin: "--settle-s/--settle-samples".into(),
+                    message: "the sweeper settles before it averages (its settling time is a sweeper setting): no samples to drop".into(),
+                });
+            }
+            let opts = zi_sweeper::Options {
+                drive_level: args.drive_level,
+            };
+            zi_sweeper::import(&args.inputs, &conv, &opts, &args.out)
         }),
         Format::MokuCsv => conventions(&args).and_then(|mut conv| {
             let missing = |flag: &str, what: &str| ImportError::Convention {

@@ -9,8 +9,8 @@ pub mod text;
 pub mod units;
 
 pub use dataset::{
-    Dataset, DatasetError, Direction, Manifest, Measurement, MeasurementSpec, PerStep, Point,
-    SweepSpec, SweepStep, Truth, TruthForce, TruthMode, TruthNoise, DATASET_FORMAT, FREQ_REL_TOL,
-    MAX_MANIFEST_BYTES,
+    Dataset, DatasetError, Direction, GivenNoise, Manifest, Measurement, MeasurementSpec, PerStep,
+    Point, SweepSpec, SweepStep, Truth, TruthForce, TruthMode, TruthNoise, DATASET_FORMAT,
+    FREQ_REL_TOL, MAX_MANIFEST_BYTES,
 };
 pub use units::{metres_per, parse_length, LengthError, LENGTH_UNITS};

@@ -1,4 +1,4 @@
-//! Reading one measurement's CSV, streamed: one reused record buffer, 40 bytes kept per row
+//! Reading one measurement's CSV, streamed: one reused record buffer, 56 bytes kept per row
 //! while reading and 16 per value after.
 
 use super::*;
@@ -19,6 +19,10 @@ pub(super) struct Cell {
     pub(super) row: u32,
     /// The sweep step (0 for a measurement's CSV).
     pub(super) step: u32,
+    /// The row's noise, when the CSV has `std` and `samples` columns: the standard deviation
+    /// per quadrature of one averaged sample (m) and how many were averaged; else 0.
+    pub(super) std: f64,
+    pub(super) samples: u32,
 }
 
 /// Which CSV is read: a measurement's, or a sweep's (with its `step` column, `steps` steps,
@@ -109,6 +113,16 @@ pub(super) fn assemble(
         });
     }
     let n_shots = shots.len();
+    let given = cells[0].samples > 0;
+    if given && n_shots > 1 {
+        return Err(DatasetError::Inconsistent {
+            path: path.to_path_buf(),
+            message: format!(
+                "measurement \"{}\" has std and samples columns (each row an average with its noise) and {n_shots} shots: give one shot (0), or leave the noise to the shot scatter without those columns",
+                spec.name
+            ),
+        });
+    }
     let mut points: Vec<usize> = groups.iter().map(|g| g[0].point as usize).collect();
     points.sort_unstable();
     points.dedup();
@@ -153,11 +167,19 @@ pub(super) fn assemble(
     let nf = freqs.len();
     let np = points.len();
     let mut data = vec![Complex64::new(0.0, 0.0); n_shots * nf * np];
+    let mut noise = given.then(|| GivenNoise {
+        std: vec![0.0; nf * np],
+        samples: vec![0; nf * np],
+    });
     for g in &groups {
         let s = g[0].shot as usize;
         let pl = points.binary_search(&(g[0].point as usize)).unwrap_or(0);
         for (f, c) in g.iter().enumerate() {
             data[(s * nf + f) * np + pl] = c.x;
+            if let Some(n) = noise.as_mut() {
+                n.std[f * np + pl] = c.std;
+                n.samples[f * np + pl] = c.samples;
+            }
         }
     }
     drop(groups);
@@ -167,6 +189,7 @@ pub(super) fn assemble(
         points,
         n_shots,
         data,
+        noise,
     })
 }
 
@@ -216,6 +239,16 @@ pub(super) fn read_cells<R: std::io::Read>(
     };
     let (c_shot, c_freq, c_re, c_im) = (req("shot")?, req("freq_hz")?, req("re")?, req("im")?);
     let c_point = col("point")?;
+    let noise_cols = match (col("std")?, col("samples")?) {
+        (Some(a), Some(b)) => Some((a, b)),
+        (None, None) => None,
+        _ => {
+            return Err(row_err(
+                1,
+                "std and samples go together: the standard deviation per quadrature of the averaged samples and how many were averaged".into(),
+            ))
+        }
+    };
     let (c_step, steps, settle) = match columns {
         Columns::Measurement => (None, 0, None),
         Columns::Sweep { steps, settle_s } => {
@@ -354,6 +387,32 @@ pub(super) fn read_cells<R: std::io::Read>(
             }
             _ => 0,
         };
+        let (std, samples) = match noise_cols {
+            Some((cs, cn)) => {
+                let sd = num(cs, "std")? * scale;
+                if sd <= 0.0 {
+                    return Err(row_err(
+                        row,
+                        format!(
+                            "std = {}: a standard deviation must be positive",
+                            num_text(sd)
+                        ),
+                    ));
+                }
+                let t = field(cn, "samples")?;
+                let n = t.parse::<u32>().ok().filter(|&n| n >= 2).ok_or_else(|| {
+                    row_err(
+                        row,
+                        format!(
+                            "column \"samples\": \"{}\" is not a count of at least 2 averaged samples",
+                            shown(t)
+                        ),
+                    )
+                })?;
+                (sd, n)
+            }
+            None => (0.0, 0),
+        };
         cells.push(Cell {
             freq_hz: f,
             x,
@@ -362,6 +421,8 @@ pub(super) fn read_cells<R: std::io::Read>(
             point: u32::try_from(p).unwrap_or(u32::MAX),
             row: row32,
             step,
+            std,
+            samples,
         });
     }
     Ok((cells, early))

@@ -368,6 +368,31 @@ pub struct Measurement {
     pub n_shots: usize,
     /// Amplitudes, metres, index `(shot * freqs_hz.len() + f) * points.len() + p`.
     pub data: Vec<Complex64>,
+    /// The noise the instrument measured with the data, when each row is already an average
+    /// (the CSV's `std` and `samples` columns; one shot); `None`: the noise comes from the
+    /// scatter of the shots.
+    pub noise: Option<GivenNoise>,
+}
+
+/// The noise of a measurement whose rows are averages an instrument made (a sweeper's mean
+/// and standard deviation per point), per (frequency, point) in a shot's data order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GivenNoise {
+    /// Standard deviation per quadrature of one averaged sample, metres (`√((σx² + σy²)/2)`
+    /// of the instrument's `xstddev`, `ystddev`).
+    pub std: Vec<f64>,
+    /// How many samples each row averages.
+    pub samples: Vec<u32>,
+}
+
+impl GivenNoise {
+    /// The noise per quadrature of each row's mean, metres: `std/√samples`.
+    pub fn of_mean(&self) -> impl Iterator<Item = f64> + '_ {
+        self.std
+            .iter()
+            .zip(&self.samples)
+            .map(|(s, &n)| s / f64::from(n).sqrt())
+    }
 }
 
 impl Measurement {
@@ -399,6 +424,7 @@ impl Measurement {
             points,
             n_shots,
             data: vec![Complex64::new(0.0, 0.0); n],
+            noise: None,
         }
     }
 
@@ -418,6 +444,18 @@ impl Measurement {
                 }
             }
         }
+        let np = self.points.len();
+        out.noise = self.noise.as_ref().map(|g| {
+            let pick = || {
+                freq_idx
+                    .iter()
+                    .flat_map(move |&f| (0..np).map(move |p| f * np + p))
+            };
+            GivenNoise {
+                std: pick().map(|i| g.std[i]).collect(),
+                samples: pick().map(|i| g.samples[i]).collect(),
+            }
+        });
         out
     }
 
@@ -435,6 +473,7 @@ impl Measurement {
             points: self.points.clone(),
             n_shots: shots.len(),
             data,
+            noise: self.noise.clone(),
         }
     }
 

@@ -91,6 +91,31 @@ pub(super) fn check_measurement(
             m.freqs_hz[f], m.data[i]
         )));
     }
+    if let Some(g) = &m.noise {
+        if m.n_shots != 1 {
+            return Err(bad(format!(
+                "a noise given with the data (each row an average) needs one shot, not {}",
+                m.n_shots
+            )));
+        }
+        if g.std.len() != nf * np || g.samples.len() != nf * np {
+            return Err(bad(format!(
+                "{} standard deviations and {} sample counts for {nf} frequencies × {np} points",
+                g.std.len(),
+                g.samples.len()
+            )));
+        }
+        if let Some(s) = g.std.iter().find(|s| !(s.is_finite() && **s > 0.0)) {
+            return Err(bad(format!(
+                "standard deviation {s}: it must be positive and finite"
+            )));
+        }
+        if let Some(n) = g.samples.iter().find(|n| **n < 2) {
+            return Err(bad(format!(
+                "{n} samples averaged: a standard deviation needs at least 2"
+            )));
+        }
+    }
     let mut order: Vec<usize> = (0..nf).collect();
     order.sort_by(|&a, &b| m.freqs_hz[a].total_cmp(&m.freqs_hz[b]));
     let freqs: Vec<f64> = order.iter().map(|&i| m.freqs_hz[i]).collect();
@@ -111,6 +136,18 @@ pub(super) fn check_measurement(
         }
         m.data = data;
         m.freqs_hz = freqs;
+        if let Some(g) = m.noise.as_mut() {
+            g.std = reorder(&g.std, &order, np);
+            g.samples = reorder(&g.samples, &order, np);
+        }
     }
     Ok(())
+}
+
+/// `v` (per frequency, `np` points each) with its frequencies in the order `order`.
+fn reorder<T: Copy>(v: &[T], order: &[usize], np: usize) -> Vec<T> {
+    order
+        .iter()
+        .flat_map(|&f| v[f * np..(f + 1) * np].iter().copied())
+        .collect()
 }

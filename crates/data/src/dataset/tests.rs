@@ -440,3 +440,36 @@ fn select_lines_keeps_every_shot_and_point_of_the_chosen_lines() {
     assert_eq!(r.amplitude(1, 0, 1), Complex64::new(121.0, 1.0));
     assert_eq!(r.amplitude(0, 1, 0), Complex64::new(0.0, 1.0));
 }
+
+#[test]
+fn a_noise_given_with_the_data_is_read_in_unit_and_its_rules_are_kept() {
+    let d = tempfile::tempdir().expect("tempdir");
+    write(d.path(), "dataset.toml", MANIFEST);
+    // Rows out of frequency order: the noise follows its row.
+    write(
+        d.path(),
+        "m1.csv",
+        "shot,freq_hz,re,im,std,samples\n0,1010,5,6,0.3,10\n0,970,1,2,0.1,10\n0,990,3,4,0.2,12\n",
+    );
+    let ds = Dataset::load(d.path()).expect("load");
+    let g = ds.measurements[0].noise.as_ref().expect("noise");
+    // nm → m.
+    for (got, want) in g.std.iter().zip([0.1e-9, 0.2e-9, 0.3e-9]) {
+        assert!((got - want).abs() <= 1e-24, "{got} vs {want}");
+    }
+    assert_eq!(g.samples, vec![10, 12, 10]);
+    // Refused: std without samples, one sample, a zero std, two shots with a given noise.
+    for (csv, expect) in [
+        ("shot,freq_hz,re,im,std\n0,970,1,2,0.1\n0,990,3,4,0.1\n0,1010,5,6,0.1\n", "go together"),
+        ("shot,freq_hz,re,im,std,samples\n0,970,1,2,0.1,1\n0,990,3,4,0.1,2\n0,1010,5,6,0.1,2\n", "at least 2"),
+        ("shot,freq_hz,re,im,std,samples\n0,970,1,2,0,5\n0,990,3,4,0.1,5\n0,1010,5,6,0.1,5\n", "must be positive"),
+        (
+            "shot,freq_hz,re,im,std,samples\n0,970,1,2,0.1,5\n0,990,3,4,0.1,5\n0,1010,5,6,0.1,5\n1,970,1,2,0.1,5\n1,990,3,4,0.1,5\n1,1010,5,6,0.1,5\n",
+            "give one shot",
+        ),
+    ] {
+        write(d.path(), "m1.csv", csv);
+        let e = Dataset::load(d.path()).expect_err(expect).to_string();
+        assert!(e.contains(expect), "{e}");
+    }
+}

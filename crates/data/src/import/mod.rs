@@ -13,6 +13,7 @@ pub mod moku_csv;
 pub mod table;
 pub mod zi_csv;
 pub mod zi_hdf5;
+pub mod zi_sweeper;
 
 use crate::dataset::{
     Dataset, DatasetError, Direction, Manifest, Measurement, SweepSpec, FREQ_REL_TOL,
@@ -279,6 +280,9 @@ pub struct Record {
     pub time_s: Option<f64>,
     /// Where it came from: input file index and 1-based row (for messages).
     pub origin: (usize, usize),
+    /// When the sample is an average the instrument made: the standard deviation per quadrature
+    /// of the samples it averaged (the file's units) and how many.
+    pub noise: Option<(f64, u32)>,
 }
 
 /// How to cut records into sweeps, and what to call them.
@@ -337,6 +341,9 @@ struct Step {
     data: Vec<Complex64>,
     /// Which lines the last sample has so far.
     seen: Vec<bool>,
+    /// The noise given with each value of `data` (converted like the amplitudes), when the
+    /// records carry it.
+    noise: Option<Vec<(f64, u32)>>,
     /// Where the first record of the step came from (for messages).
     origin: (usize, usize),
 }
@@ -413,6 +420,7 @@ pub fn build(
                 times: Vec::new(),
                 data: Vec::new(),
                 seen: Vec::new(),
+                noise: r.noise.map(|_| Vec::new()),
                 origin: r.origin,
             });
         }
@@ -442,6 +450,9 @@ pub fn build(
                 Complex64::new(0.0, 0.0),
                 step.lines.len(),
             ));
+            if let Some(n) = step.noise.as_mut() {
+                n.extend(std::iter::repeat_n((0.0, 0), step.lines.len()));
+            }
             step.seen.iter_mut().for_each(|b| *b = false);
         }
         let i = match known {
@@ -450,6 +461,9 @@ pub fn build(
                 step.lines.push(line);
                 step.seen.push(false);
                 step.data.push(Complex64::new(0.0, 0.0));
+                if let Some(n) = step.noise.as_mut() {
+                    n.push((0.0, 0));
+                }
                 step.lines.len() - 1
             }
             None => {
@@ -467,6 +481,20 @@ pub fn build(
         let base = (step.times.len() - 1) * step.lines.len();
         step.data[base + i] = x;
         step.seen[i] = true;
+        match (step.noise.as_mut(), r.noise) {
+            (Some(n), Some((sd, count))) => {
+                n[base + i] = (conv.apply(Complex64::new(sd, 0.0), line).norm(), count);
+            }
+            (None, None) => {}
+            _ => {
+                return Err(ImportError::Input {
+                    path: path_of(r.origin),
+                    row: Some(r.origin.1),
+                    message: "some samples of this step carry a standard deviation and some do not"
+                        .into(),
+                })
+            }
+        }
     }
     let Some(tail) = steps.last() else {
         return Err(ImportError::Input {
@@ -494,11 +522,17 @@ pub fn build(
             if keep {
                 s.times[kept] = s.times[j];
                 s.data.copy_within(j * nl..(j + 1) * nl, kept * nl);
+                if let Some(n) = s.noise.as_mut() {
+                    n.copy_within(j * nl..(j + 1) * nl, kept * nl);
+                }
                 kept += 1;
             }
         }
         s.times.truncate(kept);
         s.data.truncate(kept * nl);
+        if let Some(n) = s.noise.as_mut() {
+            n.truncate(kept * nl);
+        }
     }
     let kept: usize = steps.iter().map(|s| s.times.len()).sum();
     if let Some(k) = steps.iter().position(|s| s.times.is_empty()) {
@@ -566,6 +600,23 @@ pub fn build(
                 for (to, &from) in order.iter().enumerate() {
                     *m.amplitude_mut(j, to, 0) = sample[from];
                 }
+            }
+            if let Some(n) = &s.noise {
+                if s.times.len() != 1 {
+                    return Err(ImportError::Input {
+                        path: path_of(s.origin),
+                        row: Some(s.origin.1),
+                        message: format!(
+                            "the step at {} Hz has {} averaged samples with their noise; an averaged step is one sample",
+                            s.drive,
+                            s.times.len()
+                        ),
+                    });
+                }
+                m.noise = Some(crate::dataset::GivenNoise {
+                    std: order.iter().map(|&i| n[i].0).collect(),
+                    samples: order.iter().map(|&i| n[i].1).collect(),
+                });
             }
             measurements.push(m);
         }

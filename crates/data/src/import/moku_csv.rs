@@ -218,6 +218,7 @@ pub fn import(
                 step: Some(fi as u64),
                 time_s: Some(time),
                 origin: (fi, row),
+                noise: None,
             });
         }
     }

@@ -348,6 +348,7 @@ pub fn import(
                     step: get(&c.step).map(|v| v[i] as u64),
                     time_s: get(&c.time_s).map(|v| v[i]),
                     origin: (fi, i + 2),
+                    noise: None,
                 });
             }
         }

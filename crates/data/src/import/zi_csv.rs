@@ -175,6 +175,7 @@ pub fn import(
             step: None,
             time_s: Some(d.timestamp[i] as f64 / opts.clockbase_hz),
             origin: (k, i + 2),
+            noise: None,
         })
     });
     let grouping = Grouping {

@@ -139,6 +139,7 @@ pub fn import(
                 time_s: Some(d.timestamp[i] as f64 / clock),
                 // No rows in HDF5: the sample index, 1-based.
                 origin: (*fi, i + 1),
+                noise: None,
             })
         })
     });

@@ -13,7 +13,9 @@
 //! nothing is rejected.
 //!
 //! The noise of a line is the sample standard deviation per quadrature of the kept shots,
-//! `σ_o² = Σ_s |x_{s,o} − x̄_o|² / (2(n − 1))` (m); the mean's is `σ_o/√n`.
+//! `σ_o² = Σ_s |x_{s,o} − x̄_o|² / (2(n − 1))` (m); the mean's is `σ_o/√n`. A measurement whose
+//! rows are averages with their noise given (an instrument's sweeper: the dataset's `std` and
+//! `samples` columns) is its own mean, with that noise.
 
 use harmonid_data::Dataset;
 use num_complex::Complex64;
@@ -123,6 +125,22 @@ pub fn pool(ds: &Dataset) -> Pooled {
     let mut used = Vec::with_capacity(ds.measurements.len());
     let mut sigma = Vec::with_capacity(ds.measurements.len());
     for m in &mut mean.measurements {
+        if let Some(g) = &m.noise {
+            // The instrument averaged each row and measured its noise (one shot): the mean as
+            // given, each line's noise of the mean `std/√samples`, expressed per shot of the
+            // fewest samples averaged (`used`), so `σ/√used` is that noise.
+            let n = g.samples.iter().copied().min().unwrap_or(2).max(2);
+            sigma.push(Some(
+                g.std
+                    .iter()
+                    .zip(&g.samples)
+                    .map(|(s, &k)| s * (f64::from(n) / f64::from(k)).sqrt())
+                    .collect(),
+            ));
+            used.push(n as usize);
+            rejected.push(Vec::new());
+            continue;
+        }
         let per = m.freqs_hz.len() * m.points.len();
         let shots: Vec<&[Complex64]> = (0..m.n_shots)
             .map(|s| &m.data[s * per..(s + 1) * per])

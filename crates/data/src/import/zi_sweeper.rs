@@ -1,0 +1,217 @@
+//! `harmonid import zi-sweeper`: Zurich Instruments LabOne sweeper results saved as CSV, one
+//! file per demodulator (the drive's first), one row per sweep point with the sweeper's
+//! fields (`ZISweeperDemodWave`): `grid` (the swept frequency), the means `x`, `y`, their
+//! standard deviations `xstddev`, `ystddev`, and `count` (samples averaged); optional
+//! `frequency` (the demodulator's own frequency, which is the line when present: a harmonic
+//! demodulator sits at n × grid). Separated by `;` (or `,`, as the header is).
+//!
+//! Each point becomes one step of one sample with its noise given (the dataset's `std` and
+//! `samples`): `√((σx² + σy²)/2)` per quadrature, from `count` samples. A sweep that turns
+//! back (the sweeper's bidirectional mode) becomes two sweeps, up and down.
+
+use super::{build, for_each_line, Conventions, Grouping, ImportError, Record};
+use crate::dataset::Dataset;
+use num_complex::Complex64;
+use std::path::{Path, PathBuf};
+
+/// What the files do not say.
+#[derive(Debug, Clone, Default)]
+pub struct Options {
+    /// The drive level of every point, if known.
+    pub drive_level: Option<f64>,
+}
+
+/// One point of one demodulator.
+#[derive(Clone, Copy)]
+struct Point {
+    grid: f64,
+    line: f64,
+    z: Complex64,
+    std: f64,
+    count: u32,
+    row: usize,
+}
+
+const REQUIRED: [&str; 6] = ["grid", "x", "y", "xstddev", "ystddev", "count"];
+
+fn read_points(path: &Path) -> Result<Vec<Point>, ImportError> {
+    let bad = |row: usize, message: String| ImportError::Input {
+        path: path.to_path_buf(),
+        row: Some(row),
+        message,
+    };
+    let mut cols: Option<([usize; 6], Option<usize>, char)> = None;
+    let mut points = Vec::new();
+    for_each_line(path, |row, line| {
+        let Some((c, c_freq, sep)) = cols else {
+            let sep = if line.contains(';') { ';' } else { ',' };
+            let header: Vec<&str> = line.split(sep).map(str::trim).collect();
+            let mut found = [0; 6];
+            for (f, name) in found.iter_mut().zip(REQUIRED) {
+                *f = header.iter().position(|h| *h == name).ok_or_else(|| {
+                    bad(
+                        1,
+                        format!(
+                            "no column \"{name}\" (found: {}); a LabOne sweeper CSV has grid, x, y, xstddev, ystddev, count, ...",
+                            header.join(&sep.to_string())
+                        ),
+                    )
+                })?;
+            }
+            cols = Some((found, header.iter().position(|h| *h == "frequency"), sep));
+            return Ok(());
+        };
+        if line.trim().is_empty() {
+            return Ok(());
+        }
+        let fields: Vec<&str> = line.split(sep).map(str::trim).collect();
+        let field = |i: usize, name: &str| {
+            fields.get(i).copied().ok_or_else(|| {
+                bad(
+                    row,
+                    format!("no value in column \"{name}\" (a truncated row?)"),
+                )
+            })
+        };
+        let num = |i: usize, name: &str| -> Result<f64, ImportError> {
+            let t = field(i, name)?;
+            t.parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| {
+                    bad(
+                        row,
+                        format!("column \"{name}\": \"{t}\" is not a finite number"),
+                    )
+                })
+        };
+        let grid = num(c[0], "grid")?;
+        let (sx, sy) = (num(c[3], "xstddev")?, num(c[4], "ystddev")?);
+        let t = field(c[5], "count")?;
+        let count: u32 = t
+            .parse::<f64>()
+            .ok()
+            .filter(|n| n.fract() == 0.0 && *n >= 2.0 && *n <= f64::from(u32::MAX))
+            .map(|n| n as u32)
+            .ok_or_else(|| {
+                bad(
+                    row,
+                    format!("column \"count\": \"{t}\" is not a count of at least 2 samples (a point needs two for its standard deviation)"),
+                )
+            })?;
+        let std = ((sx * sx + sy * sy) / 2.0).sqrt();
+        if std <= 0.0 {
+            return Err(bad(
+                row,
+                "xstddev and ystddev are 0: a point's noise must be positive".into(),
+            ));
+        }
+        points.push(Point {
+            grid,
+            line: match c_freq {
+                Some(i) => num(i, "frequency")?,
+                None => grid,
+            },
+            z: Complex64::new(num(c[1], "x")?, num(c[2], "y")?),
+            std,
+            count,
+            row,
+        });
+        Ok(())
+    })?;
+    if cols.is_none() {
+        return Err(ImportError::Input {
+            path: path.to_path_buf(),
+            row: None,
+            message: "the file is empty".into(),
+        });
+    }
+    Ok(points)
+}
+
+/// Imports the sweeper files `inputs` (one per demodulator, the drive's first) into a dataset
+/// named `out`.
+pub fn import(
+    inputs: &[PathBuf],
+    conv: &Conventions,
+    opts: &Options,
+    out: &Path,
+) -> Result<(Dataset, String), ImportError> {
+    let demods: Vec<Vec<Point>> = inputs
+        .iter()
+        .map(|p| read_points(p))
+        .collect::<Result<_, _>>()?;
+    let drive = &demods[0];
+    for (k, d) in demods.iter().enumerate().skip(1) {
+        let differs = d.len() != drive.len()
+            || d.iter().zip(drive).any(|(a, b)| {
+                (a.grid - b.grid).abs() > crate::dataset::FREQ_REL_TOL * a.grid.abs()
+            });
+        if differs {
+            return Err(ImportError::Input {
+                path: inputs[k].clone(),
+                row: None,
+                message: format!(
+                    "its grid is not that of {} ({} and {} points): save the demodulators of one sweep together",
+                    inputs[0].display(),
+                    d.len(),
+                    drive.len()
+                ),
+            });
+        }
+    }
+    // Legs: a new sweep where the grid turns back (at the repeated end point, when there is
+    // one).
+    let mut leg = vec![0usize; drive.len()];
+    let mut dir = 0.0_f64;
+    for i in 1..drive.len() {
+        let step = drive[i].grid - drive[i - 1].grid;
+        leg[i] = leg[i - 1];
+        if dir != 0.0 && (step == 0.0 || step.signum() != dir) {
+            leg[i] += 1;
+            dir = if step == 0.0 { 0.0 } else { step.signum() };
+        } else if step != 0.0 {
+            dir = step.signum();
+        }
+    }
+    let legs = leg.last().map_or(1, |l| l + 1);
+    let records = (0..drive.len()).flat_map(|i| {
+        let leg = leg[i];
+        demods.iter().enumerate().map(move |(k, d)| {
+            let p = d[i];
+            Record {
+                drive: drive[i].grid,
+                line: p.line,
+                z: p.z,
+                level: opts.drive_level,
+                drive_phase_rad: opts.drive_level.map(|_| 0.0),
+                group: leg,
+                step: Some(i as u64),
+                time_s: None,
+                origin: (k, p.row),
+                noise: Some((p.std, p.count)),
+            }
+        })
+    });
+    let grouping = Grouping {
+        group_names: (0..legs)
+            .map(|l| {
+                if l == 0 {
+                    "sweep".to_string()
+                } else {
+                    format!("sweep_{}", l + 1)
+                }
+            })
+            .collect(),
+        split_on_level: false,
+    };
+    build(
+        "zi-sweeper",
+        inputs,
+        records,
+        conv,
+        super::Settle::default(),
+        &grouping,
+        out,
+    )
+}
