@@ -48,6 +48,7 @@ class Dataset:
         points: Optional[Mapping[str, Mapping[str, float]]] = None,
         nominal_hz: Optional[Mapping[str, float]] = None,
         description: str = "",
+        sweeps: Optional[Sequence[Mapping[str, Any]]] = None,
     ) -> Dataset: ...
     def to_folder(self, path: _Path) -> None: ...
     @property

@@ -3,7 +3,7 @@
 
 use crate::convert::json_to_py;
 use crate::errors::{dataset_error, DatasetError};
-use harmonid_data::{Manifest, Measurement, MeasurementSpec, Point};
+use harmonid_data::{Direction, Manifest, Measurement, MeasurementSpec, PerStep, Point, SweepSpec};
 use num_complex::Complex64;
 use numpy::{IntoPyArray, PyArray3, PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::PyTypeError;
@@ -54,7 +54,7 @@ fn measurement_from_dict(
     manifest: &Manifest,
     scale: f64,
 ) -> PyResult<Measurement> {
-    const KEYS: [&str; 8] = [
+    const KEYS: [&str; 10] = [
         "drives_hz",
         "freqs_hz",
         "amplitudes",
@@ -63,6 +63,8 @@ fn measurement_from_dict(
         "drive_phases_rad",
         "bandwidth_hz",
         "file",
+        "std",
+        "samples",
     ];
     for k in d.keys() {
         let k: String = k.extract()?;
@@ -153,6 +155,71 @@ fn measurement_from_dict(
     })
 }
 
+/// One stepped sweep from its dict (`name`, `steps`, optional `direction`): its manifest entry
+/// and its steps as measurements `name[k]`.
+fn sweep_from_dict(
+    py: Python<'_>,
+    d: &Bound<'_, PyDict>,
+    manifest: &Manifest,
+    scale: f64,
+) -> PyResult<(SweepSpec, Vec<Measurement>)> {
+    let name: String =
+        opt(d, "name")?.ok_or_else(|| PyTypeError::new_err("a sweep needs a \"name\""))?;
+    let steps = d.get_item("steps")?.ok_or_else(|| {
+        measurement_error(&name, "a sweep needs \"steps\" (a list of dicts)".into())
+    })?;
+    let mut ms = Vec::new();
+    for (k, st) in steps.try_iter()?.enumerate() {
+        let st = st?.cast_into::<PyDict>()?;
+        ms.push(measurement_from_dict(
+            py,
+            format!("{name}[{k}]"),
+            &st,
+            manifest,
+            scale,
+        )?);
+    }
+    let drives: Vec<Vec<f64>> = ms.iter().map(|m| m.spec.drives_hz.clone()).collect();
+    let firsts: Vec<f64> = drives
+        .iter()
+        .map(|d| d.first().copied().unwrap_or(0.0))
+        .collect();
+    let direction = match opt::<String>(d, "direction")?.as_deref() {
+        Some("up") => Direction::Up,
+        Some("down") => Direction::Down,
+        Some("unordered") => Direction::Unordered,
+        Some(other) => {
+            return Err(measurement_error(
+                &name,
+                format!("direction \"{other}\": expected \"up\", \"down\" or \"unordered\""),
+            ))
+        }
+        None if firsts.windows(2).all(|w| w[1] > w[0]) => Direction::Up,
+        None if firsts.windows(2).all(|w| w[1] < w[0]) => Direction::Down,
+        None => Direction::Unordered,
+    };
+    let mut spec = SweepSpec::new(name.clone(), direction, drives);
+    let per_step = |get: fn(&Measurement) -> &Option<Vec<f64>>, key: &str| {
+        let v: Vec<Option<Vec<f64>>> = ms.iter().map(|m| get(m).clone()).collect();
+        if v.iter().all(Option::is_none) {
+            Ok(None)
+        } else if v.iter().all(Option::is_some) {
+            Ok(Some(PerStep::Each(v.into_iter().flatten().collect())))
+        } else {
+            Err(measurement_error(
+                &name,
+                format!("\"{key}\" is given for some steps only: give it for every step or none"),
+            ))
+        }
+    };
+    spec.drive_levels_v = per_step(|m| &m.spec.drive_levels_v, "drive_levels_v")?;
+    spec.drive_phases_rad = per_step(|m| &m.spec.drive_phases_rad, "drive_phases_rad")?;
+    for (k, m) in ms.iter_mut().enumerate() {
+        m.spec = spec.step_spec(k);
+    }
+    Ok((spec, ms))
+}
+
 #[pymethods]
 impl Dataset {
     /// Reads a dataset folder (`dataset.toml`, one CSV per measurement, optional `truth.toml`).
@@ -171,13 +238,19 @@ impl Dataset {
     /// - `amplitudes`: complex amplitudes in `displacement_unit`, shape `(shots, freqs)` or
     ///   `(shots, freqs, points)`;
     /// - optional `points` (names, default all declared points), `drive_levels_v`,
-    ///   `drive_phases_rad` (both or neither, one per drive tone), `bandwidth_hz`, `file`.
+    ///   `drive_phases_rad` (both or neither, one per drive tone), `bandwidth_hz`, `file`;
+    /// - optional `std` and `samples` (together, one shot): each row an average with its noise,
+    ///   one value per frequency and point, frequency-major, `std` in `displacement_unit`.
+    ///
+    /// `sweeps` lists stepped sweeps: dicts with `name`, `steps` (a list of measurement dicts as
+    /// above, without names: step `k` is measurement `name[k]`) and optional `direction`
+    /// (`"up"`, `"down"`, `"unordered"`; default: from the steps' first drive tones).
     ///
     /// `points` maps point names to mode shapes (`{"p0": {"q1": 0.31, "q2": 0.59}}`; none: the
     /// amplitudes are modal). `nominal_hz` gives approximate resonances per mode. The arrays are
     /// checked as a folder's files are; errors name the measurement and what is wrong.
     #[staticmethod]
-    #[pyo3(signature = (measurements, *, displacement_unit = "m", points = None, nominal_hz = None, description = ""))]
+    #[pyo3(signature = (measurements, *, displacement_unit = "m", points = None, nominal_hz = None, description = "", sweeps = None))]
     fn from_arrays(
         py: Python<'_>,
         measurements: &Bound<'_, PyAny>,
@@ -185,6 +258,7 @@ impl Dataset {
         points: Option<&Bound<'_, PyDict>>,
         nominal_hz: Option<BTreeMap<String, f64>>,
         description: &str,
+        sweeps: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let mut manifest = Manifest::new(description);
         manifest.displacement_unit = displacement_unit.to_string();
@@ -218,10 +292,18 @@ impl Dataset {
                 })
                 .collect::<PyResult<_>>()?
         };
-        let ms = items
+        let mut ms = items
             .into_iter()
             .map(|(name, d)| measurement_from_dict(py, name, &d, &manifest, scale))
             .collect::<PyResult<Vec<_>>>()?;
+        if let Some(sweeps) = sweeps {
+            for sw in sweeps.try_iter()? {
+                let sw = sw?.cast_into::<PyDict>()?;
+                let (spec, steps) = sweep_from_dict(py, &sw, &manifest, scale)?;
+                ms.extend(steps);
+                manifest.sweeps.push(spec);
+            }
+        }
         let ds = py
             .detach(|| harmonid_data::Dataset::from_parts("<arrays>", manifest, ms, None))
             .map_err(|e| dataset_error(&e))?;

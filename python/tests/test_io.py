@@ -126,3 +126,37 @@ def test_zi_sweeper_gives_the_noise(tmp_path):
         assert abs(m["amplitudes"][0, 0, 0] - want) <= 1e-12 * abs(want)
         assert m["samples"][0] == 10
         assert abs(m["std"][0] - abs(want) * 1e-3) <= 1e-12 * abs(want) * 1e-3
+
+
+def test_from_arrays_takes_a_sweep_and_a_given_noise(tmp_path):
+    steps = []
+    for f in STEPS:
+        z = truth(f, 1, 0)
+        steps.append(
+            {
+                "drives_hz": [f],
+                "freqs_hz": [f],
+                "amplitudes": np.array([[z]]),
+                "drive_levels_v": [0.2],
+                "drive_phases_rad": [0.0],
+                "std": [abs(z) * 1e-3],
+                "samples": [8],
+            }
+        )
+    ds = harmonid.Dataset.from_arrays({}, sweeps=[{"name": "up", "steps": steps}])
+    assert ds.measurements == [f"up[{k}]" for k in range(4)]
+    sweep = ds.manifest["sweep"][0]
+    assert sweep["name"] == "up" and sweep["direction"] == "up"
+    m = ds.measurement("up[2]")
+    assert m["samples"][0] == 8
+    ds.to_folder(tmp_path / "ds")
+    back = harmonid.Dataset.from_folder(tmp_path / "ds")
+    assert back.measurements == ds.measurements
+    assert "std,samples" in (tmp_path / "ds" / "up.csv").read_text().splitlines()[0]
+    # A direction the steps contradict is refused; levels for some steps only too.
+    with pytest.raises(harmonid.DatasetError):
+        harmonid.Dataset.from_arrays({}, sweeps=[{"name": "d", "direction": "down", "steps": steps}])
+    partial = [dict(s) for s in steps]
+    del partial[1]["drive_levels_v"], partial[1]["drive_phases_rad"]
+    with pytest.raises(harmonid.DatasetError, match="some steps only"):
+        harmonid.Dataset.from_arrays({}, sweeps=[{"name": "p", "steps": partial}])
