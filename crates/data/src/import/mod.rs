@@ -318,6 +318,17 @@ pub struct ImportRecord {
     pub instrument: std::collections::BTreeMap<String, String>,
 }
 
+/// A LabOne clock base (ticks per second) is given and usable, else an error naming the option.
+fn check_clockbase(hz: f64) -> Result<(), ImportError> {
+    if hz.is_finite() && hz > 0.0 {
+        return Ok(());
+    }
+    Err(ImportError::Convention {
+        origin: "--clockbase-hz".into(),
+        message: "the device's clock base is needed to turn ticks into seconds (60e6 on the MFLI, 1.8e9 on the UHFLI)".into(),
+    })
+}
+
 /// Records the format's own settings `pairs` in `ds`'s `[import.instrument]` table.
 fn record_instrument(ds: &mut Dataset, pairs: &[(&str, String)]) {
     if let Some(imp) = ds.manifest.import.as_mut() {

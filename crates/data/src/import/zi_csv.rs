@@ -9,7 +9,8 @@
 //! loss or a mixed file, and refused.
 
 use super::{
-    build, for_each_line, record_instrument, Conventions, Grouping, ImportError, Record, Settle,
+    build, check_clockbase, for_each_line, record_instrument, Conventions, Grouping, ImportError,
+    Record, Settle,
 };
 use crate::dataset::Dataset;
 use num_complex::Complex64;
@@ -130,12 +131,7 @@ pub fn import(
     opts: &Options,
     out: &Path,
 ) -> Result<(Dataset, String), ImportError> {
-    if !(opts.clockbase_hz.is_finite() && opts.clockbase_hz > 0.0) {
-        return Err(ImportError::Convention {
-            origin: "--clockbase-hz".into(),
-            message: "the device's clock base is needed to turn ticks into seconds (60e6 on the MFLI, 1.8e9 on the UHFLI)".into(),
-        });
-    }
+    check_clockbase(opts.clockbase_hz)?;
     let demods: Vec<Demod> = inputs
         .iter()
         .map(|p| read_demod(p))

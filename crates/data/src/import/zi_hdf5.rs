@@ -8,7 +8,9 @@
 //! device ticks: `--clockbase-hz` turns them into seconds; a timestamp that goes backwards is
 //! sample loss and refused.
 
-use super::{build, record_instrument, Conventions, Grouping, ImportError, Record, Settle};
+use super::{
+    build, check_clockbase, record_instrument, Conventions, Grouping, ImportError, Record, Settle,
+};
 use crate::dataset::Dataset;
 use num_complex::Complex64;
 use std::path::{Path, PathBuf};
@@ -41,12 +43,7 @@ pub fn import(
     opts: &Options,
     out: &Path,
 ) -> Result<(Dataset, String), ImportError> {
-    if !(opts.clockbase_hz.is_finite() && opts.clockbase_hz > 0.0) {
-        return Err(ImportError::Convention {
-            origin: "--clockbase-hz".into(),
-            message: "the device's clock base is needed to turn ticks into seconds (60e6 on the MFLI, 1.8e9 on the UHFLI)".into(),
-        });
-    }
+    check_clockbase(opts.clockbase_hz)?;
     // Per record: its input file and demodulators (the drive's first).
     let mut parts: Vec<(usize, Vec<Demod>)> = Vec::new();
     let mut names = Vec::new();
