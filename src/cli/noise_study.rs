@@ -412,7 +412,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         .map(|&(l, r)| {
             let ds = make(l, r)?;
             let fit = prob.fit(&ds).map_err(miette::Report::new)?;
-            let rep = Report::from_shots(&model_origin, &ds, &prob, &fit);
+            let rep = harmonid_ident::report_from_shots(&model_origin, &ds, &prob, &fit);
             bar.inc(1);
             Ok(estimates(&model, &prob, &rep))
         })

@@ -5,6 +5,7 @@
 
 pub mod dataset;
 pub mod import;
+pub mod result;
 pub mod text;
 pub mod units;
 

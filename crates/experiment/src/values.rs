@@ -3,7 +3,7 @@
 //! (`harmonid-result/1` JSON, read through its own types).
 
 use crate::ExperimentError;
-use harmonid_ident::Report;
+use harmonid_data::result::Report;
 use harmonid_sim::{ModeValues, ModelValues};
 use std::path::Path;
 

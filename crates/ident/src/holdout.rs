@@ -14,22 +14,8 @@ use crate::problem::IdentError;
 use crate::settings::Settings;
 use harmonid_data::Dataset;
 use harmonid_model::{Linear, Model, ParamKind};
-use serde::{Deserialize, Serialize};
 
-/// How well the fit predicts one held-out measurement.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct HeldOut {
-    /// The measurement's name.
-    pub measurement: String,
-    /// Its measured lines (frequencies × points).
-    pub lines: usize,
-    /// Root mean square of the prediction's standardized residual per quadrature, in noise
-    /// sigmas (about 1 for a model that predicts to the noise; absent without shot noise).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub rms_sigma: Option<f64>,
-    /// `√(Σ|X̄ − X|² / Σ|X̄|²)` over its lines.
-    pub relative_rms: f64,
-}
+pub use harmonid_data::result::HeldOut;
 
 /// Identifies `model` from `ds` without the measurements named in `held`, and reports how well
 /// the estimate predicts them in [`Report::holdout`]; see the module documentation.

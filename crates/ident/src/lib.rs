@@ -59,8 +59,8 @@ mod uncertainty;
 
 pub use compare::{compare, CompareError, ModelComparison, ModelFit, NestedTest};
 pub use finalize::{
-    Estimate, FitReport, ForceResult, GainResult, ModeResult, Report, JACKKNIFE_TOL,
-    MAX_REL_STDERR, RESULT_FORMAT,
+    report_from_shots, Estimate, FitReport, ForceResult, GainResult, ModeResult, Report,
+    JACKKNIFE_TOL, MAX_REL_STDERR, RESULT_FORMAT,
 };
 pub use forward::{ForwardError, ForwardModel, ForwardSettings};
 pub use holdout::{identify_with_holdout, HeldOut};

@@ -2,9 +2,9 @@
 //! network.
 
 use crate::PageFigure;
+use harmonid_data::result::FitReport as FitView;
+use harmonid_data::result::{Estimate, Report};
 use harmonid_data::{Dataset, Truth};
-use harmonid_ident::FitReport as FitView;
-use harmonid_ident::{Estimate, Report};
 use harmonid_model::Model;
 use harmonid_plot::style::num;
 use std::fmt::Write as _;

@@ -2,8 +2,8 @@
 //! drive tones and classed as drive tone, sideband or mixing product, with the spectrum the
 //! identified model gives by harmonic balance (harmonid_sim's solver) and the residual.
 
+use harmonid_data::result::Report;
 use harmonid_data::{Dataset, Measurement};
-use harmonid_ident::Report;
 use harmonid_plot::{LineKind, Spectrum, SpectrumLine};
 use harmonid_sim::{Excitation, HbSettings, NumericModel};
 use harmonid_spectral::ToneSet;

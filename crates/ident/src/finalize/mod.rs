@@ -3,11 +3,12 @@
 //! per-shot spread), the per-shot spread as a diagnostic, the tables, and the warnings, all
 //! from typed state.
 
-mod result;
-mod summary;
 mod tables;
 
-pub use result::{Estimate, FitReport, ForceResult, GainResult, ModeResult, Report, RESULT_FORMAT};
+pub use harmonid_data::result::{
+    Estimate, FitReport, ForceResult, GainResult, ModeResult, Report, RESULT_FORMAT,
+};
+pub use tables::report_from_shots;
 
 use crate::layout::{Quantity, Unknown};
 use crate::output_error::{OutputError, OutputErrorFailure};

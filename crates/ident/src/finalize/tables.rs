@@ -1,14 +1,14 @@
 //! The result's tables from fitted values: per-shot statistics of f, Q and the parameters,
 //! every equation's coefficients, forces, actuator gains and the fits' diagnostics. The final
-//! result ([`super::finalize`]) and the per-shot report ([`Report::from_shots`]) are both
+//! result ([`super::finalize`]) and the per-shot report ([`report_from_shots`]) are both
 //! made of them.
 
-use super::result::{
-    Estimate, FitReport, ForceResult, GainResult, ModeResult, Report, RESULT_FORMAT,
-};
 use crate::layout::Unknown;
 use crate::problem::{Fit, GroupDiagnostics, Problem};
 use crate::shots::shot_stats;
+use harmonid_data::result::{
+    Estimate, FitReport, ForceResult, GainResult, ModeResult, Report, RESULT_FORMAT,
+};
 use harmonid_data::Dataset;
 use num_complex::Complex64;
 use std::collections::BTreeMap;
@@ -353,40 +353,38 @@ pub(super) fn outlier_shots(
     shots
 }
 
-impl Report {
-    /// The per-shot report: every quantity the median and spread of the per-shot
-    /// equation-error estimates of `fit` (estimator `per-shot`), as the method's paper reports
-    /// them; a noise study's view. `identify`'s result is built from the output-error fit instead.
-    pub fn from_shots(model_path: &str, ds: &Dataset, prob: &Problem, fit: &Fit) -> Report {
-        let modes = mode_estimates(prob, fit);
-        let parameters = param_estimates(prob, fit);
-        let fits = fit_reports(ds, prob, &fit.groups);
-        let mut warnings = prob.warnings.clone();
-        warnings.extend(undetermined_warnings(&modes, &parameters));
-        warnings.extend(conditioning_warnings(&fits));
-        warnings.extend(force_warnings(prob));
-        Report {
-            format: RESULT_FORMAT.to_string(),
-            model: model_path.to_string(),
-            dataset: ds.dir.display().to_string(),
-            estimator: "per-shot".into(),
-            rejected_shots: BTreeMap::new(),
-            notes: Vec::new(),
-            force_model: prob.table.force_model().description().to_string(),
-            goodness_of_fit: None,
-            holdout: Vec::new(),
-            shots: fit.values.len(),
-            shots_fitted: None,
-            shot_index: Vec::new(),
-            outlier_shots: outlier_shots(&modes, &parameters),
-            eom: eom_table(prob, &fit.values),
-            forces: force_table(ds, prob, &fit.values),
-            gains: gain_table(ds, prob, &fit.values),
-            modes,
-            parameters,
-            fits,
-            warnings,
-            consistency: Vec::new(),
-        }
+/// The per-shot report: every quantity the median and spread of the per-shot
+/// equation-error estimates of `fit` (estimator `per-shot`), as the method's paper reports
+/// them; a noise study's view. `identify`'s result is built from the output-error fit instead.
+pub fn report_from_shots(model_path: &str, ds: &Dataset, prob: &Problem, fit: &Fit) -> Report {
+    let modes = mode_estimates(prob, fit);
+    let parameters = param_estimates(prob, fit);
+    let fits = fit_reports(ds, prob, &fit.groups);
+    let mut warnings = prob.warnings.clone();
+    warnings.extend(undetermined_warnings(&modes, &parameters));
+    warnings.extend(conditioning_warnings(&fits));
+    warnings.extend(force_warnings(prob));
+    Report {
+        format: RESULT_FORMAT.to_string(),
+        model: model_path.to_string(),
+        dataset: ds.dir.display().to_string(),
+        estimator: "per-shot".into(),
+        rejected_shots: BTreeMap::new(),
+        notes: Vec::new(),
+        force_model: prob.table.force_model().description().to_string(),
+        goodness_of_fit: None,
+        holdout: Vec::new(),
+        shots: fit.values.len(),
+        shots_fitted: None,
+        shot_index: Vec::new(),
+        outlier_shots: outlier_shots(&modes, &parameters),
+        eom: eom_table(prob, &fit.values),
+        forces: force_table(ds, prob, &fit.values),
+        gains: gain_table(ds, prob, &fit.values),
+        modes,
+        parameters,
+        fits,
+        warnings,
+        consistency: Vec::new(),
     }
 }

@@ -47,44 +47,7 @@ use std::f64::consts::TAU;
 /// Family-wise false-alarm probability of the check on consistent data.
 pub const FAMILY_ALPHA: f64 = 0.01;
 
-/// Which quantity a comparison is of.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Compared {
-    /// Linear resonance frequency of a mode, Hz.
-    Frequency,
-    /// Quality factor of a mode.
-    Q,
-    /// Magnitude of a mode's actuator gain, N/kg per drive-level unit.
-    Gain,
-}
-
-impl Compared {
-    fn label(self) -> &'static str {
-        match self {
-            Compared::Frequency => "f",
-            Compared::Q => "Q",
-            Compared::Gain => "actuator gain |G|",
-        }
-    }
-}
-
-/// One quantity of one mode as two measurements see it.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Comparison {
-    /// What is compared.
-    pub quantity: Compared,
-    /// Mode name.
-    pub mode: String,
-    /// The two measurements' names.
-    pub measurements: [String; 2],
-    /// Each measurement's estimate (Hz for frequencies).
-    pub values: [f64; 2],
-    /// Each estimate's standard error.
-    pub stderrs: [f64; 2],
-    /// The difference over its standard error (correlations included); see the module
-    /// documentation.
-    pub z: f64,
-}
+pub use harmonid_data::result::{Compared, Comparison};
 
 /// Inputs: the joint estimate of the output-error fit and its weights.
 #[derive(Debug, Clone, Copy)]

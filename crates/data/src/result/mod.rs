@@ -1,7 +1,14 @@
-//! The result of an identification (`DATA_FORMAT.md`, "Result of an identification") and
-//! its file.
+//! The result file of an identification (`docs/data-format.md`, "Result of an
+//! identification"): its types, read and written here so that every crate reads results
+//! through the data layer; `harmonid_ident` computes them.
 
-use crate::uncertainty::GoodnessOfFit;
+mod estimator;
+mod goodness;
+mod summary;
+
+pub use estimator::{Estimator, UnknownEstimator};
+pub use goodness::{p_text, sig3, GoodnessOfFit, LineResidual, MeasurementFit, P_DOES_NOT_FIT};
+
 use serde::{Deserialize, Deserializer, Serialize};
 use std::collections::BTreeMap;
 
@@ -170,12 +177,12 @@ pub struct Report {
     /// How well the estimate predicts the measurements held out of the fit (`identify
     /// --holdout`), in the order given; absent without a holdout.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub holdout: Vec<crate::HeldOut>,
+    pub holdout: Vec<HeldOut>,
     /// Number of shots.
     #[serde(default)]
     pub shots: usize,
     /// Shots fitted one by one for the per-shot spread (`std`, outlier shots), when fewer than
-    /// `shots`: a long record is represented by [`crate::MAX_SHOT_FITS`] shots spread evenly
+    /// `shots`: a long record is represented by `MAX_SHOT_FITS` (`harmonid_ident`) shots spread evenly
     /// over it (the pooled mean and the output-error fit use every shot).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub shots_fitted: Option<usize>,
@@ -206,10 +213,10 @@ pub struct Report {
     #[serde(default)]
     pub warnings: Vec<String>,
     /// Every comparison of a frequency, Q or actuator gain between two measurements
-    /// ([`crate::Comparison`]); those beyond the threshold are also in `warnings`. Not
+    /// ([`Comparison`]); those beyond the threshold are also in `warnings`. Not
     /// written to the result file.
     #[serde(skip)]
-    pub consistency: Vec<crate::Comparison>,
+    pub consistency: Vec<Comparison>,
 }
 
 impl Report {
@@ -232,6 +239,61 @@ impl Report {
         }
         Ok(r)
     }
+}
+
+/// How well the fit predicts one held-out measurement.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct HeldOut {
+    /// The measurement's name.
+    pub measurement: String,
+    /// Its measured lines (frequencies × points).
+    pub lines: usize,
+    /// Root mean square of the prediction's standardized residual per quadrature, in noise
+    /// sigmas (about 1 for a model that predicts to the noise; absent without shot noise).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rms_sigma: Option<f64>,
+    /// `√(Σ|X̄ − X|² / Σ|X̄|²)` over its lines.
+    pub relative_rms: f64,
+}
+
+/// Which quantity a comparison is of.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Compared {
+    /// Linear resonance frequency of a mode, Hz.
+    Frequency,
+    /// Quality factor of a mode.
+    Q,
+    /// Magnitude of a mode's actuator gain, N/kg per drive-level unit.
+    Gain,
+}
+
+impl Compared {
+    /// The quantity in words, for messages: `f`, `Q`, `actuator gain |G|`.
+    pub fn label(self) -> &'static str {
+        match self {
+            Compared::Frequency => "f",
+            Compared::Q => "Q",
+            Compared::Gain => "actuator gain |G|",
+        }
+    }
+}
+
+/// One quantity of one mode as two measurements see it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Comparison {
+    /// What is compared.
+    pub quantity: Compared,
+    /// Mode name.
+    pub mode: String,
+    /// The two measurements' names.
+    pub measurements: [String; 2],
+    /// Each measurement's estimate (Hz for frequencies).
+    pub values: [f64; 2],
+    /// Each estimate's standard error.
+    pub stderrs: [f64; 2],
+    /// The difference over its standard error (correlations included); see the module
+    /// documentation.
+    pub z: f64,
 }
 
 #[cfg(test)]

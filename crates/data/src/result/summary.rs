@@ -1,8 +1,8 @@
 //! The result as people read it: a summary table and the per-shot CSV.
 
-use super::result::{Estimate, Report};
-use crate::settings::Estimator;
-use harmonid_data::{text::index_list, Truth};
+use super::{Estimate, Estimator, Report};
+use crate::dataset::Truth;
+use crate::text::index_list;
 use std::fmt::Write as _;
 
 impl Report {
@@ -117,7 +117,7 @@ impl Report {
                 s,
                 "  stage {} [{}]: {} unknowns, {} rows, cond {:.2e}, rel. residual {:.2e}{}",
                 f.stage,
-                harmonid_data::text::first_and_more(f.measurements.clone(), 8).join(", "),
+                crate::text::first_and_more(f.measurements.clone(), 8).join(", "),
                 f.unknowns.len(),
                 f.rows,
                 f.condition_number,
