@@ -505,7 +505,7 @@ fn table_units_are_checked_against_the_conventions() {
     // Phases in degrees (up to 170), in a column whose name does not say so.
     std::fs::write(
         &data,
-        "f,X (V),Y (mV),R,phase,phase (deg)\n98,1e-3,2e-3,1e-3,170,170\n99,1e-3,2e-3,1e-3,-120,-120\n",
+        "f,X (V),Y (mV),R,phase,phase (deg)\n# a comment line, then a blank one\n\n98,1e-3,2e-3,1e-3,170,170\n99,1e-3,2e-3,1e-3,-120,-120\n",
     )
     .expect("write");
     let try_map = |columns: &str, phase_unit: &str| -> String {
@@ -530,10 +530,11 @@ fn table_units_are_checked_against_the_conventions() {
     // A column named in degrees declared in radians.
     let e = try_map("r = \"R\"\ntheta = \"phase (deg)\"", "rad");
     assert!(e.contains("phase (deg)") && e.contains("phase_unit"), "{e}");
-    // Degrees in an unnamed column declared in radians: the values give it away, by row.
+    // Degrees in an unnamed column declared in radians: the values give it away, by the line
+    // of the file (the comment and blank lines counted).
     let e = try_map("r = \"R\"\ntheta = \"phase\"", "rad");
     assert!(
-        e.contains("t.csv, row 2") && e.contains("reaches 170"),
+        e.contains("t.csv, row 4") && e.contains("reaches 170"),
         "{e}"
     );
     // Declared in degrees: imported.

@@ -198,14 +198,14 @@ fn phase_unit_name(u: PhaseUnit) -> &'static str {
 }
 
 /// A phase column's values against its declared unit: radians within ±2π, cycles within ±1
-/// (degrees declared as radians show as values up to 180 or 360). `rows` names each value's
-/// row or sample for the message.
+/// (degrees declared as radians show as values up to 180 or 360). `rows`: each value's line
+/// in a text file, for the message.
 fn check_phase_range(
     path: &Path,
     key: &str,
     values: &[f64],
     unit: PhaseUnit,
-    text_rows: bool,
+    rows: Option<&[usize]>,
 ) -> Result<(), ImportError> {
     let limit = match unit {
         PhaseUnit::Rad => 2.0 * std::f64::consts::PI,
@@ -226,7 +226,7 @@ fn check_phase_range(
     }
     Err(ImportError::Input {
         path: path.to_path_buf(),
-        row: text_rows.then_some(i + 2),
+        row: rows.and_then(|r| r.get(i).copied()),
         message: format!(
             "phase column \"{key}\" reaches {v} (value {}), beyond ±{} for phase_unit = \"{}\": degrees declared as {}? Set phase_unit to the column's unit (a phase unwrapped over several turns must be wrapped first)",
             i + 1,
@@ -237,9 +237,19 @@ fn check_phase_range(
     })
 }
 
-/// The columns of one input, per group (a text table is one group; a MAT path with `(*)` one
-/// group per element), with each group's name.
-type Groups = Vec<(String, BTreeMap<String, Vec<f64>>)>;
+/// The columns of one group of an input (a text table is one group; a MAT path with `(*)` one
+/// group per element).
+struct Group {
+    /// The group's name (empty: the input file's stem).
+    name: String,
+    /// The values of every wanted column.
+    cols: BTreeMap<String, Vec<f64>>,
+    /// The 1-based line of each value in a text file (comment and blank lines counted), for
+    /// messages; `None` for a MATLAB file.
+    rows: Option<Vec<usize>>,
+}
+
+type Groups = Vec<Group>;
 
 /// Imports `inputs` with `mapping` (read from `mapping_path`) into a dataset named `out`.
 pub fn import(
@@ -281,15 +291,23 @@ pub fn import(
             .map(|n| n.to_string_lossy().to_string())
             .unwrap_or_default();
         let file_level = mapping.files.get(&file_name).and_then(|f| f.drive_level);
-        let is_mat = path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("mat"));
-        for (gname, cols) in groups {
+        for Group {
+            name: gname,
+            cols,
+            rows,
+        } in groups
+        {
             let get = |k: &Option<String>| k.as_ref().and_then(|k| cols.get(k));
+            // A value's line in a text file, its 1-based index in a MATLAB array.
+            let row_of = |i: usize| {
+                rows.as_ref()
+                    .and_then(|r| r.get(i).copied())
+                    .unwrap_or(i + 1)
+            };
             if let Some(u) = unit {
                 for key in [&c.theta, &c.drive_phase].into_iter().flatten() {
                     if let Some(v) = cols.get(key) {
-                        check_phase_range(path, key, v, u, !is_mat)?;
+                        check_phase_range(path, key, v, u, rows.as_deref())?;
                     }
                 }
             }
@@ -347,7 +365,7 @@ pub fn import(
                     group,
                     step: get(&c.step).map(|v| v[i] as u64),
                     time_s: get(&c.time_s).map(|v| v[i]),
-                    origin: (fi, i + 2),
+                    origin: (fi, row_of(i)),
                     noise: None,
                 });
             }
@@ -407,7 +425,11 @@ fn read_mat(path: &Path, wanted: &[&String]) -> Result<Groups, ImportError> {
                     let name = element
                         .as_ref()
                         .map_or(String::new(), |e| format!("{e}_{}", k + 1));
-                    (name, BTreeMap::new())
+                    Group {
+                        name,
+                        cols: BTreeMap::new(),
+                        rows: None,
+                    }
                 })
                 .collect();
         }
@@ -428,7 +450,7 @@ fn read_mat(path: &Path, wanted: &[&String]) -> Result<Groups, ImportError> {
                 .or(per_group.first())
                 .cloned()
                 .unwrap_or_default();
-            g.1.insert((*key).clone(), v);
+            g.cols.insert((*key).clone(), v);
         }
     }
     Ok(groups)
@@ -468,7 +490,7 @@ fn read_text(
         .lines()
         .enumerate()
         .filter(|(_, l)| !l.trim().is_empty());
-    let (_, header) = lines
+    let (header_at, header) = lines
         .next()
         .ok_or_else(|| bad(None, "the file is empty".into()))?;
     let header = split(header.trim_start().trim_start_matches(['%', '#']));
@@ -476,7 +498,7 @@ fn read_text(
     for key in wanted {
         let i = header.iter().position(|h| h == *key).ok_or_else(|| {
             bad(
-                Some(1),
+                Some(header_at + 1),
                 format!(
                     "no column \"{key}\" in the header (found: {})",
                     header.join(", ")
@@ -487,6 +509,7 @@ fn read_text(
     }
     let mut cols: BTreeMap<String, Vec<f64>> =
         idx.iter().map(|(k, _)| (k.clone(), Vec::new())).collect();
+    let mut rows = Vec::new();
     for (n, line) in lines {
         let t = line.trim_start();
         if t.starts_with('%') || t.starts_with('#') {
@@ -512,6 +535,11 @@ fn read_text(
             })?;
             cols.get_mut(key).expect("every wanted column").push(v);
         }
+        rows.push(n + 1);
     }
-    Ok(vec![(String::new(), cols)])
+    Ok(vec![Group {
+        name: String::new(),
+        cols,
+        rows: Some(rows),
+    }])
 }
