@@ -103,6 +103,18 @@ fn zi_csv_round_trip_rms_conjugate_scaled_with_settling() {
     assert_eq!(back.measurements.len(), 4);
     assert_equal(&back, 3, 2, 2, 1e-12);
 
+    // A negative or non-finite settling time is refused, naming the setting.
+    for bad in [-0.1, f64::NAN] {
+        let neg = Settle {
+            settle_s: Some(bad),
+            settle_samples: None,
+        };
+        let e = zi_csv::import(&files, &conv, neg, &opts, Path::new("out"))
+            .expect_err("bad settle_s")
+            .to_string();
+        assert!(e.contains("settle_s") && e.contains("0 or more"), "{e}");
+    }
+
     // A timestamp going backwards (sample loss, mixed files) is refused with its row.
     let text = std::fs::read_to_string(&files[0]).expect("read");
     let mut lines: Vec<&str> = text.lines().collect();

@@ -397,6 +397,12 @@ pub fn build(
     // Frequencies recorded per sample jitter in their last digits (a PLL, a float
     // conversion): one step's drive, and one line, are the same to FREQ_REL_TOL.
     let same = |a: f64, b: f64| (a - b).abs() <= FREQ_REL_TOL * a.abs().max(b.abs());
+    if let Some(t) = settle.settle_s.filter(|t| !(t.is_finite() && *t >= 0.0)) {
+        return Err(ImportError::Convention {
+            origin: "settle_s".into(),
+            message: format!("{t}: the settling time is a number of seconds, 0 or more"),
+        });
+    }
     let mut steps: Vec<Step> = Vec::new();
     let mut last: Option<Record> = None;
     for r in records {
