@@ -7,8 +7,7 @@
 use crate::dataset::Dataset;
 use crate::errors::DatasetError;
 use harmonid_data::import::{
-    moku_csv, table, zi_csv, zi_hdf5, zi_sweeper, Amplitude, Conventions, ImportError, PhaseUnit,
-    Quadrature, Response, Settle,
+    moku_csv, table, zi_csv, zi_hdf5, zi_sweeper, Conventions, ImportError, PhaseUnit, Settle,
 };
 use pyo3::prelude::*;
 use std::path::{Path, PathBuf};
@@ -32,32 +31,11 @@ fn conventions(
     metres_per_unit: Option<f64>,
     phase_unit: Option<PhaseUnit>,
 ) -> PyResult<Conventions> {
-    let bad = |key: &str, value: &str, allowed: &str| {
-        DatasetError::new_err(format!("{key}=\"{value}\": expected {allowed}"))
-    };
+    let bad = |key: &str, why: String| DatasetError::new_err(format!("{key}={why}"));
     let conv = Conventions {
-        amplitude: match amplitude {
-            "peak" => Amplitude::Peak,
-            "rms" => Amplitude::Rms,
-            a => return Err(bad("amplitude", a, "\"peak\" or \"rms\"")),
-        },
-        quadrature: match quadrature {
-            "x+iy" => Quadrature::XPlusIY,
-            "x-iy" => Quadrature::XMinusIY,
-            q => return Err(bad("quadrature", q, "\"x+iy\" or \"x-iy\"")),
-        },
-        response: match response {
-            "displacement" => Response::Displacement,
-            "velocity" => Response::Velocity,
-            "acceleration" => Response::Acceleration,
-            r => {
-                return Err(bad(
-                    "response",
-                    r,
-                    "\"displacement\", \"velocity\" or \"acceleration\"",
-                ))
-            }
-        },
+        amplitude: amplitude.parse().map_err(|e| bad("amplitude", e))?,
+        quadrature: quadrature.parse().map_err(|e| bad("quadrature", e))?,
+        response: response.parse().map_err(|e| bad("response", e))?,
         metres_per_unit,
         displacement_unit: if metres_per_unit.is_some() { "m" } else { "V" }.into(),
         phase_unit: phase_unit.or(Some(PhaseUnit::Rad)),
@@ -68,13 +46,9 @@ fn conventions(
 }
 
 fn phase_unit(unit: Option<&str>) -> PyResult<Option<PhaseUnit>> {
-    unit.map(|u| match u {
-        "rad" => Ok(PhaseUnit::Rad),
-        "deg" => Ok(PhaseUnit::Deg),
-        "cycles" => Ok(PhaseUnit::Cycles),
-        u => Err(DatasetError::new_err(format!(
-            "phase_unit=\"{u}\": expected \"rad\", \"deg\" or \"cycles\""
-        ))),
+    unit.map(|u| {
+        u.parse()
+            .map_err(|e| DatasetError::new_err(format!("phase_unit={e}")))
     })
     .transpose()
 }

@@ -148,17 +148,15 @@ fn conventions(args: &Args) -> Result<Conventions, ImportError> {
         AmplitudeArg::Peak => Amplitude::Peak,
         AmplitudeArg::Rms => Amplitude::Rms,
     };
-    let quadrature = match args.quadrature.as_deref() {
-        Some("x+iy") => Quadrature::XPlusIY,
-        Some("x-iy") => Quadrature::XMinusIY,
-        Some(q) => {
-            return Err(ImportError::Convention {
-                origin: "--quadrature".into(),
-                message: format!("\"{q}\": use x+iy or x-iy"),
-            })
-        }
-        None => return Err(missing("--quadrature", "the quadrature sign")),
-    };
+    let quadrature = args
+        .quadrature
+        .as_deref()
+        .ok_or_else(|| missing("--quadrature", "the quadrature sign"))?
+        .parse::<Quadrature>()
+        .map_err(|message| ImportError::Convention {
+            origin: "--quadrature".into(),
+            message,
+        })?;
     if args.metres_per_unit.is_none() && !args.volts {
         return Err(missing(
             "--metres-per-unit (or --volts)",

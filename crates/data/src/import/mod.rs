@@ -105,6 +105,36 @@ fn for_each_line(
     }
 }
 
+/// One spelling per convention value, the manifest's (serde) one: `name()` and `FromStr`, so
+/// the command line, Python and the `[import]` table read and write the same words.
+macro_rules! spellings {
+    ($t:ty { $($v:ident => $n:literal),+ $(,)? }) => {
+        impl $t {
+            /// The value's spelling, as the manifest writes it.
+            pub fn name(self) -> &'static str {
+                match self {
+                    $(Self::$v => $n,)+
+                }
+            }
+        }
+
+        impl std::str::FromStr for $t {
+            /// What was expected, for a message that names the option.
+            type Err = String;
+
+            fn from_str(s: &str) -> Result<Self, String> {
+                match s {
+                    $($n => Ok(Self::$v),)+
+                    _ => Err(format!(
+                        "\"{s}\": expected {}",
+                        [$(concat!("\"", $n, "\"")),+].join(" or ")
+                    )),
+                }
+            }
+        }
+    };
+}
+
 /// Peak or RMS amplitudes in the file. harmonid's amplitudes are peak.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -149,6 +179,15 @@ pub enum PhaseUnit {
     /// Cycles (Moku's "1 V per cycle").
     Cycles,
 }
+
+spellings!(Amplitude { Peak => "peak", Rms => "rms" });
+spellings!(Quadrature { XPlusIY => "x+iy", XMinusIY => "x-iy" });
+spellings!(Response {
+    Displacement => "displacement",
+    Velocity => "velocity",
+    Acceleration => "acceleration",
+});
+spellings!(PhaseUnit { Rad => "rad", Deg => "deg", Cycles => "cycles" });
 
 impl PhaseUnit {
     /// `x` in this unit, in radians.

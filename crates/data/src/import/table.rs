@@ -182,19 +182,11 @@ fn check_units(m: &Mapping, origin: &str) -> Result<(), ImportError> {
         if named != declared {
             return Err(bad(format!(
                 "column \"{col}\" is named in {tag} but phase_unit = \"{}\": set phase_unit to the column's unit",
-                phase_unit_name(declared)
+                declared.name()
             )));
         }
     }
     Ok(())
-}
-
-fn phase_unit_name(u: PhaseUnit) -> &'static str {
-    match u {
-        PhaseUnit::Rad => "rad",
-        PhaseUnit::Deg => "deg",
-        PhaseUnit::Cycles => "cycles",
-    }
 }
 
 /// A phase column's values against its declared unit: radians within ±2π, cycles within ±1
@@ -231,8 +223,8 @@ fn check_phase_range(
             "phase column \"{key}\" reaches {v} (value {}), beyond ±{} for phase_unit = \"{}\": degrees declared as {}? Set phase_unit to the column's unit (a phase unwrapped over several turns must be wrapped first)",
             i + 1,
             limit / (1.0 + 1e-9),
-            phase_unit_name(unit),
-            phase_unit_name(unit)
+            unit.name(),
+            unit.name()
         ),
     })
 }
