@@ -27,6 +27,11 @@
 //! evaluation (and kept, so predictions are smooth in `θ`) that holds every measured
 //! frequency. Its steady state is warm-started from the previous evaluation's (or from a start
 //! set by [`ForwardModel::start_from_data`]); the drive ramp from rest is the fall-back.
+//! A step of a stepped sweep measured in order (a `[[sweep]]` going up or down) has a history
+//! instead: without a state of its own it starts where the experiment had it, from the
+//! previous step's state at the same `θ` ([`harmonid_sim::HbSolver::solve_after`]: the
+//! transient from there), so up- and down-sweeps stay on their branches through a bistable
+//! range and jump where the model's fold is; it is never ramped from rest.
 
 use crate::layout::{Unknown, UnknownTable};
 use crate::problem::{nearest_mode, nominal_frequencies, IdentError};
@@ -134,6 +139,10 @@ struct MeasFwd {
     state: Option<SteadyState>,
     /// Start amplitudes per mode at measured frequencies (from data).
     start: Option<Vec<(f64, Vec<Complex64>)>>,
+    /// The measurement just before this one in its stepped sweep (an ordered `[[sweep]]`'s
+    /// previous step; always an earlier index): its state at the same `θ` is where this
+    /// step's transient starts, as it was in the experiment.
+    follows: Option<usize>,
     buf: Vec<Complex64>,
     /// The solver of this measurement's lattice, kept across evaluations (values reset by
     /// [`HbSolver::set_values`]) with its sensitivity set-up.
@@ -153,6 +162,22 @@ pub struct ForwardModel {
     settings: ForwardSettings,
     /// `θ` of the last successful evaluation (the steady states kept are at it).
     at: Option<Vec<f64>>,
+}
+
+/// The index of the measurement before `mi` in its stepped sweep, when the sweep's steps were
+/// measured in order (up or down) and that step is in the dataset.
+fn previous_step(ds: &Dataset, mi: usize) -> Option<usize> {
+    let step = ds.measurements[mi].spec.sweep.as_ref()?;
+    let sweep = ds.manifest.sweeps.iter().find(|s| s.name == step.sweep)?;
+    if sweep.direction == harmonid_data::Direction::Unordered || step.step == 0 {
+        return None;
+    }
+    ds.measurements[..mi].iter().rposition(|m| {
+        m.spec
+            .sweep
+            .as_ref()
+            .is_some_and(|s| s.sweep == step.sweep && s.step + 1 == step.step)
+    })
 }
 
 impl ForwardModel {
@@ -259,6 +284,7 @@ impl ForwardModel {
                 widened: 0,
                 state: None,
                 start: None,
+                follows: previous_step(ds, mi),
                 buf: Vec::new(),
                 solver: None,
                 obs,
@@ -890,7 +916,9 @@ impl ForwardModel {
     ) -> Result<(), ForwardError> {
         let ls = self.lattice_settings(mi, self.meas[mi].widened);
         let hb = &self.settings.hb;
-        let m = &mut self.meas[mi];
+        let (before, rest) = self.meas.split_at_mut(mi);
+        let m = &mut rest[0];
+        let previous = m.follows.and_then(|p| before[p].state.as_ref());
         let hb_err = |why: String| ForwardError::Hb {
             measurement: m.name.clone(),
             why,
@@ -933,18 +961,45 @@ impl ForwardModel {
             (None, None) => None,
         };
         let mut state = match warm {
-            Some(a) => solver.solve_continued(&a, hb),
-            None => solver.solve(hb),
+            Some(a) => Some(solver.solve_continued(&a, hb)),
+            None if previous.is_none() => Some(solver.solve(hb)),
+            None => None,
         };
-        if !state.converged() && ramp {
-            state = solver.solve(hb);
+        let converged = |s: &Option<SteadyState>| s.as_ref().is_some_and(SteadyState::converged);
+        // A sweep's step started from the data may converge onto the unstable middle branch,
+        // where no experiment is: that start did not find the measured branch at this θ.
+        let fresh = m.state.is_none();
+        if previous.is_some() && fresh && converged(&state) {
+            let stable = state
+                .as_ref()
+                .is_some_and(|s| solver.stability(s).is_ok_and(|st| st.stable));
+            if !stable {
+                state = None;
+            }
         }
-        if !state.converged() {
-            return Err(hb_err(format!(
-                "no steady state (status: {}, relative residual {:.2e})",
-                state.status, state.residual
-            )));
+        // Then, or when its own state is lost, the step starts where the experiment had it:
+        // at the previous step's state at this θ. Never the ramp from rest, which may cross a
+        // fold the sweep did not.
+        if let Some(prev) = previous.filter(|_| (ramp || fresh) && !converged(&state)) {
+            state = Some(solver.solve_after(&prev.carried_to(&lattice), hb));
         }
+        if ramp && previous.is_none() && !converged(&state) {
+            state = Some(solver.solve(hb));
+        }
+        let state = match state {
+            Some(s) if s.converged() => s,
+            Some(s) => {
+                return Err(hb_err(format!(
+                    "no steady state (status: {}, relative residual {:.2e})",
+                    s.status, s.residual
+                )))
+            }
+            None => {
+                return Err(hb_err(
+                    "no steady state: the previous step of its sweep has none to start from".into(),
+                ))
+            }
+        };
         for (o, ob) in m.obs.iter().enumerate() {
             out_x[m.offset + o] = state.at_point(&ob.shape, ob.f_hz);
         }

@@ -5,7 +5,7 @@
 //! A dev-only crate (`publish = false`): the root package's tests and benches use it as
 //! `use harmonid_testgen as gen;`, one compiled copy instead of a `#[path]` module in each.
 
-use harmonid_data::{Dataset, Measurement, Point};
+use harmonid_data::{Dataset, Manifest, Measurement, Point};
 use harmonid_experiment::{Plan, PlanMeasurement, PlanNoise, Settings};
 use harmonid_model::Model;
 use harmonid_sim::{ModeValues, ModelValues, NoiseGen};
@@ -496,4 +496,112 @@ pub fn stepped_sweep_plan() -> (Values, Vec<Design>) {
         }
     }
     (v, d)
+}
+
+/// One single-tone stepped sweep of mode 0 as a lock-in records it: its name, the order the
+/// steps were measured in, and each step's tone (Hz) and force (N/kg, recorded as the drive
+/// level, phase 0).
+#[derive(Debug, Clone)]
+pub struct SteppedSweep {
+    /// The `[[sweep]]`'s name.
+    pub name: String,
+    /// Up or down.
+    pub direction: harmonid_data::Direction,
+    /// `(tone Hz, force N/kg)` per step, in measurement order.
+    pub steps: Vec<(f64, f64)>,
+}
+
+/// Simulates `sweeps` the way the experiment runs them (no noise, `shots` identical shots,
+/// one point with `shape`, the drive line measured): each sweep's first step by the drive
+/// ramp from rest, every later step from the previous step's state
+/// ([`harmonid_sim::HbSolver::solve_after`]), so an up-sweep stays on the high branch of a
+/// hardening resonance through its bistable range and jumps down past the fold, and a
+/// down-sweep the other way. The dataset holds one `[[sweep]]` per sweep, each step a
+/// measurement `name[k]` with its [`harmonid_data::SweepStep`].
+pub fn simulate_sweeps_clean(
+    model: &Model,
+    v: &Values,
+    sweeps: &[SteppedSweep],
+    shape: &[f64],
+    shots: usize,
+) -> Dataset {
+    use harmonid_data::{PerStep, SweepSpec, SweepStep};
+    use harmonid_sim::{Excitation, HbSettings, HbSolver, NumericModel, SteadyState};
+    use num_complex::Complex64;
+    let numeric =
+        NumericModel::from_model(model, &model_values(model, v)).unwrap_or_else(|e| panic!("{e}"));
+    let nm = model.modes.len();
+    let mut manifest = Manifest::new("stepped sweeps simulated by following their branches");
+    manifest.points = vec![Point {
+        name: "p0".into(),
+        shape: model
+            .modes
+            .iter()
+            .map(|m| m.name.clone())
+            .zip(shape.iter().copied())
+            .collect(),
+    }];
+    manifest.nominal_hz = model
+        .modes
+        .iter()
+        .zip(&v.f_hz)
+        .map(|(m, &f)| (m.name.clone(), f))
+        .collect();
+    let settings = HbSettings::default();
+    let mut measurements = Vec::new();
+    for sw in sweeps {
+        let mut spec = SweepSpec::new(
+            sw.name.clone(),
+            sw.direction,
+            sw.steps.iter().map(|&(f, _)| vec![f]).collect(),
+        );
+        spec.drive_levels_v = Some(PerStep::Each(
+            sw.steps.iter().map(|&(_, x)| vec![x]).collect(),
+        ));
+        spec.drive_phases_rad = Some(PerStep::Same(vec![0.0]));
+        let mut prev: Option<SteadyState> = None;
+        for (k, &(f, x)) in sw.steps.iter().enumerate() {
+            let mut force = vec![vec![Complex64::new(0.0, 0.0)]; nm];
+            force[0][0] = Complex64::new(x, 0.0);
+            let drive = Excitation {
+                tones_hz: vec![f],
+                force,
+            };
+            let mut solver = HbSolver::new(&numeric, &drive, &settings.lattice)
+                .unwrap_or_else(|e| panic!("{e}"));
+            let state = match &prev {
+                None => solver.solve(&settings),
+                Some(p) => solver.solve_after(&p.carried_to(solver.lattice()), &settings),
+            };
+            assert!(
+                state.converged(),
+                "{} step {k} at {f} Hz: {}",
+                sw.name,
+                state.status
+            );
+            let mut step = spec.step_spec(k);
+            step.sweep = Some(SweepStep {
+                sweep: sw.name.clone(),
+                step: k,
+            });
+            let x = state.at_point(shape, f);
+            measurements.push(Measurement {
+                spec: step,
+                freqs_hz: vec![f],
+                points: vec![0],
+                n_shots: shots,
+                data: vec![x; shots],
+                noise: None,
+            });
+            prev = Some(state);
+        }
+        manifest.sweeps.push(spec);
+    }
+    Dataset {
+        dir: std::path::PathBuf::new(),
+        manifest,
+        measurements,
+        truth: None,
+        notes: Vec::new(),
+    }
 }

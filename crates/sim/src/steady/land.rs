@@ -4,7 +4,7 @@ use super::HbSolver;
 use num_complex::Complex64;
 use std::f64::consts::TAU;
 
-/// Most pseudo-time steps of a landing.
+/// Most pseudo-time steps of a landing attempt.
 const LAND_MAX_STEPS: usize = 400;
 
 impl HbSolver {
@@ -14,7 +14,8 @@ impl HbSolver {
     /// `(C/Δt + J) ΔX = −R`, from `Δt` a tenth of the fastest decay time, growing as the
     /// residual falls (switched evolution relaxation) until it is Newton. Small steps first
     /// keep the trajectory, so the state ends in the basin the physical transient reaches.
-    /// Returns whether the residual met `tol`.
+    /// Returns whether the residual met `tol` within [`LAND_MAX_STEPS`] steps (the state is
+    /// where the flow got to either way: another call continues from there).
     pub(super) fn land(&mut self, s: f64, tol: f64) -> bool {
         let nm = self.model.n_modes();
         let nr = self.lattice.len();

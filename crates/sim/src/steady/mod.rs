@@ -22,7 +22,8 @@
 //!
 //! One folder, one job per file: [`HbSolver`]'s set-up, residual and Jacobian (`solver`),
 //! Newton (`newton`), the drive ramp (`ramp`), landing after a fold (`land`), stability
-//! (`stability`) and lattice convergence (`convergence`); and the continuations in frequency:
+//! (`stability`) and lattice convergence (`convergence`), the next step of a stepped-sine
+//! experiment (`step`); and the continuations in frequency:
 //! the single-tone arclength sweep on its alternating frequency–time engine (`sweep`, `aft`),
 //! backbones (`backbone`) and the two-tone sweep on [`HbSolver`] (`two_tone`). Every
 //! continuation has one shape: a `step()` that returns a [`Step`].
@@ -36,6 +37,7 @@ mod ramp;
 mod solver;
 mod stability;
 mod state;
+mod step;
 mod sweep;
 #[cfg(test)]
 mod sweep_tests;
