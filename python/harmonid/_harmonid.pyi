@@ -93,6 +93,7 @@ def identify(
     unweighted: bool = False,
     estimator: Literal["ml", "linear"] = "ml",
     crlb: bool = False,
+    error_floor: bool = False,
     rank_tol: Optional[float] = None,
     gls: Optional[bool] = None,
     gls_iterations: Optional[int] = None,

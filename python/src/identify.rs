@@ -38,6 +38,8 @@ fn estimator(name: &str) -> PyResult<Estimator> {
 ///   simulated), or `"linear"`, the equation-error fit of the pooled shots (`--estimator`);
 /// - `crlb`: also compute the Cramér–Rao bound of every quantity at the estimate (`--crlb`;
 ///   `result.crlb`);
+/// - `error_floor`: add an error floor to the shot noise, estimated with the fit
+///   (`--error-floor`; `result.goodness_of_fit["error_floor"]`, and no p-value);
 /// - `holdout`: measurement names to leave out of the fit; the result's `holdout` says how
 ///   well the estimate predicts them (`--holdout`);
 /// - `rank_tol`, `gls`, `gls_iterations`, `sample_covariance`: the library's settings
@@ -45,7 +47,7 @@ fn estimator(name: &str) -> PyResult<Estimator> {
 ///
 /// Runs without holding the GIL. Returns an `IdentifyResult`.
 #[pyfunction]
-#[pyo3(signature = (model, dataset, *, joint = false, force_model = "auto", nominal_hz = None, near_rel = None, unweighted = false, estimator = "ml", crlb = false, rank_tol = None, gls = None, gls_iterations = None, sample_covariance = None, holdout = None))]
+#[pyo3(signature = (model, dataset, *, joint = false, force_model = "auto", nominal_hz = None, near_rel = None, unweighted = false, estimator = "ml", crlb = false, error_floor = false, rank_tol = None, gls = None, gls_iterations = None, sample_covariance = None, holdout = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn identify(
     py: Python<'_>,
@@ -58,6 +60,7 @@ pub fn identify(
     unweighted: bool,
     estimator: &str,
     crlb: bool,
+    error_floor: bool,
     rank_tol: Option<f64>,
     gls: Option<bool>,
     gls_iterations: Option<usize>,
@@ -86,6 +89,7 @@ pub fn identify(
         nominal_hz: nominal,
         estimator: self::estimator(estimator)?,
         crlb,
+        error_floor,
         ..Settings::default()
     };
     if let Some(x) = near_rel {

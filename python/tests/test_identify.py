@@ -23,6 +23,7 @@ OPTIONS = [
     ({"crlb": True}, ["--crlb"]),
     ({"estimator": "linear", "crlb": True}, ["--estimator", "linear", "--crlb"]),
     ({"holdout": ["single_q1"]}, ["--holdout", "single_q1"]),
+    ({"error_floor": True}, ["--error-floor"]),
 ]
 
 

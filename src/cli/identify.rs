@@ -44,6 +44,11 @@ pub struct Args {
     /// in the result), for the force model in use and the noise from the shot scatter.
     #[arg(long)]
     pub crlb: bool,
+    /// Add an error floor to the shot noise, estimated with the fit (one value per
+    /// quadrature for every line): for measured data whose steps carry errors the scatter of
+    /// their own samples does not see. The χ² verdict is then not a test; judge by --holdout.
+    #[arg(long)]
+    pub error_floor: bool,
     /// Fit without these measurements, then report how well the estimate predicts them (RMS
     /// in noise units and relative; their forces or gains are refitted, the model fixed).
     #[arg(long, value_delimiter = ',', value_name = "NAME[,NAME...]")]
@@ -108,6 +113,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         min_shots_for_weights: if args.unweighted { 0 } else { 5 },
         estimator: args.estimator,
         crlb: args.crlb,
+        error_floor: args.error_floor,
         ..Settings::default()
     };
     let pb = super::progress::spinner(&format!(

@@ -86,18 +86,15 @@ pub fn identify_with_holdout(
         )));
     }
     let fixed = fixed_at(model, &report);
-    let prediction = identify(&fixed, &held_ds, settings)?;
+    // The prediction's misfit in the shot noise's units (an error floor fitted to the
+    // held-out lines would hide what it is there to measure).
+    let shot_noise = Settings {
+        error_floor: false,
+        ..settings.clone()
+    };
+    let prediction = identify(&fixed, &held_ds, &shot_noise)?;
     report.holdout = match &prediction.goodness_of_fit {
-        Some(g) => g
-            .measurements
-            .iter()
-            .map(|m| HeldOut {
-                measurement: m.name.clone(),
-                lines: m.lines,
-                rms_sigma: g.p_value.map(|_| m.rms_residual_sigma),
-                relative_rms: m.relative_rms,
-            })
-            .collect(),
+        Some(g) => held_out(g, &held_ds, held),
         None => {
             return Err(IdentError::Holdout(format!(
                 "--holdout {}: the estimate cannot be simulated for the held-out measurements ({})",
@@ -107,6 +104,60 @@ pub fn identify_with_holdout(
         }
     };
     Ok(report)
+}
+
+/// The held-out entries of the prediction's verdict `g` on `held_ds`: one per measurement
+/// (a step of a sweep names its sweep), then one per held-out sweep summing its steps.
+fn held_out(
+    g: &harmonid_data::result::GoodnessOfFit,
+    held_ds: &Dataset,
+    held: &[String],
+) -> Vec<HeldOut> {
+    let judged = g.p_value.is_some();
+    let mut out: Vec<HeldOut> = g
+        .measurements
+        .iter()
+        .zip(&held_ds.measurements)
+        .map(|(m, dm)| HeldOut {
+            measurement: m.name.clone(),
+            lines: m.lines,
+            rms_sigma: judged.then_some(m.rms_residual_sigma),
+            relative_rms: m.relative_rms,
+            sweep: dm.spec.sweep.as_ref().map(|s| s.sweep.clone()),
+            steps: None,
+        })
+        .collect();
+    for name in held {
+        let steps: Vec<_> = g
+            .measurements
+            .iter()
+            .zip(&held_ds.measurements)
+            .filter(|(_, dm)| dm.spec.sweep.as_ref().is_some_and(|s| &s.sweep == name))
+            .map(|(m, _)| m)
+            .collect();
+        if steps.is_empty() {
+            continue;
+        }
+        let lines: usize = steps.iter().map(|m| m.lines).sum();
+        let meas2: f64 = steps
+            .iter()
+            .map(|m| m.amplitude_rms.powi(2) * m.lines as f64)
+            .sum();
+        let miss2: f64 = steps
+            .iter()
+            .map(|m| (m.relative_rms * m.amplitude_rms).powi(2) * m.lines as f64)
+            .sum();
+        let chi2: f64 = steps.iter().map(|m| m.chi2).sum();
+        out.push(HeldOut {
+            measurement: name.clone(),
+            lines,
+            rms_sigma: judged.then(|| (chi2 / (2 * lines).max(1) as f64).sqrt()),
+            relative_rms: (miss2 / meas2).sqrt(),
+            sweep: None,
+            steps: Some(steps.len()),
+        });
+    }
+    out
 }
 
 /// `model` with every mode's `f`, `Q` and every parameter fixed at `report`'s values.

@@ -150,6 +150,14 @@ pub struct Settings {
     pub crlb: bool,
     /// Cross-check the standard errors by a linearised delete-one-shot jackknife (default true).
     pub jackknife: bool,
+    /// Add an error floor to the shot noise (default false): every line's noise becomes
+    /// `√(s² + σ₀²)`, with one `σ₀` (m per quadrature) estimated with the output-error fit
+    /// as the floor at which `χ²/dof` is a correct model's expectation. For measured data
+    /// whose steps carry errors the scatter of their own samples does not see (drift between
+    /// steps, drive-level and frequency jitter): the shot noise alone then weighs the lines
+    /// by a noise they do not have. With a floor fitted to the residuals, `χ²` no longer
+    /// tests the model (no p-value); a held-out prediction (`holdout`) does.
+    pub error_floor: bool,
 }
 
 impl Default for Settings {
@@ -167,6 +175,7 @@ impl Default for Settings {
             estimator: Estimator::Ml,
             crlb: false,
             jackknife: true,
+            error_floor: false,
         }
     }
 }

@@ -46,6 +46,12 @@ pub struct GoodnessOfFit {
     pub measurements: Vec<MeasurementFit>,
     /// Every measured line's standardized residual, in the dataset's order.
     pub lines: Vec<LineResidual>,
+    /// The error floor fitted with the model (m per quadrature, added in quadrature to every
+    /// line's shot noise; `identify --error-floor`); `None`/absent: the shot noise alone.
+    /// With a floor, `p_value` and `fits` are absent: the floor was chosen to make `χ²/dof`
+    /// its expectation, so `χ²` no longer tests the model.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error_floor: Option<f64>,
 }
 
 /// One measurement's share of the misfit.
@@ -59,6 +65,10 @@ pub struct MeasurementFit {
     pub chi2: f64,
     /// `√(Σ|X̄ − X|² / Σ|X̄|²)` over its lines.
     pub relative_rms: f64,
+    /// `√(Σ|X̄|² / lines)`: the size of its measured amplitudes (m), which with
+    /// `relative_rms` sums the misfit of several measurements (a sweep's steps).
+    #[serde(default)]
+    pub amplitude_rms: f64,
     /// Root mean square of its standardized residuals per quadrature, in noise sigmas.
     pub rms_residual_sigma: f64,
     /// `chi2` over its share of the degrees of freedom (`2·lines·dof/N`, `N` real residuals
@@ -112,7 +122,13 @@ impl GoodnessOfFit {
                 p_text(p),
                 sig3(self.stderr_inflation)
             ),
-            _ => format!("{head}: not judged (no noise estimate from the shot scatter)"),
+            _ => match self.error_floor {
+                Some(f) => format!(
+                    "{head}: not judged (an error floor of {} per quadrature was fitted with the model; judge by --holdout)",
+                    sig3(f)
+                ),
+                None => format!("{head}: not judged (no noise estimate from the shot scatter)"),
+            },
         }
     }
 

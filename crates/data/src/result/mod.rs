@@ -254,6 +254,14 @@ pub struct HeldOut {
     pub rms_sigma: Option<f64>,
     /// `√(Σ|X̄ − X|² / Σ|X̄|²)` over its lines.
     pub relative_rms: f64,
+    /// For a step of a held-out sweep: the sweep's name (the summary prints the sweep's
+    /// entry, not each step's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sweep: Option<String>,
+    /// For a held-out sweep's entry (`measurement` is the sweep's name): its number of steps;
+    /// the entry sums them (`lines`, both RMS over every line of every step).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub steps: Option<usize>,
 }
 
 /// Which quantity a comparison is of.

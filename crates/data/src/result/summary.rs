@@ -195,11 +195,12 @@ impl Report {
         if let Some(g) = &self.goodness_of_fit {
             let _ = writeln!(s, "  goodness of fit: {}", g.one_line());
         }
-        for h in &self.holdout {
+        for h in self.holdout.iter().filter(|h| h.sweep.is_none()) {
             let _ = writeln!(
                 s,
-                "  held out \"{}\" ({} lines, not fitted): predicted to {}{:.3} % RMS of its amplitudes",
+                "  held out \"{}\" ({}{} lines, not fitted): predicted to {}{:.3} % RMS of its amplitudes",
                 h.measurement,
+                h.steps.map_or(String::new(), |k| format!("sweep of {k} steps, ")),
                 h.lines,
                 h.rms_sigma
                     .map_or(String::new(), |r| format!("{r:.3} noise sigmas RMS, ")),

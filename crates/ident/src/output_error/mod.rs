@@ -214,6 +214,26 @@ pub(crate) fn fit(
     };
     let (mut fit, mut notes) =
         tries.best(fwd, &pooled.mean, &starts(prob, linear, linear_var, poor))?;
+    let shot_sigma = sigma.clone();
+    let mut floor = None;
+    if settings.error_floor && from_shots {
+        let (f, s0) = fit_error_floor(fwd, &tries, fit)?;
+        fit = f;
+        floor = Some(s0);
+    }
+    let sigma: Vec<f64> = match floor {
+        Some(s0) => shot_sigma.iter().map(|s| s.hypot(s0)).collect(),
+        None => shot_sigma.clone(),
+    };
+    if let Some(s0) = floor {
+        let mut sorted = shot_sigma.clone();
+        sorted.sort_by(f64::total_cmp);
+        let median = sorted.get(sorted.len() / 2).copied().unwrap_or(f64::NAN);
+        notes.push(format!(
+            "error floor: {s0:.3e} per quadrature added to every line's noise, {:.3} times the median noise of a line's mean from its shots ({median:.3e}); χ² was fitted with it and no longer tests the model: judge by a held-out prediction (--holdout)",
+            s0 / median
+        ));
+    }
     // The lattice chosen at the start may be truncated too coarsely for the data's precision
     // at the estimate: widened where it shows, and the fit refined on the wider lattice.
     let mut widening_notes: Vec<(String, String)> = Vec::new();
@@ -262,13 +282,14 @@ pub(crate) fn fit(
     };
     let bounds = uncertainty::crlb_from_jacobian(fwd, &fit.theta, &fit.jac, &noise, 1)
         .map_err(OutputErrorFailure::Fisher)?;
-    let jackknife = if settings.jackknife && from_shots {
+    // The delete-one-shot jackknife sees the shots' scatter only, not the floor.
+    let jackknife = if settings.jackknife && from_shots && floor.is_none() {
         jackknife(fwd, &fit.at_estimate(), &sigma, ds_shots, pooled, &cols)
     } else {
         Vec::new()
     };
     let drift = if from_shots {
-        drift_warnings(fwd, &fit.at_estimate(), &sigma, ds_shots, pooled)
+        drift_warnings(fwd, &fit.at_estimate(), &shot_sigma, ds_shots, pooled)
     } else {
         Vec::new()
     };
@@ -287,6 +308,13 @@ pub(crate) fn fit(
     );
     goodness.stderr_inflation = inflation;
     goodness.converged = fit.converged;
+    if let Some(s0) = floor {
+        // Fitted to these residuals: χ² is near its expectation by construction.
+        goodness.expected_chi2_per_dof = floor_expectation(&shot_sigma, s0, e0);
+        goodness.p_value = None;
+        goodness.fits = None;
+        goodness.error_floor = floor;
+    }
     let consistency = compare_measurements(fwd, &fit, &meas, &noise, &cols, &pooled.mean);
     if !fit.converged {
         notes.push(format!(
@@ -318,6 +346,97 @@ pub(crate) fn fit(
         at_bound,
         notes,
     })
+}
+
+/// Most rounds of the error floor's fixed point (floor from the residuals, then the fit
+/// with it); it stops earlier once the floor moves by less than [`FLOOR_REL_TOL`].
+const FLOOR_ROUNDS: usize = 20;
+const FLOOR_REL_TOL: f64 = 1e-3;
+
+/// The output-error fit with an error floor (see [`Settings::error_floor`]): alternately the
+/// floor `σ₀` at which `χ²` with the noise `√(s² + σ₀²)` is a correct model's expectation at
+/// the current fit ([`floor_for`]; zero when the shot noise alone already gives that), and the
+/// fit with that noise, until the floor settles (`tries`: the data, the shot noise, and `e0`,
+/// a correct model's `χ²/dof` with the shot noise alone). Returns the last fit and its floor (m per quadrature).
+fn fit_error_floor(
+    fwd: &mut ForwardModel,
+    tries: &Tries,
+    mut fit: MlFit,
+) -> Result<(MlFit, f64), OutputErrorFailure> {
+    let Tries {
+        meas,
+        sigma: shot_sigma,
+        cols,
+        bounds,
+        e0,
+    } = *tries;
+    let mut floor = 0.0;
+    for _ in 0..FLOOR_ROUNDS {
+        let miss2: Vec<f64> = meas
+            .iter()
+            .zip(&fit.x)
+            .map(|(m, x)| (m - x).norm_sqr())
+            .collect();
+        let next = floor_for(&miss2, shot_sigma, e0, fit.dof.max(1) as f64);
+        let settled = (next - floor).abs() <= FLOOR_REL_TOL * next;
+        floor = next;
+        let sigma: Vec<f64> = shot_sigma.iter().map(|s| s.hypot(floor)).collect();
+        fit = ml::refine(
+            fwd,
+            meas,
+            &sigma,
+            &fit.theta,
+            cols,
+            bounds,
+            &MlSettings::default(),
+        )
+        .map_err(OutputErrorFailure::Fit)?;
+        if settled {
+            break;
+        }
+    }
+    Ok((fit, floor))
+}
+
+/// A correct model's `χ²/dof` with the noise `√(sᵢ² + σ₀²)`: `1 + (e0 − 1)·mean wᵢ²`, see
+/// [`floor_for`].
+fn floor_expectation(sigma: &[f64], s0: f64, e0: f64) -> f64 {
+    let w2: f64 = sigma
+        .iter()
+        .map(|s| (s * s / (s * s + s0 * s0)).powi(2))
+        .sum();
+    1.0 + (e0 - 1.0).max(0.0) * w2 / sigma.len().max(1) as f64
+}
+
+/// The floor `σ₀ ≥ 0` at which `Σ miss2ᵢ/(sᵢ² + σ₀²)` (`miss2ᵢ = |X̄ − X|²`) is its
+/// expectation for a correct model, `dof·(1 + (e0 − 1)·mean wᵢ²)` with `wᵢ = sᵢ²/(sᵢ² + σ₀²)`
+/// the share of the shot noise: a line's noise estimated from its shots inflates its term
+/// by `e0` when the shot noise is all of it (`ν/(ν − 2)`) and not at all when the floor
+/// dominates (to second order in the estimate's scatter, `1 + w²(e0 − 1)`). By bisection:
+/// the difference falls from positive (when the shot noise alone misses) to negative at
+/// `σ₀ = √(Σ miss2/dof)`.
+fn floor_for(miss2: &[f64], sigma: &[f64], e0: f64, dof: f64) -> f64 {
+    let excess = |s0: f64| -> f64 {
+        let chi2: f64 = miss2
+            .iter()
+            .zip(sigma)
+            .map(|(m, s)| m / (s * s + s0 * s0))
+            .sum();
+        chi2 - dof * floor_expectation(sigma, s0, e0)
+    };
+    if excess(0.0) <= 0.0 {
+        return 0.0;
+    }
+    let (mut lo, mut hi) = (0.0, (miss2.iter().sum::<f64>() / dof).sqrt());
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if excess(mid) > 0.0 {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
 }
 
 /// What every start's fit shares.

@@ -78,6 +78,7 @@ pub(crate) fn goodness_of_fit(
             lines: per,
             chi2: c,
             relative_rms: (miss2 / meas2).sqrt(),
+            amplitude_rms: (meas2 / per.max(1) as f64).sqrt(),
             rms_residual_sigma: (c / (2 * per).max(1) as f64).sqrt(),
             chi2_per_dof: if share > 0.0 { c / share } else { f64::NAN },
             expected_chi2_per_dof: if from_shots { k[0] / 2.0 } else { 1.0 },
@@ -108,6 +109,7 @@ pub(crate) fn goodness_of_fit(
         converged: true,
         measurements,
         lines,
+        error_floor: None,
     }
 }
 
