@@ -282,3 +282,51 @@ fn a_mode_forced_only_parametrically_stays_at_rest() {
     );
     assert!(!text.contains("second order"), "{text}");
 }
+
+#[test]
+fn velocity_terms_list_their_lines_with_i_and_the_frequencies() {
+    // eta1 q1^2 d(q1) under one tone: the lines of q1^3 (Ω1 and 3·Ω1), each i·(1/4 X1^3 ω(X1)):
+    // q1^2 q1' = -ω X^3 cos^2 sin = -(ω X^3/4)(sin θ + sin 3θ), a complex amplitude i·ω X^3/4.
+    let model = "examples/damped_2mode/model.hb";
+    let v = json(&[model, "--drives", "q1:999990", "--json"]);
+    let term = v["terms"]
+        .as_array()
+        .expect("terms")
+        .iter()
+        .find(|t| t["monomial"] == "q1^2*d(q1)")
+        .expect("the damping term");
+    assert_eq!(term["velocity_factors"], 1);
+    let coefficients: Vec<&str> = term["lines"]
+        .as_array()
+        .expect("lines")
+        .iter()
+        .map(|l| l["coefficient"].as_str().expect("text"))
+        .collect();
+    assert_eq!(coefficients, ["i·(1/4*X1^3*ω(X1))", "i·(1/4*X1^3*ω(X1))"]);
+    // The velocity coupling eta12 q2^2 d(q1) with q2 driven too: q1's tone and its
+    // intermodulation with twice q2's.
+    let v = json(&[
+        model,
+        "--drives",
+        "q1:999990",
+        "--drives",
+        "q2:1600000",
+        "--json",
+    ]);
+    let lines = near(&v, "q1", "q2^2*d(q1)", "q1");
+    assert_eq!(lines, [999990.0]);
+    let (ok, text, err) = mix(&[model, "--drives", "q1:999990"]);
+    assert!(ok, "{err}");
+    assert!(
+        text.contains("ω(X) = 2π × the frequency of component X"),
+        "{text}"
+    );
+    let (ok, latex, err) = mix(&[model, "--drives", "q1:999990", "--latex"]);
+    assert!(ok, "{err}");
+    assert!(
+        latex.contains("\\dot{q}_{1}")
+            && latex.contains("i\\left(")
+            && latex.contains("\\omega_{X_{1}}"),
+        "{latex}"
+    );
+}

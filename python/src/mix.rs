@@ -16,7 +16,8 @@ fn spectral_error(e: harmonid_spectral::SpectralError) -> PyErr {
 /// One record per line of every term's mixing table: `equation`, `monomial`,
 /// `term_coefficient`, `combination` (e.g. `2·f1 − f2`), `coeffs` (the integer combination of
 /// the tones), `freq_hz`, `coefficient` (the line's amplitude as a polynomial in the component
-/// amplitudes X1, X2, ...), `near` (the mode it is near, or None), `second_order` and `via` (the
+/// amplitudes X1, X2, ...; for a term with velocities `d(q)`, `i·(...)`: its complex amplitude,
+/// also in the components' angular frequencies ω(X1), ...), `velocity_factors`, `near` (the mode it is near, or None), `second_order` and `via` (the
 /// modes without a tone whose response through the coupling, amplitudes Z1, Z2, ..., the line
 /// goes through; empty for a first-order line). `pandas.DataFrame(records)` takes them as they
 /// are. Tones are numbered f1, f2, ... in the order `drives` gives them (`harmonid mix` prints
@@ -32,11 +33,6 @@ pub fn mix<'py>(
     nominal_hz: Option<BTreeMap<String, f64>>,
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
     let m = &*model.inner;
-    if m.has_velocity_terms() {
-        return Err(HarmonidError::new_err(
-            "mix does not yet list the lines of velocity terms (d(q)); their lines are those of the same term without the d()",
-        ));
-    }
     let mode_names: Vec<String> = m.modes.iter().map(|x| x.name.clone()).collect();
     let mut nominal: Vec<Option<f64>> = m
         .modes
@@ -93,14 +89,15 @@ pub fn mix<'py>(
         None => Window::default(),
     };
     let params: Vec<&str> = m.param_names();
-    let symbols = assignment.symbols();
+    let symbols = assignment.symbols_with_frequencies();
+    let variables = m.variable_names();
     let labels = assignment.tones().labels();
     let mut records = Vec::new();
     for (n, eq) in m.eom.iter().enumerate() {
         for (mono, c) in eq.terms() {
             let table =
                 mixing_table(mono, &assignment, &nominal, window).map_err(spectral_error)?;
-            let monomial = mono.name(&mode_names);
+            let monomial = mono.name(&variables);
             let term_coefficient = c.to_string_with(&params);
             for l in &table.lines {
                 let r = PyDict::new(py);
@@ -110,7 +107,8 @@ pub fn mix<'py>(
                 r.set_item("combination", l.combination.display_with(labels))?;
                 r.set_item("coeffs", l.combination.coeffs())?;
                 r.set_item("freq_hz", l.hz)?;
-                r.set_item("coefficient", l.coefficient.to_string_with(&symbols))?;
+                r.set_item("coefficient", table.coefficient_text(l, &symbols))?;
+                r.set_item("velocity_factors", table.velocity_factors)?;
                 r.set_item("near", l.near_mode().map(|k| mode_names[k].as_str()))?;
                 let via: Vec<&str> = assignment
                     .responses_in(&l.coefficient)

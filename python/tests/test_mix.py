@@ -16,6 +16,7 @@ def cli_records(cli, *args):
                     "equation": t["equation"],
                     "monomial": t["monomial"],
                     "term_coefficient": t["term_coefficient"],
+                    "velocity_factors": t["velocity_factors"],
                     "combination": line["label"],
                     "coeffs": line["combination"],
                     "freq_hz": line["freq_hz"],
@@ -46,6 +47,19 @@ def test_records_equal_cli(cli, drives, options, flags):
     assert_close(got, want)
     # Pairs work as well as a dict.
     assert harmonid.mix(harmonid.Model.from_file(MODEL_2), list(drives.items()), **options) == got
+
+
+def test_velocity_terms_equal_cli_and_carry_i(cli):
+    model = "examples/damped_2mode/model.hb"
+    want = cli_records(cli, model, "--drives", "q1:999990.0", "--drives", "q2:1600000.0")
+    got = harmonid.mix(harmonid.Model.from_file(model), {"q1": [999990.0], "q2": [1600000.0]})
+    assert_close(got, want)
+    # eta1 q1^2 d(q1) at the tone: i·(1/4 X1^3 ω(X1)), a force in quadrature with the motion.
+    line = next(
+        r for r in got if r["monomial"] == "q1^2*d(q1)" and r["combination"] == "f1"
+    )
+    assert line["coefficient"] == "i·(1/4*X1^3*ω(X1))"
+    assert line["velocity_factors"] == 1
 
 
 def test_records_make_a_dataframe():

@@ -72,6 +72,10 @@ struct Term {
 struct Report {
     model_path: String,
     mode_names: Vec<String>,
+    /// Modes, then velocities (`d(q1)`): the names of a monomial's variables.
+    var_names: Vec<String>,
+    /// The same in LaTeX.
+    var_latex: Vec<String>,
     param_names: Vec<String>,
     nominal: Vec<Option<f64>>,
     assignment: ToneAssignment,
@@ -160,13 +164,6 @@ pub fn run(args: Args) -> miette::Result<()> {
 }
 
 fn build(args: &Args, model: &Model) -> miette::Result<Report> {
-    if model.has_velocity_terms() {
-        return Err(miette!(
-            help = "the lines of a velocity term are those of the same term without the d(): drop d() from a copy of the model to list them",
-            "{}: `mix` does not yet list the lines of velocity terms (d(q)); their coefficients carry a factor i·2πf per velocity",
-            args.model.display()
-        ));
-    }
     let mode_names: Vec<String> = model.modes.iter().map(|m| m.name.clone()).collect();
     // Nominal resonances: model, then dataset, then command line.
     let mut nominal: Vec<Option<f64>> = model
@@ -296,6 +293,8 @@ fn build(args: &Args, model: &Model) -> miette::Result<Report> {
     }
     Ok(Report {
         model_path: args.model.display().to_string(),
+        var_names: model.variable_names(),
+        var_latex: model.variable_latex_names(),
         mode_names,
         param_names,
         nominal,
@@ -387,14 +386,16 @@ fn tone_lines(r: &Report) -> Vec<String> {
 
 /// Why a term has no lines: the modes of its factors that do not move.
 fn at_rest(r: &Report, t: &Term) -> String {
-    let still: Vec<&str> = t
+    let mut still: Vec<usize> = t
         .monomial
         .factors()
         .iter()
-        .map(|&(v, _)| v.index())
+        .map(|&(v, _)| v.index() % r.mode_names.len())
         .filter(|&n| !r.assignment.components().iter().any(|c| c.mode == n))
-        .map(|n| r.mode_names[n].as_str())
         .collect();
+    still.sort_unstable();
+    still.dedup();
+    let still: Vec<&str> = still.iter().map(|&n| r.mode_names[n].as_str()).collect();
     format!(
         "no lines ({} at rest: no tone, and no term of its equation without it is forced)",
         still.join(", ")
@@ -413,8 +414,14 @@ fn to_text(r: &Report) -> String {
         s,
         "each line: combination, frequency, amplitude of cos(2π f t) in the monomial (DC value at 0 Hz)"
     );
+    if r.terms.iter().any(|t| t.table.velocity_factors > 0) {
+        let _ = writeln!(
+            s,
+            "velocity terms (d(q)): the line's complex amplitude C, the line being Re[C e^(i2π f t)] (i·c: −c·sin(2π f t)); ω(X) = 2π × the frequency of component X"
+        );
+    }
     let labels = tone_labels(r);
-    let symbols = r.assignment.symbols();
+    let symbols = r.assignment.symbols_with_frequencies();
     let mut last_eq = usize::MAX;
     for t in &r.terms {
         if t.equation != last_eq {
@@ -425,7 +432,7 @@ fn to_text(r: &Report) -> String {
             s,
             "  ({}) · {}",
             t.coefficient.to_string_with(&r.param_names),
-            t.monomial.name(&r.mode_names)
+            t.monomial.name(&r.var_names)
         );
         let gs = groups(r, &t.table);
         if gs.is_empty() {
@@ -440,7 +447,7 @@ fn to_text(r: &Report) -> String {
                     "      {:<24} {:>16.3} Hz   {}{}{mark}",
                     l.combination.display_with(&labels),
                     l.hz,
-                    l.coefficient.to_string_with(&symbols),
+                    t.table.coefficient_text(l, &symbols),
                     if mark.is_empty() { "" } else { "   " },
                 );
             }
@@ -457,18 +464,18 @@ fn to_markdown(r: &Report) -> String {
     }
     let _ = writeln!(
         s,
-        "\nNear means {}. Coefficients are amplitudes of cos(2π f t).",
+        "\nNear means {}. Coefficients are amplitudes of cos(2π f t); with velocities (d(q)) the line's complex amplitude C (the line is Re[C e^(i2π f t)]), ω(X) being 2π times component X's frequency.",
         window_text(r)
     );
     let labels = tone_labels(r);
-    let symbols = r.assignment.symbols();
+    let symbols = r.assignment.symbols_with_frequencies();
     for t in &r.terms {
         let _ = writeln!(
             s,
             "\n## Equation of {}: `({}) * {}`\n",
             r.mode_names[t.equation],
             t.coefficient.to_string_with(&r.param_names),
-            t.monomial.name(&r.mode_names)
+            t.monomial.name(&r.var_names)
         );
         let _ = writeln!(s, "| where | combination | frequency (Hz) | coefficient |");
         let _ = writeln!(s, "|---|---|---:|---|");
@@ -481,12 +488,24 @@ fn to_markdown(r: &Report) -> String {
                     if mark.is_empty() { "" } else { ", " },
                     l.combination.display_with(&labels),
                     l.hz,
-                    l.coefficient.to_string_with(&symbols)
+                    t.table.coefficient_text(l, &symbols)
                 );
             }
         }
     }
     s
+}
+
+/// A line's coefficient in LaTeX, with the table's `i^k` in front when the term has velocity
+/// factors (as [`MixingTable::coefficient_text`]).
+fn latex_coefficient(t: &MixingTable, l: &Line, symbols: &[String]) -> String {
+    let c = l.coefficient.to_latex_with(symbols);
+    match t.velocity_factors % 4 {
+        0 => c,
+        1 => format!("i\\left({c}\\right)"),
+        2 => format!("-\\left({c}\\right)"),
+        _ => format!("-i\\left({c}\\right)"),
+    }
 }
 
 /// `X1 → X_{1}`, `X3_q2 → X_{3,q2}`, `Y1 → Y_{1}`.
@@ -500,21 +519,21 @@ fn to_latex(r: &Report) -> String {
     let labels: Vec<String> = (1..=r.assignment.tones().len())
         .map(|d| format!("\\Omega_{{{d}}}"))
         .collect();
-    let symbols: Vec<String> = r
+    let amplitudes: Vec<String> = r
         .assignment
         .symbols()
         .iter()
         .map(|x| latex_symbol(x))
         .collect();
+    let frequencies: Vec<String> = amplitudes
+        .iter()
+        .map(|x| format!("\\omega_{{{x}}}"))
+        .collect();
+    let symbols = [amplitudes, frequencies].concat();
     let params: Vec<String> = r
         .param_names
         .iter()
         .map(|p| harmonid_model::latex_name(p))
-        .collect();
-    let modes: Vec<String> = r
-        .mode_names
-        .iter()
-        .map(|m| harmonid_model::latex_name(m))
         .collect();
     let _ = writeln!(s, "% harmonid mix {}", r.model_path);
     for c in r.assignment.components() {
@@ -534,7 +553,7 @@ fn to_latex(r: &Report) -> String {
             s,
             "\n% equation of {}\n\\begin{{tabular}}{{llrl}}\n\\multicolumn{{4}}{{l}}{{$({coeff})\\,{}$}} \\\\\n\\hline",
             r.mode_names[t.equation],
-            t.monomial.join(&modes, " ", |k| format!("^{{{k}}}"))
+            t.monomial.join(&r.var_latex, " ", |k| format!("^{{{k}}}"))
         );
         for (title, lines) in groups(r, &t.table) {
             for l in lines {
@@ -545,7 +564,7 @@ fn to_latex(r: &Report) -> String {
                     if mark.is_empty() { "" } else { ", " },
                     l.combination.latex_with(&labels),
                     l.hz,
-                    l.coefficient.to_latex_with(&symbols)
+                    latex_coefficient(&t.table, l, &symbols)
                 );
             }
         }
@@ -571,7 +590,7 @@ fn to_json(r: &Report) -> String {
             })
         })
         .collect();
-    let symbols = a.symbols();
+    let symbols = a.symbols_with_frequencies();
     // `label` keeps format harmonid-mix/1's names f1, f2, ... (the Python records' `combination`);
     // `name` is the same combination with the tones as Ω1, Ω2, ...
     let labels = a.tones().labels();
@@ -589,7 +608,7 @@ fn to_json(r: &Report) -> String {
                         "combination": l.combination.coeffs(),
                         "label": l.combination.display_with(labels),
                         "freq_hz": l.hz,
-                        "coefficient": l.coefficient.to_string_with(&symbols),
+                        "coefficient": t.table.coefficient_text(l, &symbols),
                         "near": l.near_mode().map(|n| r.mode_names[n].clone()),
                         "name": l.combination.display_with(&omega),
                         "second_order": !via(r, l).is_empty(),
@@ -599,8 +618,9 @@ fn to_json(r: &Report) -> String {
                 .collect();
             json!({
                 "equation": r.mode_names[t.equation],
-                "monomial": t.monomial.name(&r.mode_names),
+                "monomial": t.monomial.name(&r.var_names),
                 "term_coefficient": t.coefficient.to_string_with(&r.param_names),
+                "velocity_factors": t.table.velocity_factors,
                 "lines": lines,
             })
         })

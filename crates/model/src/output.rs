@@ -117,6 +117,23 @@ impl Model {
         format!("{lhs} = F{s}(t)")
     }
 
+    /// The LaTeX names of the variables, modes then velocities (`q_{1}`, `\dot{q}_{1}`), in
+    /// the order of [`Model::variable_names`].
+    pub fn variable_latex_names(&self) -> Vec<String> {
+        self.modes
+            .iter()
+            .map(|m| latex_name(&m.name))
+            .chain(self.modes.iter().map(|m| {
+                let (base, _) = split_name(&m.name);
+                format!(
+                    "\\dot{{{}}}_{{{}}}",
+                    latex_base(base),
+                    mode_suffix_latex(&m.name)
+                )
+            }))
+            .collect()
+    }
+
     /// Equation `n` in LaTeX (one line of an `aligned` block, `&=` before the drive).
     pub fn equation_latex(&self, n: usize) -> String {
         let Some(mode) = self.modes.get(n) else {
@@ -129,19 +146,7 @@ impl Model {
         let lhs = format!(
             "\\ddot{{{qb}}}_{{{s}}} + \\frac{{\\omega_{{{s}}}}}{{Q_{{{s}}}}} \\dot{{{qb}}}_{{{s}}} + \\omega_{{{s}}}^{{2}} {q}"
         );
-        let modes: Vec<String> = self
-            .modes
-            .iter()
-            .map(|m| latex_name(&m.name))
-            .chain(self.modes.iter().map(|m| {
-                let (base, _) = split_name(&m.name);
-                format!(
-                    "\\dot{{{}}}_{{{}}}",
-                    latex_base(base),
-                    mode_suffix_latex(&m.name)
-                )
-            }))
-            .collect();
+        let modes = self.variable_latex_names();
         let params: Vec<String> = self.params.iter().map(|p| latex_name(&p.name)).collect();
         let lhs = match self.eom.get(n) {
             Some(p) if !p.is_zero() => join_sum(&lhs, &p.to_latex_with(&modes, &params)),

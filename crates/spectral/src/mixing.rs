@@ -13,6 +13,16 @@
 //! the numeric [`crate::ProductPlan`] gives the same number (tested). With phases (complex
 //! amplitudes) the table still gives every line and which amplitudes meet there, but the
 //! numeric value needs the conjugate-aware [`crate::ProductPlan`].
+//!
+//! **Velocities.** A monomial may hold velocities (variable `n_modes + n` is `q̇_n`, the
+//! model's layout). The velocity of a component `X_c cos(2π f_c t)` is
+//! `Re[i ω_c X_c e^{i2π f_c t}]`, `ω_c = 2π f_c`: in the two-sided expansion it puts
+//! `+½ i ω_c X_c` at `+f_c` and `−½ i ω_c X_c` at `−f_c`. With `k` velocity factors every
+//! product carries `i^k`, which the table factors out ([`MixingTable::velocity_factors`]): a
+//! line's complex amplitude is `i^k · C`, with `C` a polynomial with rational coefficients in
+//! the amplitudes `X_c` and the angular frequencies `ω_c` (variable `components + c`, named
+//! `ω(X1)`, ... by [`ToneAssignment::symbols_with_frequencies`]). For `k = 1` the line is
+//! `−C sin(2π f t)`: a damping force in quadrature with the motion.
 
 use crate::lattice::{nearest_mode, Combination, ToneSet};
 use crate::{SpectralError, FREQ_TOLERANCE_HZ};
@@ -221,7 +231,8 @@ impl ToneAssignment {
                 }
                 let mut lines: Vec<(f64, Combination)> = Vec::new();
                 for m in equations.get(n).map_or(&[][..], |v| &v[..]) {
-                    if m.factors().iter().any(|&(v, _)| v.index() == n) {
+                    let nm = self.mode_names.len();
+                    if m.factors().iter().any(|&(v, _)| v.index() % nm == n) {
                         continue;
                     }
                     for l in mixing_table(m, self, &nominal, Window::default())?.lines {
@@ -319,6 +330,15 @@ impl ToneAssignment {
         self.components.iter().map(|c| c.symbol.clone()).collect()
     }
 
+    /// The symbol names of a table with velocities: the components' amplitudes, then their
+    /// angular frequencies `ω(X1)`, ... (`2π` times the component's frequency, rad/s), indexed
+    /// by variable.
+    pub fn symbols_with_frequencies(&self) -> Vec<String> {
+        let mut s = self.symbols();
+        s.extend(self.components.iter().map(|c| frequency_symbol(&c.symbol)));
+        s
+    }
+
     /// Fills every `None` in `nominal_hz` (per mode, Hz) with the mean frequency of that mode's
     /// own drive tones, if it has any: where a mode without a nominal resonance is taken to sit.
     pub fn fill_nominal_from_drives(&self, nominal_hz: &mut [Option<f64>]) {
@@ -337,6 +357,11 @@ impl ToneAssignment {
             }
         }
     }
+}
+
+/// The name of a component's angular frequency: `ω(X1)`.
+pub fn frequency_symbol(amplitude_symbol: &str) -> String {
+    format!("ω({amplitude_symbol})")
 }
 
 /// What counts as "near" a resonance.
@@ -375,7 +400,9 @@ pub struct Line {
     /// Frequency, Hz (≥ 0).
     pub hz: f64,
     /// Amplitude of `cos(2π hz t)` (DC value at 0 Hz), a polynomial in the component
-    /// amplitudes (variable `i` = component `i` of the [`ToneAssignment`]).
+    /// amplitudes (variable `i` = component `i` of the [`ToneAssignment`]); with velocity
+    /// factors, the line's complex amplitude over `i^k` (see the module documentation), also
+    /// in the components' angular frequencies (variable `components + i`).
     pub coefficient: Coeff,
     /// The mode whose nominal resonance is closest, with the signed distance `hz − f_n` (Hz),
     /// if any mode has a nominal frequency.
@@ -394,7 +421,8 @@ impl Line {
         }
     }
 
-    /// The coefficient evaluated at real amplitudes (`amplitudes[i]` for variable `i`).
+    /// The coefficient evaluated at real amplitudes (`amplitudes[i]` for variable `i`; with
+    /// velocities, the angular frequencies follow the amplitudes).
     pub fn eval(&self, amplitudes: &[f64]) -> f64 {
         self.coefficient.eval(amplitudes)
     }
@@ -403,13 +431,37 @@ impl Line {
 /// Every line a monomial generates under a tone assignment, sorted by frequency.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MixingTable {
-    /// The monomial (over mode indices).
+    /// The monomial (over mode indices, then velocities).
     pub monomial: PowerProduct,
+    /// `k`, the number of velocity factors of the monomial (with multiplicity): every line's
+    /// complex amplitude is `i^k` times its coefficient.
+    pub velocity_factors: u32,
     /// The lines, by increasing frequency.
     pub lines: Vec<Line>,
 }
 
 impl MixingTable {
+    /// `i^k` as text (`""`, `"i·"`, `"−"`, `"−i·"`), to put before a coefficient.
+    pub fn i_power_prefix(&self) -> &'static str {
+        match self.velocity_factors % 4 {
+            0 => "",
+            1 => "i·",
+            2 => "−",
+            _ => "−i·",
+        }
+    }
+
+    /// A line's coefficient as text over `symbols` (those of
+    /// [`ToneAssignment::symbols_with_frequencies`]), with `i^k` in front when the monomial
+    /// has velocity factors: `i·(1/4*X1^3*ω(X1))`, the line's complex amplitude.
+    pub fn coefficient_text(&self, line: &Line, symbols: &[impl AsRef<str>]) -> String {
+        let c = line.coefficient.to_string_with(symbols);
+        match self.i_power_prefix() {
+            "" => c,
+            p => format!("{p}({c})"),
+        }
+    }
+
     /// Lines within the window of mode `n`.
     pub fn near(&self, n: usize) -> impl Iterator<Item = &Line> {
         self.lines.iter().filter(move |l| l.near_mode() == Some(n))
@@ -431,7 +483,8 @@ impl MixingTable {
     }
 }
 
-/// Expands monomial `m` (over mode indices) under `assignment`.
+/// Expands monomial `m` (over mode indices, then velocities: variable `n_modes + n` is the
+/// velocity of mode `n`) under `assignment`.
 ///
 /// `nominal_hz[n]` is mode `n`'s nominal resonance (Hz, `None` if unknown) and decides which
 /// lines are near which resonance within `window`. A mode with no component does not move, so a
@@ -447,14 +500,21 @@ pub fn mixing_table(
     window: Window,
 ) -> Result<MixingTable, SpectralError> {
     let n_modes = assignment.mode_names.len();
+    let n_comp = assignment.components.len();
     for &(v, _) in m.factors() {
-        if v.index() >= n_modes {
+        if v.index() >= 2 * n_modes {
             return Err(SpectralError::Invalid(format!(
-                "monomial uses mode index {} but the assignment has {n_modes} modes",
+                "monomial uses variable {} but the assignment has {n_modes} modes (and their velocities)",
                 v.index()
             )));
         }
     }
+    let velocity_factors: u32 = m
+        .factors()
+        .iter()
+        .filter(|&&(v, _)| v.index() >= n_modes)
+        .map(|&(_, k)| k)
+        .sum();
     let half = Rational::new(1, 2);
     let overflow = |_| SpectralError::Overflow {
         context: "expanding a mixing table",
@@ -466,12 +526,14 @@ pub fn mixing_table(
         Combination::zero(tones.len()),
         Coeff::constant(Rational::from_integer(1)),
     );
-    for mode in m.flat_factors() {
+    for var in m.flat_factors() {
+        let velocity = var.index() >= n_modes;
+        let mode = var.index() % n_modes;
         let comps: Vec<(usize, &Component)> = assignment
             .components
             .iter()
             .enumerate()
-            .filter(|(_, c)| c.mode == mode.index())
+            .filter(|(_, c)| c.mode == mode)
             .collect();
         let visits = spectrum.len().saturating_mul(2 * comps.len());
         if visits > MAX_EXPANSION_TERMS {
@@ -484,15 +546,30 @@ pub fn mixing_table(
         let mut next: BTreeMap<Combination, Coeff> = BTreeMap::new();
         for (k, p) in &spectrum {
             for &(i, c) in &comps {
-                let factor = Coeff::term(PowerProduct::var(VarId(i as u32)), half);
+                // ½X at ±f; a velocity ±½ω X (its i factored out).
+                let x = PowerProduct::var(VarId(i as u32));
+                let factor = if velocity {
+                    let w = PowerProduct::var(VarId((n_comp + i) as u32));
+                    Coeff::term(x.checked_mul(&w).map_err(overflow)?, half)
+                } else {
+                    Coeff::term(x, half)
+                };
                 let term = p.checked_mul(&factor).map_err(overflow)?;
-                for shifted in [k.checked_add(&c.combination), k.checked_sub(&c.combination)] {
+                let minus = if velocity {
+                    term.checked_neg().map_err(overflow)?
+                } else {
+                    term.clone()
+                };
+                for (shifted, term) in [
+                    (k.checked_add(&c.combination), &term),
+                    (k.checked_sub(&c.combination), &minus),
+                ] {
                     let shifted = shifted.ok_or(SpectralError::Overflow {
                         context: "adding combinations",
                     })?;
                     match next.get_mut(&shifted) {
                         Some(acc) => {
-                            *acc = acc.checked_add(&term).map_err(overflow)?;
+                            *acc = acc.checked_add(term).map_err(overflow)?;
                         }
                         None => {
                             next.insert(shifted, term.clone());
@@ -561,6 +638,7 @@ pub fn mixing_table(
     }
     Ok(MixingTable {
         monomial: m.clone(),
+        velocity_factors,
         lines,
     })
 }
@@ -568,6 +646,89 @@ pub fn mixing_table(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use num_complex::Complex64;
+    use std::f64::consts::TAU;
+
+    #[test]
+    fn velocity_lines_match_a_brute_force_product_in_time() {
+        // q1 at 3 and 5 Hz, q2 at 7 Hz: every product is periodic in 1 s, and 4096 samples
+        // resolve each of its lines exactly.
+        let names = ["q1", "q2"];
+        let drives = vec![
+            ("q1".to_string(), vec![3.0, 5.0]),
+            ("q2".to_string(), vec![7.0]),
+        ];
+        let a = ToneAssignment::from_drives(&names, &drives).expect("tones");
+        let amps = [0.7, -1.3, 0.9];
+        let hz: Vec<f64> = a
+            .components()
+            .iter()
+            .map(|c| c.combination.hz(a.tones()))
+            .collect();
+        let mut values = amps.to_vec();
+        values.extend(hz.iter().map(|f| TAU * f));
+        assert_eq!(
+            a.symbols_with_frequencies(),
+            ["X1", "X2", "X3", "ω(X1)", "ω(X2)", "ω(X3)"]
+        );
+        // Variables: q1, q2, d(q1), d(q2).
+        let v = |i: u32| VarId(i);
+        let monomials = [
+            PowerProduct::from_factors([(v(0), 2), (v(2), 1)]),
+            PowerProduct::from_factors([(v(1), 1), (v(2), 1), (v(3), 1)]),
+            PowerProduct::from_factors([(v(2), 3)]),
+            PowerProduct::from_factors([(v(0), 1), (v(1), 2), (v(3), 1)]),
+            PowerProduct::from_factors([(v(2), 2), (v(3), 2)]),
+        ];
+        let n = 4096;
+        for m in monomials {
+            let m = m.expect("monomial");
+            let table =
+                mixing_table(&m, &a, &[Some(4.0), Some(7.0)], Window::default()).expect("table");
+            let k = table.velocity_factors;
+            let ik = Complex64::new(0.0, 1.0).powu(k);
+            // The product sampled in time, projected on each frequency.
+            let signal: Vec<f64> = (0..n)
+                .map(|j| {
+                    let t = j as f64 / n as f64;
+                    let mut q = [0.0; 2];
+                    let mut dq = [0.0; 2];
+                    for (c, comp) in a.components().iter().enumerate() {
+                        let w = TAU * hz[c];
+                        q[comp.mode] += amps[c] * (w * t).cos();
+                        dq[comp.mode] -= amps[c] * w * (w * t).sin();
+                    }
+                    let vars = [q[0], q[1], dq[0], dq[1]];
+                    m.factors()
+                        .iter()
+                        .map(|&(x, e)| vars[x.index()].powi(e as i32))
+                        .product()
+                })
+                .collect();
+            let line_at = |f: usize| -> Complex64 {
+                let sum: Complex64 = signal
+                    .iter()
+                    .enumerate()
+                    .map(|(j, &x)| x * Complex64::from_polar(1.0, -TAU * (f * j) as f64 / n as f64))
+                    .sum();
+                sum * if f == 0 { 1.0 } else { 2.0 } / n as f64
+            };
+            let scale = signal.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
+            for f in 0..40usize {
+                let want = line_at(f);
+                let got = table
+                    .lines
+                    .iter()
+                    .find(|l| (l.hz - f as f64).abs() < 1e-9)
+                    .map_or(Complex64::new(0.0, 0.0), |l| ik * l.eval(&values));
+                assert!(
+                    (got - want).norm() <= 1e-9 * scale,
+                    "{}: {f} Hz: table {got}, time domain {want}",
+                    m.name(&["q1", "q2", "d(q1)", "d(q2)"])
+                );
+            }
+        }
+    }
 
     #[test]
     fn a_mode_without_nominal_sits_at_its_drive_tones_mean() {
