@@ -12,9 +12,10 @@ const LANDINGS: usize = 8;
 impl HbSolver {
     /// The steady state a stepped experiment reaches under this solver's drive from the
     /// previous step's state `start` (`start[n][r]`: amplitudes on this lattice, see
-    /// [`SteadyState::carried_to`]): the slow flow integrated from there until it settles
-    /// ([`HbSolver::land`], up to [`LANDINGS`] times), as the resonator's transient does. On the branch the previous
-    /// step was on while that branch exists; past its fold, on the branch the jump reaches.
+    /// [`SteadyState::carried_to`]): the slow flow integrated from there until it settles (by
+    /// linearly implicit pseudo-time steps, up to 8 landings of 400 steps), as the resonator's
+    /// transient does. On the branch the previous step was on while that branch exists; past
+    /// its fold, on the branch the jump reaches.
     /// Never through a fold the experiment did not cross, which a ramp of the drive from rest
     /// may do (from rest, the drive ramp lands on the low branch of a hardening resonance
     /// where an up-sweep is on the high one).
