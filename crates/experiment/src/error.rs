@@ -70,7 +70,7 @@ pub enum ExperimentError {
         residual: f64,
     },
     /// A mode's net linear damping is not positive: it oscillates on its own.
-    #[error("{mode} is self-excited: its net linear damping w/Q plus its d({mode}) term is {net_damping:.3e} 1/s, not positive, so it oscillates without a drive (a limit cycle, as van der Pol's); the harmonic balance solves for the response at the drive's frequencies and does not follow limit cycles")]
+    #[error("{mode} is self-excited: its net linear damping w/Q plus its d({mode}) term is {net_damping:.3e} 1/s, not positive, so it oscillates without a drive{cycle}; driven, its motion is not periodic at the drive's frequencies (it locks to the drive or beats with it), and harmonid simulates driven steady states only")]
     #[diagnostic(
         code(harmonid::self_excited),
         help("harmonid simulates driven steady states; a mode with more linear damping than its negative velocity term (a larger w/Q, a smaller mu) has one")
@@ -80,6 +80,9 @@ pub enum ExperimentError {
         mode: String,
         /// Net linear damping rate, 1/s.
         net_damping: f64,
+        /// The undriven limit cycle in words (`: on a limit cycle of 1.22e-4 m at 1000.0 Hz
+        /// (autonomous harmonic balance)`), or why it was not found.
+        cycle: String,
     },
     /// The steady state is unstable (Hill).
     #[error("measurement {measurement}: the steady state is unstable: perturbations grow at {growth_rate:.3e} 1/s (the linear resonator decays at {linear_decay_rate:.3e} 1/s), so an experiment would not stay on it")]

@@ -506,9 +506,19 @@ impl Plan {
         // the lock-in windows would not settle on its limit cycle either).
         let mut net = (0..model.n_modes()).map(|n| (n, model.net_linear_damping(n)));
         if let Some((n, net_damping)) = net.find(|&(_, d)| d <= 0.0) {
+            let cycle = match harmonid_sim::limit_cycle(model, 9) {
+                Ok(lc) => format!(
+                    " on {} limit cycle of {:.3e} m at {:.6e} Hz (autonomous harmonic balance)",
+                    if lc.stable { "a stable" } else { "an unstable" },
+                    lc.amplitude(),
+                    lc.f_hz,
+                ),
+                Err(e) => format!(" ({e})"),
+            };
             return Err(ExperimentError::SelfExcited {
                 mode: model.mode_names[n].clone(),
                 net_damping,
+                cycle,
             });
         }
         let shapes = self.point_shapes(model);

@@ -74,6 +74,22 @@ pub enum SimError {
         /// The computation.
         what: &'static str,
     },
+    /// A limit cycle was asked of a model no mode of which is self-excited.
+    #[error("{mode} is not self-excited: its net linear damping (w/Q plus its own d({mode}) term) is {net_damping:.3e} 1/s, positive, so without a drive the motion decays to rest and there is no limit cycle to follow")]
+    NotSelfExcited {
+        /// The mode with the least net damping.
+        mode: String,
+        /// Its net linear damping rate, 1/s.
+        net_damping: f64,
+    },
+    /// A self-excited mode whose limit cycle was not found.
+    #[error("no limit cycle of the self-excited mode {mode}: {why}")]
+    NoLimitCycle {
+        /// The mode.
+        mode: String,
+        /// Why.
+        why: String,
+    },
     /// A term of a hand-built model refers to a mode it does not have.
     #[error("a term refers to a mode beyond the {modes} declared")]
     TermBeyondModes {

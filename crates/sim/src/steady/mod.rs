@@ -23,7 +23,8 @@
 //! One folder, one job per file: [`HbSolver`]'s set-up, residual and Jacobian (`solver`),
 //! Newton (`newton`), the drive ramp (`ramp`), landing after a fold (`land`), stability
 //! (`stability`) and lattice convergence (`convergence`), the next step of a stepped-sine
-//! experiment (`step`); and the continuations in frequency:
+//! experiment (`step`), the undriven self-excited oscillation (`limit_cycle`); and the
+//! continuations in frequency:
 //! the single-tone arclength sweep on its alternating frequency–time engine (`sweep`, `aft`),
 //! backbones (`backbone`) and the two-tone sweep on [`HbSolver`] (`two_tone`). Every
 //! continuation has one shape: a `step()` that returns a [`Step`].
@@ -32,6 +33,7 @@ mod aft;
 mod backbone;
 mod convergence;
 mod land;
+mod limit_cycle;
 mod newton;
 mod ramp;
 mod solver;
@@ -49,6 +51,7 @@ mod two_tone;
 
 pub use backbone::backbone;
 pub use convergence::{convergence_report, ConvergenceReport};
+pub use limit_cycle::{limit_cycle, LimitCycle};
 pub use solver::{steady_state, HbSolver, MAX_MODES};
 pub(crate) use solver::{term_monomial, variable_spectra};
 pub use stability::check_stability;
