@@ -24,6 +24,8 @@ enum Command {
     Identify(cli::identify::Args),
     /// Fit one dataset by several models: which one the data support, and does it fit?
     Compare(cli::compare::Args),
+    /// Which candidate terms (a library of monomials) do the data support? Writes the model.
+    Discover(cli::discover::Args),
     /// Simulate measurements and write a dataset folder.
     Simulate(cli::simulate::Args),
     /// Compute a frequency-response curve with continuation through folds.
@@ -44,6 +46,7 @@ fn main() -> miette::Result<()> {
         Command::Import(args) => cli::import::run(args),
         Command::Identify(args) => cli::identify::run(args),
         Command::Compare(args) => cli::compare::run(args),
+        Command::Discover(args) => cli::discover::run(args),
         Command::Simulate(args) => cli::simulate::run(args),
         Command::Sweep(args) => cli::sweep::run(args),
         Command::NoiseStudy(args) => cli::noise_study::run(args),

@@ -34,6 +34,7 @@ from ._harmonid import (
     PlanError,
     PlanResult,
     SimulationError,
+    discover,
     evaluate_plan,
     identify,
     plan,
@@ -56,6 +57,8 @@ __all__ = [
     "PlanError",
     "PlanResult",
     "SimulationError",
+    "compare",
+    "discover",
     "evaluate_plan",
     "identify",
     "io",
@@ -92,3 +95,19 @@ def mix(model, drives, *, sidebands=None, window_hz=None, nominal_hz=None):
         model, pairs, sidebands=sidebands, window_hz=window_hz, nominal_hz=nominal_hz
     )
 
+
+
+def compare(dataset, models, *, force_model="auto"):
+    """Fits ``dataset`` by every model and says which one the data support.
+
+    ``models`` maps a name to each ``Model`` (or is a list of ``(name, Model)`` pairs). Returns
+    the dict ``harmonid compare DATASET MODEL... --json`` prints: ``observations``, ``models``
+    (per model ``unknowns``, ``chi2``, ``chi2_per_dof``, ``fits``, ``p_value``,
+    ``log_likelihood``, ``aic``, ``bic``, ``delta_aic``, ``delta_bic``), ``nested``
+    (likelihood-ratio tests of nested pairs), ``best`` and ``verdict``.
+    """
+    if isinstance(models, Mapping):
+        models = list(models.items())
+    return _harmonid.compare(
+        dataset, [(str(n), m) for n, m in models], force_model=force_model
+    )

@@ -1,5 +1,5 @@
 from collections.abc import Mapping, Sequence
-from typing import Any, Optional, Union
+from typing import Any, Literal, Optional, Union
 
 from ._harmonid import (
     Dataset as Dataset,
@@ -12,6 +12,7 @@ from ._harmonid import (
     PlanError as PlanError,
     PlanResult as PlanResult,
     SimulationError as SimulationError,
+    discover as discover,
     evaluate_plan as evaluate_plan,
     identify as identify,
     plan as plan,
@@ -31,3 +32,9 @@ def mix(
     window_hz: Optional[float] = None,
     nominal_hz: Optional[Mapping[str, float]] = None,
 ) -> list[dict[str, Any]]: ...
+def compare(
+    dataset: Dataset,
+    models: Union[Mapping[str, Model], Sequence[tuple[str, Model]]],
+    *,
+    force_model: Literal["auto", "free", "gain_per_measurement", "gain_per_mode"] = "auto",
+) -> dict[str, Any]: ...

@@ -100,6 +100,22 @@ def identify(
     sample_covariance: Optional[bool] = None,
     holdout: Optional[Sequence[str]] = None,
 ) -> IdentifyResult: ...
+def compare(
+    dataset: Dataset,
+    models: Sequence[tuple[str, Model]],
+    *,
+    force_model: Literal["auto", "free", "gain_per_measurement", "gain_per_mode"] = "auto",
+) -> dict[str, Any]: ...
+def discover(
+    model: Model,
+    dataset: Dataset,
+    degrees: Sequence[int],
+    *,
+    potential: bool = False,
+    alpha: float = 0.01,
+    max_terms: int = 10,
+    force_model: Literal["auto", "free", "gain_per_measurement", "gain_per_mode"] = "auto",
+) -> dict[str, Any]: ...
 def mix(
     model: Model,
     drives: Sequence[tuple[str, Sequence[float]]],

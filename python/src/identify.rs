@@ -14,7 +14,7 @@ use serde_json::Value;
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 
-fn force_model(name: &str) -> PyResult<ForceModel> {
+pub(crate) fn force_model(name: &str) -> PyResult<ForceModel> {
     name.parse::<ForceModel>()
         .map_err(|e| HarmonidError::new_err(format!("force_model={name:?}: {e}")))
 }
@@ -146,7 +146,7 @@ pub struct IdentifyResult {
 }
 
 impl IdentifyResult {
-    fn new(mut report: Report, summary: String) -> PyResult<Self> {
+    pub(crate) fn new(mut report: Report, summary: String) -> PyResult<Self> {
         let json = serde_json::to_value(&report)
             .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
         let mut columns = Vec::new();

@@ -16,6 +16,7 @@ mod dataset;
 mod errors;
 mod identify;
 mod io;
+mod judge;
 mod mix;
 mod model;
 mod plan;
@@ -35,6 +36,8 @@ fn _harmonid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<identify::IdentifyResult>()?;
     m.add_function(wrap_pyfunction!(mix::mix, m)?)?;
     m.add_function(wrap_pyfunction!(identify::identify, m)?)?;
+    m.add_function(wrap_pyfunction!(judge::compare, m)?)?;
+    m.add_function(wrap_pyfunction!(judge::discover, m)?)?;
     m.add_function(wrap_pyfunction!(sweep::sweep, m)?)?;
     m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;
     m.add_class::<plan::PlanResult>()?;

@@ -23,7 +23,7 @@ pub struct Model {
 }
 
 impl Model {
-    fn new(inner: harmonid_model::Model) -> PyResult<Self> {
+    pub(crate) fn new(inner: harmonid_model::Model) -> PyResult<Self> {
         let json = serde_json::from_str(&inner.to_json())
             .map_err(|e| PyValueError::new_err(format!("harmonid wrote invalid JSON: {e}")))?;
         Ok(Model {

@@ -3,6 +3,7 @@
 pub mod check;
 pub mod common;
 pub mod compare;
+pub mod discover;
 pub mod figure;
 pub mod identify;
 pub mod import;

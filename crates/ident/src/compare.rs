@@ -4,7 +4,9 @@
 //!
 //! Every model is fitted to the same pooled shots with the same noise (each line's scatter
 //! over the shots), so the log-likelihoods differ only by their `χ²`:
-//! `ln L = −χ²/2 + C`, `C` shared by all models and left out. `AIC = χ² + 2k` and
+//! `ln L = −χ²/2 + C`, `C` shared by all models and left out. With one shot the noise is each
+//! fit's own residual, and `N ln(RSS)` (the Gaussian likelihood profiled over one noise
+//! level, up to a shared constant) stands for `χ²`. `AIC = χ² + 2k` and
 //! `BIC = χ² + k ln N` with `k` the fitted unknowns (model quantities, forces or gains) and `N`
 //! the real residuals. The model with the smallest BIC is the one the data support; the BIC
 //! difference to the next says how strongly (Kass and Raftery: below 2 barely, 2–6 positive,
@@ -36,7 +38,8 @@ pub struct ModelFit {
     pub model: String,
     /// Fitted unknowns `k` (model quantities, forces or gains).
     pub unknowns: usize,
-    /// `χ²` of its output-error fit.
+    /// `χ²` of its output-error fit; without shot noise (one shot), `N ln(RSS/Σ|X̄|²)`, the
+    /// profile likelihood's equivalent (every fit's own `χ²` is then its dof).
     pub chi2: f64,
     /// Real residuals minus `k`.
     pub dof: usize,
@@ -185,17 +188,25 @@ pub fn compare(
             _ => {}
         }
         let k = n - g.dof;
+        // Without shot noise every fit's χ² is its dof (the noise is its own residual): the
+        // Gaussian likelihood profiled over one noise level, N ln(RSS) up to a shared
+        // constant, takes its place.
+        let chi2 = if g.p_value.is_some() {
+            g.chi2
+        } else {
+            n as f64 * (g.relative_rms.powi(2)).ln()
+        };
         fits.push(ModelFit {
             model: name.clone(),
             unknowns: k,
-            chi2: g.chi2,
+            chi2,
             dof: g.dof,
             chi2_per_dof: g.chi2_per_dof,
             fits: g.fits,
             p_value: g.p_value,
-            log_likelihood: -0.5 * g.chi2,
-            aic: g.chi2 + 2.0 * k as f64,
-            bic: g.chi2 + k as f64 * (n as f64).ln(),
+            log_likelihood: -0.5 * chi2,
+            aic: chi2 + 2.0 * k as f64,
+            bic: chi2 + k as f64 * (n as f64).ln(),
             delta_aic: 0.0,
             delta_bic: 0.0,
             result,

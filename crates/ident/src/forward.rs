@@ -89,6 +89,19 @@ pub enum ForwardError {
     Shape(String),
 }
 
+/// A measurement whose lattice [`ForwardModel::widen_where_truncated`] widened.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Widened {
+    /// The measurement.
+    pub measurement: String,
+    /// The lattice's intermodulation order now.
+    pub order: usize,
+    /// Its lines now.
+    pub lines: usize,
+    /// How far the truncation had moved a measured line, in tolerances.
+    pub moved: f64,
+}
+
 /// Settings of the forward model.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ForwardSettings {
@@ -829,15 +842,14 @@ impl ForwardModel {
     /// again on a lattice widened once more (order +2, window ×1.5, the direct harmonics
     /// added), warm-started from its state; where a measured line moves by more than its
     /// tolerance `tol[o]` (m, one per observation; a fraction of the data's noise), the
-    /// measurement keeps the widened lattice and state. Returns each widened measurement's
-    /// name and a line saying so. A fixed lattice is exact only to its truncation, and a long record's mean
+    /// measurement keeps the widened lattice and state. Returns each widened measurement. A fixed lattice is exact only to its truncation, and a long record's mean
     /// is precise enough to see it: 10⁵ shots at 0.05 nm resolve 1e-13 m, where order 9 on a
     /// strongly driven Duffing mode misses the outer sidebands by 1e-12 m.
     pub fn widen_where_truncated(
         &mut self,
         theta: &[f64],
         tol: &[f64],
-    ) -> Result<Vec<(String, String)>, ForwardError> {
+    ) -> Result<Vec<Widened>, ForwardError> {
         if tol.len() != self.n_obs {
             return Err(ForwardError::Shape(format!(
                 "widen_where_truncated: {} tolerances for {} observations",
@@ -881,15 +893,12 @@ impl ForwardModel {
                 })
                 .fold(0.0, f64::max);
             if worst > 1.0 {
-                widened.push((
-                    m.name.clone(),
-                    format!(
-                        "measurement \"{}\": harmonic balance widened to order {} ({} lines), where its truncation moved a measured line by {worst:.2} times the tolerance (a tenth of the line's noise)",
-                        m.name,
-                        ls.order,
-                        wide.len()
-                    ),
-                ));
+                widened.push(Widened {
+                    measurement: m.name.clone(),
+                    order: ls.order,
+                    lines: wide.len(),
+                    moved: worst,
+                });
                 let m = &mut self.meas[mi];
                 m.widened = times;
                 m.lattice = Some(wide);

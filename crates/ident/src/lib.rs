@@ -45,6 +45,7 @@
 #![warn(missing_docs)]
 
 mod compare;
+mod discover;
 pub mod finalize;
 mod forward;
 mod holdout;
@@ -58,11 +59,15 @@ mod solve;
 mod uncertainty;
 
 pub use compare::{compare, CompareError, ModelComparison, ModelFit, NestedTest};
+pub use discover::{
+    discover, DiscoverError, DiscoverSettings, Discovery, DiscoveryStep, Library, LibraryForm,
+    MAX_CANDIDATES,
+};
 pub use finalize::{
     report_from_shots, Estimate, FitReport, ForceResult, GainResult, ModeResult, Report,
     JACKKNIFE_TOL, MAX_REL_STDERR, RESULT_FORMAT,
 };
-pub use forward::{ForwardError, ForwardModel, ForwardSettings};
+pub use forward::{ForwardError, ForwardModel, ForwardSettings, Widened};
 pub use holdout::{identify_with_holdout, HeldOut};
 pub use identify::{identify, MAX_SHOT_FITS};
 pub use layout::{Quantity, Unknown, UnknownTable};

@@ -169,6 +169,65 @@ impl Model {
         out
     }
 
+    /// The model as a model file whose every term is written per equation
+    /// (`eom q1 += (kappa) * q2*q3`; a potential's derivatives are written out), which
+    /// [`crate::parse_str`] reads back to the same modes, parameters (kinds and bounds) and
+    /// equations: for a model built or changed by a program (`harmonid discover`'s selection).
+    /// `header` is written first as comment lines.
+    pub fn to_source(&self, header: &str) -> String {
+        let mut out = String::new();
+        for line in header.lines() {
+            let _ = writeln!(out, "# {line}");
+        }
+        for m in &self.modes {
+            let mut decl = format!("mode {}", m.name);
+            if let Some(f) = m.nominal_hz {
+                let _ = write!(decl, " at {f:e} Hz");
+            }
+            if let crate::Linear::Fixed(f) = m.f_hz {
+                let _ = write!(decl, ", f = {f:e} Hz");
+            }
+            if let crate::Linear::Fixed(q) = m.q_factor {
+                let _ = write!(decl, ", Q = {q:e}");
+            }
+            let _ = writeln!(out, "{decl}");
+        }
+        for p in &self.params {
+            let mut decl = String::from("param ");
+            if let (Some(lo), Some(_)) = (p.bounds.lower, p.bounds.upper) {
+                let _ = write!(decl, "{lo:e} <= ");
+            }
+            decl.push_str(&p.name);
+            match (p.kind, p.bounds.lower, p.bounds.upper) {
+                (crate::ParamKind::Fixed(v), _, _) => {
+                    let _ = write!(decl, " = {v:e}");
+                }
+                (_, _, Some(hi)) => {
+                    let _ = write!(decl, " <= {hi:e}");
+                }
+                (_, Some(lo), None) => {
+                    let _ = write!(decl, " >= {lo:e}");
+                }
+                _ => {}
+            }
+            let _ = writeln!(out, "{decl}");
+        }
+        let vars = self.variable_names();
+        let params = self.param_names();
+        for (n, eq) in self.eom.iter().enumerate() {
+            for (m, c) in eq.terms() {
+                let _ = writeln!(
+                    out,
+                    "eom {} += ({}) * {}",
+                    self.modes[n].name,
+                    c.to_string_with(&params),
+                    m.name(&vars)
+                );
+            }
+        }
+        out
+    }
+
     /// The parameters that appear in no equation (their identification column would be zero).
     pub fn unused_params(&self) -> Vec<&str> {
         let mut used = vec![false; self.params.len()];

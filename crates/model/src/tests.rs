@@ -404,3 +404,41 @@ fn misused_velocities_are_located_errors() {
     assert!(text.contains("dissipation:"), "{text}");
     assert!(text.contains("t.hb:4"), "{text}");
 }
+
+#[test]
+fn to_source_reads_back_to_the_same_model() {
+    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples");
+    for ex in [
+        "nanostring_2mode",
+        "nanostring_5mode",
+        "three_wave",
+        "cubic_3mode",
+        "damped_2mode",
+        "membrane_4mode",
+    ] {
+        let path = format!("{root}/{ex}/model.hb");
+        let src = std::fs::read_to_string(&path).expect("model");
+        let m = crate::parse_str(&src, &path).expect("parses");
+        let text = m.to_source("written by a test\nsecond line");
+        assert!(
+            text.starts_with("# written by a test\n# second line\n"),
+            "{text}"
+        );
+        let back =
+            crate::parse_str(&text, "back.hb").unwrap_or_else(|e| panic!("{ex}: {e:?}\n{text}"));
+        assert_eq!(back.modes, m.modes, "{ex}");
+        assert_eq!(back.params, m.params, "{ex}");
+        assert_eq!(back.eom, m.eom, "{ex}:\n{text}");
+    }
+    // Bounds and fixed values survive.
+    let m = crate::parse_str(
+        "mode q1 at 1 kHz, Q = 100\nmode q2, f = 2 kHz\nparam 0 <= a <= 5, b >= -1, c = 2.5, d < 3\neom q1 += a*q1^3 + b*q1*q2^2 + c*q1^2*d(q1)\neom q2 += d*q2^3\n",
+        "m.hb",
+    )
+    .expect("parses");
+    let back = crate::parse_str(&m.to_source(""), "back.hb").expect("reads back");
+    assert_eq!(
+        (back.modes, back.params, back.eom),
+        (m.modes, m.params, m.eom)
+    );
+}

@@ -6,7 +6,7 @@
 
 pub mod ml;
 
-use crate::forward::{ForwardError, ForwardModel};
+use crate::forward::{ForwardError, ForwardModel, Widened};
 use crate::layout::{Quantity, Unknown};
 use crate::problem::Problem;
 use crate::settings::Settings;
@@ -236,7 +236,7 @@ pub(crate) fn fit(
     }
     // The lattice chosen at the start may be truncated too coarsely for the data's precision
     // at the estimate: widened where it shows, and the fit refined on the wider lattice.
-    let mut widening_notes: Vec<(String, String)> = Vec::new();
+    let mut widenings: Vec<Widened> = Vec::new();
     for _ in 0..MAX_WIDENINGS {
         let scale = if from_shots {
             1.0
@@ -250,11 +250,18 @@ pub(crate) fn fit(
         if widened.is_empty() {
             break;
         }
-        // One note per measurement: its last widening.
-        for (name, note) in widened {
-            match widening_notes.iter_mut().find(|(n, _)| *n == name) {
-                Some(e) => e.1 = note,
-                None => widening_notes.push((name, note)),
+        // Each measurement's last widening, and how far its first moved a line.
+        for w in widened {
+            match widenings
+                .iter_mut()
+                .find(|e| e.measurement == w.measurement)
+            {
+                Some(e) => {
+                    e.order = w.order;
+                    e.lines = w.lines;
+                    e.moved = e.moved.max(w.moved);
+                }
+                None => widenings.push(w),
             }
         }
         fit = ml::refine(
@@ -268,7 +275,7 @@ pub(crate) fn fit(
         )
         .map_err(OutputErrorFailure::Fit)?;
     }
-    notes.extend(widening_notes.into_iter().map(|(_, n)| n));
+    notes.extend(widening_note(&widenings));
     let dof = fit.dof.max(1) as f64;
     let (noise, inflation) = if from_shots {
         let red = fit.chi2 / dof / e0;
@@ -346,6 +353,34 @@ pub(crate) fn fit(
         at_bound,
         notes,
     })
+}
+
+/// One note for every widened lattice: the measurement's own words when it is one, else how
+/// many, the first few by name with their order, and the largest move (a long sweep through
+/// a strongly driven resonance widens dozens of steps, which one line each would drown).
+fn widening_note(widened: &[Widened]) -> Option<String> {
+    let why = "where the truncation moved a measured line by more than its tolerance (a tenth of the line's noise)";
+    match widened {
+        [] => None,
+        [w] => Some(format!(
+            "measurement \"{}\": harmonic balance widened to order {} ({} lines), {why}: by {:.2} times",
+            w.measurement, w.order, w.lines, w.moved
+        )),
+        many => {
+            let named = harmonid_data::text::first_and_more(
+                many.iter()
+                    .map(|w| format!("\"{}\" to order {}", w.measurement, w.order))
+                    .collect(),
+                4,
+            );
+            let worst = many.iter().map(|w| w.moved).fold(0.0, f64::max);
+            Some(format!(
+                "harmonic balance widened in {} measurements ({}), {why}: by up to {worst:.2} times",
+                many.len(),
+                named.join(", ")
+            ))
+        }
+    }
 }
 
 /// Most rounds of the error floor's fixed point (floor from the residuals, then the fit

@@ -1,0 +1,676 @@
+//! Which terms do the data support? Starting from a model, candidate terms from a library are
+//! added one at a time while the data demand them, then every parameter the data do not need
+//! is removed: stepwise selection by the likelihood-ratio test of the output-error fits
+//! ([`identify`]), Bonferroni-corrected for the number of candidates tried at each step.
+//!
+//! **Library.** All monomials of the modes (no velocities) of the given equation degrees,
+//! either per equation (each `(equation, monomial)` its own parameter, `b{n}_{exponents}`:
+//! `b1_011` is `q2·q3` in the equation of q1) or as potential terms (one parameter `u_{exponents}`
+//! per monomial `M` of degree `d + 1`, whose derivatives `∂M/∂q_n` enter every equation:
+//! conservative couplings, tied as the method's paper ties them). Terms the model already has
+//! are left out.
+//!
+//! **Test.** Adding a candidate to the current model lowers the fit's `χ²` by `Δ`. With the
+//! noise from the shots, `Δ/E₀` (`E₀` a correct model's `χ²/dof`) is `χ²₁` when the candidate
+//! is not in the device; with the noise from the residual (one shot), the residual sum of
+//! squares falls by `Δ`, taken over the richer fit's residual per degree of freedom (the
+//! F-test's statistic, read as `χ²₁`). The best candidate is added when its p-value times the number of
+//! candidates tried is below `alpha` (family-wise error `alpha` per step); candidates the data
+//! do not determine (reported not identifiable, or relative standard error above 1) are
+//! skipped. Then, while some parameter's removal (fixing it at zero) raises `χ²` by less than
+//! that corrected threshold over the number of parameters, the least needed one is removed.
+//!
+//! Every step is a full identification, so the work is bounded: at most `max_added` terms,
+//! and a library larger than the data's real residuals minus the model's unknowns, or above
+//! [`MAX_CANDIDATES`], is refused with the count.
+
+use crate::finalize::Report;
+use crate::identify::identify;
+use crate::problem::IdentError;
+use crate::settings::{Estimator, Settings};
+use crate::uncertainty::chi2_tail;
+use harmonid_data::Dataset;
+use harmonid_model::{Bounds, Model, ParamKind, Parameter};
+use harmonid_poly::{Coeff, Poly, PowerProduct, Rational, VarId};
+use serde::Serialize;
+
+/// Most candidate terms a library may hold (each step fits every one).
+pub const MAX_CANDIDATES: usize = 400;
+
+/// How library terms enter the equations.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LibraryForm {
+    /// Each (equation, monomial) its own parameter.
+    Equation,
+    /// Each potential monomial one parameter, its derivatives in every equation.
+    Potential,
+}
+
+/// The candidate terms.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Library {
+    /// Degrees of the equation terms (a potential monomial has one more).
+    pub degrees: Vec<u32>,
+    /// Per equation or as potentials.
+    pub form: LibraryForm,
+}
+
+/// Settings of a discovery.
+#[derive(Debug, Clone)]
+pub struct DiscoverSettings {
+    /// The identification's settings (the estimator is always output-error ML).
+    pub identify: Settings,
+    /// Family-wise error per step (default 0.01).
+    pub alpha: f64,
+    /// Most terms added (default 10).
+    pub max_added: usize,
+}
+
+impl Default for DiscoverSettings {
+    fn default() -> Self {
+        DiscoverSettings {
+            identify: Settings {
+                jackknife: false,
+                ..Settings::default()
+            },
+            alpha: 0.01,
+            max_added: 10,
+        }
+    }
+}
+
+/// One accepted step.
+#[derive(Debug, Clone, Serialize)]
+pub struct DiscoveryStep {
+    /// `"added"` or `"removed"`.
+    pub action: &'static str,
+    /// The parameter.
+    pub parameter: String,
+    /// The term in words: `q2*q3 in the equation of q1`, `potential q1*q2*q3`.
+    pub term: String,
+    /// `χ²` the term takes away (added) or that its removal adds (removed), in noise units.
+    pub delta_chi2: f64,
+    /// The likelihood-ratio p-value, uncorrected.
+    pub p_value: f64,
+    /// Candidates (or parameters) it was chosen among: the Bonferroni factor.
+    pub among: usize,
+    /// The value the fit gives it (added), or had (removed).
+    pub value: f64,
+}
+
+/// What a discovery found.
+#[derive(Debug, Clone, Serialize)]
+pub struct Discovery {
+    /// Candidate terms in the library (those the model did not have).
+    pub candidates: usize,
+    /// The accepted steps, in order.
+    pub steps: Vec<DiscoveryStep>,
+    /// Identifications run.
+    pub fits: usize,
+    /// The selected model.
+    #[serde(skip)]
+    pub model: Model,
+    /// Its identification.
+    #[serde(skip)]
+    pub result: Report,
+}
+
+/// Why a discovery cannot run.
+#[derive(Debug, thiserror::Error, miette::Diagnostic)]
+pub enum DiscoverError {
+    /// The library holds nothing the model does not have.
+    #[error("the library (degrees {degrees:?}, {form:?} form) has no candidate term the model does not already have")]
+    #[diagnostic(
+        code(harmonid::discover::no_candidates),
+        help("widen it: other degrees (--degrees 2,3), or the per-equation form")
+    )]
+    NoCandidates {
+        /// The degrees.
+        degrees: Vec<u32>,
+        /// The form.
+        form: LibraryForm,
+    },
+    /// More candidates than the data or the budget allow.
+    #[error("the library has {candidates} candidate terms, more than {limit} ({why})")]
+    #[diagnostic(
+        code(harmonid::discover::too_large),
+        help("narrow it: fewer degrees, or the potential form (one parameter per monomial)")
+    )]
+    TooLarge {
+        /// Candidates.
+        candidates: usize,
+        /// The limit.
+        limit: usize,
+        /// Which limit.
+        why: String,
+    },
+    /// A bad setting.
+    #[error("{0}")]
+    #[diagnostic(code(harmonid::discover::setting))]
+    Setting(String),
+    /// The model itself cannot be identified by the output-error fit.
+    #[error("the starting model: {0}")]
+    #[diagnostic(code(harmonid::discover::start))]
+    Start(String),
+    /// An identification failed.
+    #[error(transparent)]
+    #[diagnostic(code(harmonid::discover::identify))]
+    Identify(#[from] IdentError),
+}
+
+/// One candidate: its parameter name, its terms per equation and, for a potential, the
+/// monomial.
+#[derive(Debug, Clone)]
+struct Candidate {
+    name: String,
+    terms: Vec<(usize, PowerProduct, Rational)>,
+    potential: Option<PowerProduct>,
+    words: String,
+}
+
+/// A fit's misfit and the scale of one degree of freedom's share: with shot noise `χ²` and
+/// `E₀`; without (the noise is the residual's, so every fit's `χ²` is its dof), the residual
+/// sum of squares relative to the data's, `relative_rms²`, and its value per dof.
+struct Fitted {
+    chi2: f64,
+    scale: f64,
+    report: Report,
+}
+
+fn fit(model: &Model, ds: &Dataset, settings: &Settings) -> Option<Fitted> {
+    let report = identify(model, ds, settings).ok()?;
+    if report.estimator != Estimator::Ml.name() {
+        return None;
+    }
+    let g = report.goodness_of_fit.as_ref()?;
+    if !g.converged {
+        return None;
+    }
+    let (chi2, scale) = if g.p_value.is_some() {
+        (g.chi2, g.expected_chi2_per_dof)
+    } else {
+        let rss = g.relative_rms.powi(2);
+        (rss, (rss / g.dof.max(1) as f64).max(f64::MIN_POSITIVE))
+    };
+    Some(Fitted {
+        chi2,
+        scale,
+        report,
+    })
+}
+
+/// Runs the discovery; `progress(done, total)` is called after every identification of a
+/// step. See the module documentation.
+pub fn discover(
+    model: &Model,
+    ds: &Dataset,
+    library: &Library,
+    settings: &DiscoverSettings,
+    mut progress: impl FnMut(usize, usize),
+) -> Result<Discovery, DiscoverError> {
+    if !(settings.alpha > 0.0 && settings.alpha < 1.0) {
+        return Err(DiscoverError::Setting(format!(
+            "alpha = {}: give a family-wise error between 0 and 1, e.g. 0.01",
+            settings.alpha
+        )));
+    }
+    if library.degrees.is_empty() || library.degrees.iter().any(|&d| d == 0 || d > 7) {
+        return Err(DiscoverError::Setting(format!(
+            "degrees {:?}: give equation-term degrees from 1 to 7, e.g. 2,3",
+            library.degrees
+        )));
+    }
+    let ident = Settings {
+        estimator: Estimator::Ml,
+        ..settings.identify.clone()
+    };
+    let mut pool = candidates(model, library);
+    if pool.is_empty() {
+        return Err(DiscoverError::NoCandidates {
+            degrees: library.degrees.clone(),
+            form: library.form,
+        });
+    }
+    let mut fits = 0;
+    let mut current = model.clone();
+    let mut here = fit(&current, ds, &ident).ok_or_else(|| {
+        DiscoverError::Start(
+            identify(model, ds, &ident)
+                .map(|r| r.warnings.first().cloned().unwrap_or_default())
+                .unwrap_or_else(|e| e.to_string()),
+        )
+    })?;
+    fits += 1;
+    let n_real = here
+        .report
+        .goodness_of_fit
+        .as_ref()
+        .map_or(0, |g| 2 * g.lines.len());
+    let k = n_real - here.report.goodness_of_fit.as_ref().map_or(0, |g| g.dof);
+    let room = n_real.saturating_sub(k);
+    for (limit, why) in [
+        (
+            room,
+            "the data's real residuals minus the model's unknowns".to_string(),
+        ),
+        (
+            MAX_CANDIDATES,
+            "the budget of one identification per candidate and step".into(),
+        ),
+    ] {
+        if pool.len() > limit {
+            return Err(DiscoverError::TooLarge {
+                candidates: pool.len(),
+                limit,
+                why,
+            });
+        }
+    }
+    let total = pool.len();
+    let mut steps = Vec::new();
+    // Forward: the candidate that lowers χ² most, while it passes the corrected test.
+    for _ in 0..settings.max_added {
+        let among = pool.len();
+        let mut best: Option<(usize, f64, Fitted, Model)> = None;
+        for (i, c) in pool.iter().enumerate() {
+            let trial = with_candidate(&current, c);
+            let f = fit(&trial, ds, &ident);
+            fits += 1;
+            progress(fits, total * (steps.len() + 1));
+            let Some(f) = f else { continue };
+            let determined = f.report.parameters.get(&c.name).is_some_and(|e| {
+                e.identifiable && e.stderr.is_finite() && e.stderr < e.value.abs()
+            });
+            if !determined {
+                continue;
+            }
+            let delta = (here.chi2 - f.chi2) / f.scale;
+            if best.as_ref().is_none_or(|b| delta > b.1) {
+                best = Some((i, delta, f, trial));
+            }
+        }
+        let Some((i, delta, f, trial)) = best else {
+            break;
+        };
+        let p = chi2_tail(delta, 1.0);
+        if p * among as f64 >= settings.alpha {
+            break;
+        }
+        let c = pool.remove(i);
+        steps.push(DiscoveryStep {
+            action: "added",
+            value: f.report.parameters[&c.name].value,
+            parameter: c.name,
+            term: c.words,
+            delta_chi2: delta,
+            p_value: p,
+            among,
+        });
+        current = trial;
+        here = f;
+    }
+    // Backward: the least needed parameter while its removal is not significant.
+    loop {
+        let free: Vec<usize> = (0..current.params.len())
+            .filter(|&p| current.params[p].kind == ParamKind::Unknown)
+            .collect();
+        let among = free.len();
+        let mut weakest: Option<(usize, f64, Fitted, Model)> = None;
+        for &p in &free {
+            let mut trial = current.clone();
+            trial.params[p].kind = ParamKind::Fixed(0.0);
+            trial.params[p].bounds = Bounds::default();
+            let f = fit(&trial, ds, &ident);
+            fits += 1;
+            let Some(f) = f else { continue };
+            let delta = (f.chi2 - here.chi2) / here.scale;
+            if weakest.as_ref().is_none_or(|w| delta < w.1) {
+                weakest = Some((p, delta, f, trial));
+            }
+        }
+        let Some((p, delta, f, trial)) = weakest else {
+            break;
+        };
+        let pv = chi2_tail(delta, 1.0);
+        if pv * (among as f64) < settings.alpha {
+            break;
+        }
+        let name = current.params[p].name.clone();
+        steps.push(DiscoveryStep {
+            action: "removed",
+            value: here
+                .report
+                .parameters
+                .get(&name)
+                .map_or(f64::NAN, |e| e.value),
+            term: terms_of(&current, p),
+            parameter: name,
+            delta_chi2: delta,
+            p_value: pv,
+            among,
+        });
+        current = without(&trial, p);
+        here = f;
+    }
+    // The selected model's own fit (parameters removed are gone, not fixed at zero).
+    let result = fit(&current, ds, &ident)
+        .map(|f| f.report)
+        .unwrap_or(here.report);
+    Ok(Discovery {
+        candidates: total,
+        steps,
+        fits: fits + 1,
+        model: current,
+        result,
+    })
+}
+
+/// Every library term the model does not have.
+fn candidates(model: &Model, library: &Library) -> Vec<Candidate> {
+    let nm = model.modes.len();
+    let taken = |name: &str| model.params.iter().any(|p| p.name == name);
+    let unique = |base: String| {
+        let mut name = base;
+        while taken(&name) {
+            name.push('_');
+        }
+        name
+    };
+    let vars: Vec<String> = model.variable_names();
+    let exps = |m: &PowerProduct| -> String {
+        (0..nm)
+            .map(|v| m.exponent(VarId(v as u32)).to_string())
+            .collect()
+    };
+    let mut out = Vec::new();
+    for &d in &library.degrees {
+        match library.form {
+            LibraryForm::Equation => {
+                for m in monomials(nm, d) {
+                    for n in 0..nm {
+                        if model.eom[n].coeff(&m).is_some() {
+                            continue;
+                        }
+                        out.push(Candidate {
+                            name: unique(format!("b{}_{}", n + 1, exps(&m))),
+                            words: format!(
+                                "{} in the equation of {}",
+                                m.name(&vars),
+                                model.modes[n].name
+                            ),
+                            terms: vec![(n, m.clone(), Rational::from_integer(1))],
+                            potential: None,
+                        });
+                    }
+                }
+            }
+            LibraryForm::Potential => {
+                for m in monomials(nm, d + 1) {
+                    if model.potential.coeff(&m).is_some() {
+                        continue;
+                    }
+                    let terms: Vec<(usize, PowerProduct, Rational)> = (0..nm)
+                        .filter_map(|n| {
+                            let (k, rest) = m.derivative(VarId(n as u32))?;
+                            Some((n, rest, Rational::from_integer(i128::from(k))))
+                        })
+                        .collect();
+                    // Already in every equation it would enter (written per equation).
+                    if terms
+                        .iter()
+                        .all(|(n, r, _)| model.eom[*n].coeff(r).is_some())
+                    {
+                        continue;
+                    }
+                    out.push(Candidate {
+                        name: unique(format!("u_{}", exps(&m))),
+                        words: format!("potential {}", m.name(&vars)),
+                        terms,
+                        potential: Some(m),
+                    });
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Every monomial of degree `d` in `nm` variables, lexicographic.
+fn monomials(nm: usize, d: u32) -> Vec<PowerProduct> {
+    fn rec(nm: usize, v: usize, left: u32, e: &mut Vec<u32>, out: &mut Vec<PowerProduct>) {
+        if v + 1 == nm {
+            e[v] = left;
+            out.push(PowerProduct::from_exponents(e));
+            return;
+        }
+        for k in (0..=left).rev() {
+            e[v] = k;
+            rec(nm, v + 1, left - k, e, out);
+        }
+    }
+    let mut out = Vec::new();
+    if nm > 0 {
+        rec(nm, 0, d, &mut vec![0; nm], &mut out);
+    }
+    out
+}
+
+/// `model` with candidate `c`'s parameter and terms.
+fn with_candidate(model: &Model, c: &Candidate) -> Model {
+    let mut m = model.clone();
+    let p = VarId(m.params.len() as u32);
+    m.params.push(Parameter {
+        name: c.name.clone(),
+        kind: ParamKind::Unknown,
+        bounds: Bounds::default(),
+    });
+    for (n, mono, k) in &c.terms {
+        let coeff = Coeff::param(p)
+            .checked_scale_rational(k)
+            .unwrap_or_else(|_| Coeff::param(p));
+        m.eom[*n] = m.eom[*n]
+            .checked_add(&Poly::term(mono.clone(), coeff))
+            .unwrap_or_else(|_| m.eom[*n].clone());
+    }
+    if let Some(pm) = &c.potential {
+        m.potential = m
+            .potential
+            .checked_add(&Poly::term(pm.clone(), Coeff::param(p)))
+            .unwrap_or_else(|_| m.potential.clone());
+    }
+    m
+}
+
+/// The terms parameter `p` enters, in words.
+fn terms_of(model: &Model, p: usize) -> String {
+    let vars = model.variable_names();
+    let mut out = Vec::new();
+    for (n, eq) in model.eom.iter().enumerate() {
+        for (m, c) in eq.terms() {
+            if c.variables().iter().any(|v| v.index() == p) {
+                out.push(format!(
+                    "{} in the equation of {}",
+                    m.name(&vars),
+                    model.modes[n].name
+                ));
+            }
+        }
+    }
+    out.join(", ")
+}
+
+/// `model` (where parameter `p` is fixed at zero) without `p`: its terms dropped, the later
+/// parameters renumbered.
+fn without(model: &Model, p: usize) -> Model {
+    let mut m = model.clone();
+    let zero_and_shift = |poly: &Poly| -> Poly {
+        let mut out = Poly::zero();
+        for (mono, c) in poly.terms() {
+            let c = without_param(c, p);
+            if !c.is_zero() {
+                out = out
+                    .checked_add(&Poly::term(mono.clone(), c))
+                    .unwrap_or_else(|_| out.clone());
+            }
+        }
+        out
+    };
+    m.eom = m.eom.iter().map(zero_and_shift).collect();
+    m.potential = zero_and_shift(&m.potential);
+    m.dissipation = zero_and_shift(&m.dissipation);
+    m.params.remove(p);
+    m
+}
+
+/// Coefficient `c` with parameter `p` at zero and the later parameters renumbered down by one.
+fn without_param(c: &Coeff, p: usize) -> Coeff {
+    let mut out = Coeff::zero();
+    for (m, r) in c.terms() {
+        if m.exponent(VarId(p as u32)) > 0 {
+            continue;
+        }
+        let shifted = m.factors().iter().map(|&(v, k)| {
+            let i = v.index();
+            (VarId(if i > p { i - 1 } else { i } as u32), k)
+        });
+        if let Ok(m) = PowerProduct::from_factors(shifted) {
+            out = out
+                .checked_add(&Coeff::term(m, *r))
+                .unwrap_or_else(|_| out.clone());
+        }
+    }
+    out
+}
+
+impl Discovery {
+    /// The steps and the selected terms as a table for the terminal.
+    pub fn table(&self) -> String {
+        use std::fmt::Write as _;
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            "harmonid discover: {} candidate terms, {} identifications",
+            self.candidates, self.fits
+        );
+        if self.steps.is_empty() {
+            let _ = writeln!(
+                s,
+                "no step: the data demand no candidate term, and need every parameter of the model"
+            );
+        }
+        for st in &self.steps {
+            let _ = writeln!(
+                s,
+                "  {:<8} {:<12} {:<40} Δχ² = {:>10.1}  p = {:.2e} (× {} tried) value {:.4e}",
+                st.action, st.parameter, st.term, st.delta_chi2, st.p_value, st.among, st.value
+            );
+        }
+        let names: Vec<&str> = self.model.params.iter().map(|p| p.name.as_str()).collect();
+        let _ = writeln!(s, "selected parameters: {}", names.join(", "));
+        if let Some(g) = &self.result.goodness_of_fit {
+            let _ = writeln!(s, "its fit: {}", g.one_line());
+        }
+        s
+    }
+
+    /// The steps as JSON (the selected model is written as a model file, its fit as a result
+    /// file).
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).unwrap_or_default()
+    }
+
+    /// The selected model as a model file, its header naming the steps.
+    pub fn model_source(&self, dataset: &str, start: &str) -> String {
+        let mut header = format!(
+            "Selected by harmonid discover from {start} on {dataset}: {} candidate terms, family-wise error per step as given.",
+            self.candidates
+        );
+        for st in &self.steps {
+            header.push_str(&format!(
+                "\n{} {} ({}): Δχ² {:.1}, p {:.2e} among {}",
+                st.action, st.parameter, st.term, st.delta_chi2, st.p_value, st.among
+            ));
+        }
+        self.model.to_source(&header)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn model(src: &str) -> Model {
+        harmonid_model::parse_str(src, "m.hb").expect("model")
+    }
+
+    #[test]
+    fn libraries_hold_every_monomial_the_model_lacks() {
+        // Three modes: 6 quadratic and 10 cubic monomials.
+        assert_eq!(monomials(3, 2).len(), 6);
+        assert_eq!(monomials(3, 3).len(), 10);
+        let m = model("mode q1 at 1 MHz\nmode q2 at 2 MHz\nparam b\neom q1 += b*q1^3\n");
+        let per_eq = candidates(
+            &m,
+            &Library {
+                degrees: vec![3],
+                form: LibraryForm::Equation,
+            },
+        );
+        // 4 cubic monomials × 2 equations, less q1^3 in the equation of q1.
+        assert_eq!(per_eq.len(), 7);
+        assert!(per_eq
+            .iter()
+            .any(|c| c.name == "b1_21" && c.words == "q1^2*q2 in the equation of q1"));
+        let pot = candidates(
+            &m,
+            &Library {
+                degrees: vec![3],
+                form: LibraryForm::Potential,
+            },
+        );
+        // 5 quartic monomials; q1^4 would only give q1^3 in q1's equation, which it has.
+        assert_eq!(
+            pot.len(),
+            4,
+            "{:?}",
+            pot.iter().map(|c| &c.name).collect::<Vec<_>>()
+        );
+        let c = pot.iter().find(|c| c.name == "u_22").expect("q1^2 q2^2");
+        // d/dq1 (q1^2 q2^2) = 2 q1 q2^2, d/dq2 = 2 q1^2 q2.
+        let k: Vec<(usize, String, Rational)> = c
+            .terms
+            .iter()
+            .map(|(n, m, k)| (*n, m.name(&["q1", "q2"]), *k))
+            .collect();
+        assert_eq!(
+            k,
+            [
+                (0, "q1*q2^2".to_string(), Rational::from_integer(2)),
+                (1, "q1^2*q2".to_string(), Rational::from_integer(2))
+            ]
+        );
+    }
+
+    #[test]
+    fn a_removed_parameter_takes_its_terms_and_the_rest_renumber() {
+        let m = model(
+            "mode q1 at 1 MHz\nmode q2 at 2 MHz\nparam a, b, c\neom q1 += a*q1^3 + b*q1*q2^2\neom q2 += c*q2^3 + b*q1^2*q2\n",
+        );
+        let w = without(&m, 1);
+        assert_eq!(
+            w.params.iter().map(|p| p.name.as_str()).collect::<Vec<_>>(),
+            ["a", "c"]
+        );
+        let vars = w.variable_names();
+        let names = w.param_names();
+        let eq = |n: usize| -> Vec<String> {
+            w.eom[n]
+                .terms()
+                .map(|(m, c)| format!("{}*{}", c.to_string_with(&names), m.name(&vars)))
+                .collect()
+        };
+        assert_eq!(eq(0), ["a*q1^3"]);
+        assert_eq!(eq(1), ["c*q2^3"]);
+    }
+}

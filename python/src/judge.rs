@@ -1,0 +1,101 @@
+//! `harmonid.compare` and `harmonid.discover`: which model, and which terms, the data support
+//! (`harmonid compare`, `harmonid discover`).
+
+use crate::convert::json_to_py;
+use crate::dataset::Dataset;
+use crate::errors::HarmonidError;
+use crate::identify::{force_model, IdentifyResult};
+use crate::model::Model;
+use harmonid_ident::{DiscoverSettings, Library, LibraryForm, Settings};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use serde_json::Value;
+
+fn parse(json: &str) -> PyResult<Value> {
+    serde_json::from_str(json)
+        .map_err(|e| HarmonidError::new_err(format!("harmonid wrote invalid JSON: {e}")))
+}
+
+/// Fits `dataset` by every model of `models` (pairs `(name, Model)`, or a dict name → Model)
+/// and compares them, as `harmonid compare DATASET MODEL...` does: a dict equal to its
+/// `--json` (`observations`, `models` with `unknowns`, `chi2`, `chi2_per_dof`, `fits`,
+/// `p_value`, `log_likelihood`, `aic`, `bic`, `delta_aic`, `delta_bic`; `nested` likelihood-ratio
+/// tests; `best`; `verdict`). `force_model` as for `identify`.
+#[pyfunction]
+#[pyo3(signature = (dataset, models, *, force_model = "auto"))]
+pub fn compare<'py>(
+    py: Python<'py>,
+    dataset: &Dataset,
+    models: Vec<(String, PyRef<'py, Model>)>,
+    force_model: &str,
+) -> PyResult<Bound<'py, PyAny>> {
+    let settings = Settings {
+        force_model: self::force_model(force_model)?,
+        ..Settings::default()
+    };
+    let models: Vec<(String, harmonid_model::Model)> = models
+        .iter()
+        .map(|(name, m)| (name.clone(), (*m.inner).clone()))
+        .collect();
+    let ds = std::sync::Arc::clone(&dataset.inner);
+    let json = py
+        .detach(|| harmonid_ident::compare(&models, &ds, &settings).map(|c| c.to_json()))
+        .map_err(|e| HarmonidError::new_err(e.to_string()))?;
+    json_to_py(py, &parse(&json)?)
+}
+
+/// Which candidate terms the data support, as `harmonid discover DATASET MODEL --degrees ...`
+/// does: from `model`, the library of every monomial of the equation degrees `degrees`, per
+/// equation or (`potential=True`) as potential terms; `alpha` the family-wise error per step,
+/// `max_terms` the most additions. Returns a dict: `candidates`, `steps` (each `action`,
+/// `parameter`, `term`, `delta_chi2`, `p_value`, `among`, `value`), `fits`, `model` (the selected
+/// `Model`), `source` (its model file's text) and `result` (its `IdentifyResult`).
+#[pyfunction]
+#[pyo3(signature = (model, dataset, degrees, *, potential = false, alpha = 0.01, max_terms = 10, force_model = "auto"))]
+#[allow(clippy::too_many_arguments)]
+pub fn discover<'py>(
+    py: Python<'py>,
+    model: &Model,
+    dataset: &Dataset,
+    degrees: Vec<u32>,
+    potential: bool,
+    alpha: f64,
+    max_terms: usize,
+    force_model: &str,
+) -> PyResult<Bound<'py, PyDict>> {
+    let settings = DiscoverSettings {
+        identify: Settings {
+            force_model: self::force_model(force_model)?,
+            jackknife: false,
+            ..Settings::default()
+        },
+        alpha,
+        max_added: max_terms,
+    };
+    let library = Library {
+        degrees,
+        form: if potential {
+            LibraryForm::Potential
+        } else {
+            LibraryForm::Equation
+        },
+    };
+    let (m, ds) = (
+        std::sync::Arc::clone(&model.inner),
+        std::sync::Arc::clone(&dataset.inner),
+    );
+    let found = py
+        .detach(|| harmonid_ident::discover(&m, &ds, &library, &settings, |_, _| {}))
+        .map_err(|e| HarmonidError::new_err(e.to_string()))?;
+    let out = PyDict::new(py);
+    let steps = parse(&found.to_json())?;
+    for key in ["candidates", "steps", "fits"] {
+        out.set_item(key, json_to_py(py, &steps[key])?)?;
+    }
+    let source = found.model_source(&ds.dir.display().to_string(), &m.source);
+    out.set_item("source", &source)?;
+    let summary = found.result.summary(ds.truth.as_ref());
+    out.set_item("model", Model::new(found.model)?)?;
+    out.set_item("result", IdentifyResult::new(found.result, summary)?)?;
+    Ok(out)
+}
