@@ -337,3 +337,50 @@ mod tests {
         assert!((s.x[1] - 1.0).abs() < 1e-6, "{:?}", s.x);
     }
 }
+
+/// `argmin ‖A Y − B‖` for a tall `A` (`m ≥ n` rows), column by column, with the SVD's
+/// treatment of small singular values (those at or below `eps` are dropped, as
+/// `nalgebra::SVD::solve` does), but the SVD taken of `R` of `A = QR` (`n × n`) with `QᵀB`
+/// applied by the Householder reflections, never forming `U`: for the `2N × k` systems of an
+/// output-error step (thousands of rows, a hundred unknowns) several times cheaper than the
+/// SVD of `A` with its `U`. The singular values and the solution are those of `A`'s SVD up
+/// to rounding. `None` when the SVD fails. A wide `A` falls back to the SVD of `A`.
+pub(crate) fn tall_lstsq(a: DMatrix<f64>, b: DMatrix<f64>, eps: f64) -> Option<DMatrix<f64>> {
+    let (m, n) = a.shape();
+    if m < n {
+        return a.svd(true, true).solve(&b, eps).ok();
+    }
+    let qr = a.qr();
+    let mut c = b;
+    qr.q_tr_mul(&mut c);
+    let r = qr.r();
+    let top = c.rows(0, n).into_owned();
+    r.svd(true, true).solve(&top, eps).ok()
+}
+
+#[cfg(test)]
+mod tall_tests {
+    use super::*;
+
+    #[test]
+    fn tall_lstsq_matches_the_svd_of_a_including_rank_deficiency() {
+        // A 40 × 5 matrix with a repeated column (rank 4) and two right-hand sides.
+        let a = DMatrix::from_fn(40, 5, |i, j| {
+            let x = i as f64 / 7.0;
+            match j {
+                4 => (x).sin(),
+                _ => (x * (j + 1) as f64).sin() + 0.1 * j as f64,
+            }
+        });
+        let mut a = a;
+        let c0 = a.column(0).into_owned();
+        a.set_column(3, &c0);
+        let b = DMatrix::from_fn(40, 2, |i, j| (i as f64 * 0.3 + j as f64).cos());
+        let want = a.clone().svd(true, true).solve(&b, 1e-12).expect("svd");
+        let got = tall_lstsq(a, b, 1e-12).expect("qr");
+        assert!(
+            (&got - &want).norm() <= 1e-10 * want.norm(),
+            "{got} vs {want}"
+        );
+    }
+}

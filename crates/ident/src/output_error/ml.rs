@@ -150,8 +150,9 @@ fn step(
             a.column_mut(j).scale_mut(*s);
             a[(2 * n_obs + j, j)] = lambda.sqrt();
         }
-        let svd = a.svd(true, true);
-        let y = svd.solve(&b, 1e-14).unwrap_or_else(|_| DVector::zeros(nf));
+        let y =
+            crate::solve::tall_lstsq(a, DMatrix::from_column_slice(rows, 1, b.as_slice()), 1e-14)
+                .map_or_else(|| DVector::zeros(nf), |y| y.column(0).into_owned());
         // The first bound the step crosses (fraction of the step, unknown, bound value).
         let mut crossed: Option<(f64, usize, f64)> = None;
         for (j, &k) in free.iter().enumerate() {

@@ -48,7 +48,6 @@ pub(crate) fn jackknife(
         *s = if n > 0.0 { 1.0 / n } else { 0.0 };
         a.column_mut(j).scale_mut(*s);
     }
-    let svd = a.svd(true, true);
     let mut b = DMatrix::<f64>::zeros(2 * n_obs, groups);
     let mut offset = 0;
     for (mi, m) in ds.measurements.iter().enumerate() {
@@ -67,7 +66,7 @@ pub(crate) fn jackknife(
         }
         offset += per;
     }
-    let Ok(y) = svd.solve(&b, 1e-14) else {
+    let Some(y) = crate::solve::tall_lstsq(a, b, 1e-14) else {
         return Vec::new();
     };
     // δθ per group for every unknown (zero for those not fitted).
