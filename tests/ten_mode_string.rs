@@ -33,15 +33,36 @@ fn the_ten_mode_string_is_identified_within_four_stderr() {
     };
     for (n, m) in model.modes.iter().enumerate() {
         let r = &rep.modes[&m.name];
-        check(format!("f of {}", m.name), r.f_hz.value, r.f_hz.stderr, r.f_hz.identifiable, v.f_hz[n]);
-        check(format!("Q of {}", m.name), r.q.value, r.q.stderr, r.q.identifiable, v.q[n]);
+        check(
+            format!("f of {}", m.name),
+            r.f_hz.value,
+            r.f_hz.stderr,
+            r.f_hz.identifiable,
+            v.f_hz[n],
+        );
+        check(
+            format!("Q of {}", m.name),
+            r.q.value,
+            r.q.stderr,
+            r.q.identifiable,
+            v.q[n],
+        );
     }
     let mut determined = 0;
     for (name, e) in &rep.parameters {
         determined += usize::from(e.identifiable);
-        check(name.clone(), e.value, e.stderr, e.identifiable, v.params[name]);
+        check(
+            name.clone(),
+            e.value,
+            e.stderr,
+            e.identifiable,
+            v.params[name],
+        );
     }
-    println!("{determined} of 55 parameters determined; worst {:.2} stderr ({})", worst.0, worst.1);
+    println!(
+        "{determined} of 55 parameters determined; worst {:.2} stderr ({})",
+        worst.0, worst.1
+    );
     assert!(determined >= 50, "{determined} of 55 determined");
     assert!(worst.0 < 4.0, "{} is {:.2} stderr off", worst.1, worst.0);
 }

@@ -53,7 +53,7 @@ pub use noise::{NoisePanel, NoiseStudy};
 pub use plan::{ModeResponse, PlanFigure, PlannedMeasurement};
 pub use potential::{PotentialCell, PotentialMatrix};
 pub use response::{Branch, Jump, ResponseCurve};
-pub use spectrum::{LineKind, Spectrum, SpectrumLine};
+pub use spectrum::{LineKind, Spectrum, SpectrumLine, TYPICAL_SIGMAS};
 
 use plotters::coord::Shift;
 use plotters::prelude::*;

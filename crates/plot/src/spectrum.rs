@@ -65,7 +65,15 @@ pub struct Spectrum {
     /// The noise level of the plotted amplitudes (same unit), drawn as a dashed line in both
     /// panels, when known.
     pub noise_floor: Option<f64>,
+    /// The residuals are standardized, `|X − X_rec|/σ` of each line in its own noise (a fit's
+    /// verdict), instead of in the amplitudes' unit: the residual panel's axis is in noise
+    /// sigmas and its dashed line at `√2`, a correct model's typical value.
+    pub residual_in_sigmas: bool,
 }
+
+/// The typical standardized residual `|X − X_rec|/σ` of a correct model (a complex residual
+/// with noise `σ` per quadrature: `E|r|² = 2σ²`).
+pub const TYPICAL_SIGMAS: f64 = std::f64::consts::SQRT_2;
 
 /// Groups sorted frequencies into clusters separated by more than 1 % of the frequency.
 pub(crate) fn clusters(lines: &[&SpectrumLine]) -> Vec<(usize, usize)> {
@@ -125,7 +133,11 @@ impl Spectrum {
             .drawn()?;
         rc.configure_mesh()
             .x_desc(format!("f − {} Hz (Hz)", style::hz(centre)))
-            .y_desc(if first { "|residual|" } else { "" })
+            .y_desc(match (first, self.residual_in_sigmas) {
+                (false, _) => "",
+                (true, false) => "|residual|",
+                (true, true) => "|residual| / noise σ",
+            })
             .axis_desc_style(style::text(style::LABEL))
             .label_style(style::text(style::TICK))
             .light_line_style(WHITE)
@@ -135,7 +147,12 @@ impl Spectrum {
             .x_label_formatter(&|v| style::tick(*v))
             .draw()
             .drawn()?;
-        if let Some(nf) = self.noise_floor.filter(|f| *f > 0.0) {
+        let reference = if self.residual_in_sigmas {
+            Some(TYPICAL_SIGMAS)
+        } else {
+            self.noise_floor
+        };
+        if let Some(nf) = reference.filter(|f| *f > 0.0) {
             rc.draw_series(DashedLineSeries::new(
                 [(x_lo, nf), (x_hi, nf)],
                 6,
@@ -185,11 +202,16 @@ impl Figure for Spectrum {
             .map_or(y_lo, |f| y_lo.min(10f64.powf((f / 3.0).log10().floor())));
         // Room above the highest line for the rotated combination labels.
         let y_hi = y_hi * 100.0;
+        let reference = if self.residual_in_sigmas {
+            Some(TYPICAL_SIGMAS)
+        } else {
+            self.noise_floor
+        };
         let residual_range = style::log_range(
-            lines.iter().filter_map(|l| l.residual).chain(
-                self.noise_floor
-                    .filter(|_| lines.iter().any(|l| l.residual.is_some())),
-            ),
+            lines
+                .iter()
+                .filter_map(|l| l.residual)
+                .chain(reference.filter(|_| lines.iter().any(|l| l.residual.is_some()))),
         );
 
         let root = root

@@ -61,6 +61,7 @@ fn spectrum() -> Spectrum {
         title: "coupled_q1q2 at p0".into(),
         unit: "m".into(),
         lines,
+        residual_in_sigmas: false,
         noise_floor: Some(1e-13),
     }
 }
@@ -262,6 +263,7 @@ fn empty_figures_are_errors() {
         title: "x".into(),
         unit: "m".into(),
         lines: vec![],
+        residual_in_sigmas: false,
         noise_floor: None,
     };
     assert!(matches!(to_svg(&s), Err(PlotError::Empty { .. })));

@@ -232,10 +232,15 @@ pub fn build(
                 .get(k)
                 .and_then(|&p| ds.manifest.points.get(p))
                 .map_or("modal".to_string(), |p| p.name.clone());
+            let below = if s.residual_in_sigmas {
+                "the fit's residual of every line in its own noise, |X̄ − X_HB|/σ, below (dashed: √2, a correct model's typical value)"
+            } else {
+                "the complex residual |X − X_HB| below"
+            };
             figs.push((
                 stem(&format!("spectrum_{}_{point}", m.spec.name)),
                 format!(
-                    "Measurement {}, {point}: |X| of every measured line (median over shots; filled dots), the spectrum the identified model gives by harmonic balance (open circles), and the complex residual |X − X_HB| below. Drives: {}.",
+                    "Measurement {}, {point}: |X| of every measured line (median over shots; filled dots), the spectrum the identified model gives by harmonic balance (open circles), and {below}. Drives: {}.",
                     m.spec.name,
                     m.spec.drives_hz.iter().enumerate().map(|(d, f)| format!("f{} = {} Hz", d + 1, harmonid_plot::style::hz(*f))).collect::<Vec<_>>().join(", ")
                 ),

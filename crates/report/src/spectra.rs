@@ -172,6 +172,27 @@ pub fn spectra(
     };
     let kinds = classify(&m.freqs_hz, &m.spec.drives_hz, &modes_hz);
     let nf = m.freqs_hz.len();
+    // The fit's own standardized residuals of this measurement's lines (the verdict's), by
+    // frequency and point: the residual panel in noise units.
+    let verdict: Vec<&harmonid_data::result::LineResidual> = result
+        .goodness_of_fit
+        .as_ref()
+        .map(|g| {
+            g.lines
+                .iter()
+                .filter(|l| l.measurement == m.spec.name)
+                .collect()
+        })
+        .unwrap_or_default();
+    let sigmas = |f_hz: f64, point: Option<&str>| -> Option<f64> {
+        verdict
+            .iter()
+            .find(|l| {
+                (l.freq_hz - f_hz).abs() <= 1e-9 * f_hz.abs().max(1.0)
+                    && l.point.as_deref() == point
+            })
+            .map(|l| l.sigma)
+    };
     let out = m
         .points
         .iter()
@@ -181,10 +202,18 @@ pub fn spectra(
                 || "modal coordinates".to_string(),
                 |pt| format!("point {}", pt.name),
             );
+            let point_name = ds.manifest.points.get(pi).map(|pt| pt.name.as_str());
+            let in_sigmas =
+                !verdict.is_empty() && (0..nf).all(|f| sigmas(m.freqs_hz[f], point_name).is_some());
             let lines = (0..nf)
                 .map(|f| {
                     let x = complex_median((0..m.n_shots).map(|s| m.amplitude(s, f, p)));
                     let r = rec.as_ref().map(|r| r[f][p]);
+                    let residual = if in_sigmas {
+                        sigmas(m.freqs_hz[f], point_name)
+                    } else {
+                        r.map(|r| (x - r).norm())
+                    };
                     let (kind, label) = kinds[f]
                         .clone()
                         .unwrap_or((LineKind::Mixing, "?".to_string()));
@@ -192,7 +221,7 @@ pub fn spectra(
                         f_hz: m.freqs_hz[f],
                         measured: x.norm(),
                         reconstructed: r.map(|r| r.norm()),
-                        residual: r.map(|r| (x - r).norm()),
+                        residual,
                         kind,
                         label,
                     }
@@ -203,6 +232,7 @@ pub fn spectra(
                 unit: "m".into(),
                 lines,
                 noise_floor: noise_of_median(m, p),
+                residual_in_sigmas: in_sigmas,
             }
         })
         .collect();
