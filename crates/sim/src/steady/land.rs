@@ -6,8 +6,18 @@ use std::f64::consts::TAU;
 
 /// Most pseudo-time steps of a landing attempt.
 const LAND_MAX_STEPS: usize = 400;
+/// Most landing attempts in a row ([`HbSolver::land_persistently`]).
+const LANDINGS: usize = 8;
 
 impl HbSolver {
+    /// [`HbSolver::land`] up to [`LANDINGS`] times in a row, each from where the last ended
+    /// with the pseudo-time step small again: just past a fold the flow crawls through the
+    /// fold's ghost, where the residual hardly falls, and a step grown on the way there
+    /// overshoots instead of following it.
+    pub(super) fn land_persistently(&mut self, s: f64, tol: f64) -> bool {
+        (0..LANDINGS).any(|_| self.land(s, tol))
+    }
+
     /// Lands at drive fraction `s` from the current state (beyond a fold, off any branch) the
     /// way the resonator does: the slow flow `(2iΩ_r + γ_n) Ẋ = −R(X)` (see
     /// [`HbSolver::stability`]) integrated by linearly implicit Euler,

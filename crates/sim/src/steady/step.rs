@@ -4,11 +4,6 @@
 use super::{HbSettings, HbSolver, HbStatus, SteadyState, Z};
 use num_complex::Complex64;
 
-/// Most landings in a row, each from where the last ended with the pseudo-time step small
-/// again: just past a fold the flow crawls through the fold's ghost, where the residual hardly
-/// falls, and a step grown on the way there overshoots instead of following it.
-const LANDINGS: usize = 8;
-
 impl HbSolver {
     /// The steady state a stepped experiment reaches under this solver's drive from the
     /// previous step's state `start` (`start[n][r]`: amplitudes on this lattice, see
@@ -29,7 +24,7 @@ impl HbSolver {
             self.x[n * nr..(n + 1) * nr].copy_from_slice(&row[..nr]);
         }
         self.have_lu = false;
-        if (0..LANDINGS).any(|_| self.land(1.0, settings.tol)) {
+        if self.land_persistently(1.0, settings.tol) {
             let r = self.residual(false, 1.0);
             return self.finish(
                 HbStatus::Converged { iterations: 0 },
