@@ -3,7 +3,8 @@
 //! Reproducer: the two-mode nanostring (`examples/nanostring_2mode`), two tones on q1 at
 //! 207579.5 and 207584.5 Hz (linewidth 1.8 Hz, resonance 207582 Hz). The hardening resonance
 //! sweeps past the upper tone as the drive grows: the low branch ends at a fold near
-//! 0.724 N/kg per tone, so every level above it must meet that fold.
+//! 0.724 N/kg per tone, so every level above it must meet that fold, and jump there onto the
+//! high branch.
 
 use harmonid_sim::{
     Excitation, HbSettings, HbSolver, HbStatus, ModeValues, ModelValues, NumericModel, SteadyState,
@@ -57,6 +58,7 @@ fn every_level_past_the_fold_meets_it() {
     let fine = HbSettings {
         ramp_step: 1e-3,
         ramp_step_max: 1e-3,
+        stop_at_fold: true,
         ..HbSettings::default()
     };
     let stop = HbSettings {
@@ -71,9 +73,18 @@ fn every_level_past_the_fold_meets_it() {
     assert!((fold - 0.7239).abs() < 2e-3, "fold at {fold} N/kg");
     for force in [0.8, 1.0, 1.5, 1.87, 1.95, 2.0] {
         let mut solver = HbSolver::new(&num, &drive(force), &fine.lattice).expect("solver");
-        // Default settings: the ramp stops at the fold (the slow flow after the jump settles on
-        // no steady state of the lattice) and names it, within the fine ramp's step.
-        for settings in [HbSettings::default(), stop.clone(), fine.clone()] {
+        // Default settings: the ramp jumps at the fold, names it within the fine ramp's step,
+        // and lands on the high branch, a stable state (a time-domain run from it at 2 N/kg
+        // stays on it to 4e-6). Stopping at folds: it stops there.
+        let st = solver.solve(&HbSettings::default());
+        assert!(st.converged(), "force {force}: {}", st.status);
+        let jump = force * st.drive_jumps.first().copied().expect("a jump");
+        assert!(
+            (jump - fold).abs() <= 1e-3 * force,
+            "force {force}: jump at {jump} N/kg, fold {fold}"
+        );
+        assert!(solver.stability(&st).expect("stability").stable);
+        for settings in [stop.clone(), fine.clone()] {
             let at = force * fold_at(&solver.solve(&settings));
             assert!(
                 (at - fold).abs() <= 1e-3 * force,

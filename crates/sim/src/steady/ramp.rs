@@ -378,7 +378,7 @@ impl Ramp {
             // An experiment jumps there; follow the slow flow from the last state at the
             // next level.
             solver.x.copy_from_slice(&self.good);
-            if solver.land(s_new, tol) {
+            if solver.land_persistently(s_new, tol) {
                 self.unlanded = None;
                 self.good.copy_from_slice(&solver.x);
                 self.prev.copy_from_slice(&solver.x);
