@@ -177,20 +177,39 @@ pub struct ForwardModel {
     at: Option<Vec<f64>>,
 }
 
-/// The index of the measurement before `mi` in its stepped sweep, when the sweep's steps were
-/// measured in order (up or down) and that step is in the dataset.
-fn previous_step(ds: &Dataset, mi: usize) -> Option<usize> {
-    let step = ds.measurements[mi].spec.sweep.as_ref()?;
-    let sweep = ds.manifest.sweeps.iter().find(|s| s.name == step.sweep)?;
-    if sweep.direction == harmonid_data::Direction::Unordered || step.step == 0 {
-        return None;
-    }
-    ds.measurements[..mi].iter().rposition(|m| {
-        m.spec
-            .sweep
-            .as_ref()
-            .is_some_and(|s| s.sweep == step.sweep && s.step + 1 == step.step)
-    })
+/// Per measurement, the index of the one before it in its stepped sweep, when the sweep's
+/// steps were measured in order (up or down) and that step is in the dataset at an earlier
+/// index (as a sweep's steps are read).
+fn previous_steps(ds: &Dataset) -> Vec<Option<usize>> {
+    let ordered = |name: &str| {
+        ds.manifest
+            .sweeps
+            .iter()
+            .any(|s| s.name == name && s.direction != harmonid_data::Direction::Unordered)
+    };
+    let index: BTreeMap<(&str, usize), usize> = ds
+        .measurements
+        .iter()
+        .enumerate()
+        .filter_map(|(mi, m)| {
+            m.spec
+                .sweep
+                .as_ref()
+                .map(|s| ((s.sweep.as_str(), s.step), mi))
+        })
+        .collect();
+    ds.measurements
+        .iter()
+        .enumerate()
+        .map(|(mi, m)| {
+            let s = m.spec.sweep.as_ref()?;
+            let before = s.step.checked_sub(1)?;
+            ordered(&s.sweep)
+                .then(|| index.get(&(s.sweep.as_str(), before)).copied())
+                .flatten()
+                .filter(|&p| p < mi)
+        })
+        .collect()
 }
 
 impl ForwardModel {
@@ -253,6 +272,7 @@ impl ForwardModel {
         let nearest = |f: f64| nearest_mode(table.nominal_hz(), f);
         let mut meas = Vec::with_capacity(ds.measurements.len());
         let mut n_obs = 0;
+        let previous = previous_steps(ds);
         for (mi, m) in ds.measurements.iter().enumerate() {
             let tone_mode = table.tone_modes(mi).to_vec();
             let drive_c: Option<Vec<Complex64>> = m.spec.drive_levels_and_phases().map(|(l, p)| {
@@ -297,7 +317,7 @@ impl ForwardModel {
                 widened: 0,
                 state: None,
                 start: None,
-                follows: previous_step(ds, mi),
+                follows: previous[mi],
                 buf: Vec::new(),
                 solver: None,
                 obs,
@@ -969,6 +989,7 @@ impl ForwardModel {
             }
             (None, None) => None,
         };
+        let warm_started = warm.is_some();
         let mut state = match warm {
             Some(a) => Some(solver.solve_continued(&a, hb)),
             None if previous.is_none() => Some(solver.solve(hb)),
@@ -992,7 +1013,8 @@ impl ForwardModel {
         if let Some(prev) = previous.filter(|_| (ramp || fresh) && !converged(&state)) {
             state = Some(solver.solve_after(&prev.carried_to(&lattice), hb));
         }
-        if ramp && previous.is_none() && !converged(&state) {
+        // The ramp from rest as the fall-back, unless it was the first try already.
+        if ramp && previous.is_none() && warm_started && !converged(&state) {
             state = Some(solver.solve(hb));
         }
         let state = match state {
