@@ -237,6 +237,26 @@ fn bounded_qp(
     }
 }
 
+/// `argmin ‖A Y − B‖` for a tall `A` (`m ≥ n` rows), column by column, with the SVD's
+/// treatment of small singular values (those at or below `eps` are dropped, as
+/// `nalgebra::SVD::solve` does), but the SVD taken of `R` of `A = QR` (`n × n`) with `QᵀB`
+/// applied by the Householder reflections, never forming `U`: for the `2N × k` systems of an
+/// output-error step (thousands of rows, a hundred unknowns) several times cheaper than the
+/// SVD of `A` with its `U`. The singular values and the solution are those of `A`'s SVD up
+/// to rounding. `None` when the SVD fails. A wide `A` falls back to the SVD of `A`.
+pub(crate) fn tall_lstsq(a: DMatrix<f64>, b: DMatrix<f64>, eps: f64) -> Option<DMatrix<f64>> {
+    let (m, n) = a.shape();
+    if m < n {
+        return a.svd(true, true).solve(&b, eps).ok();
+    }
+    let qr = a.qr();
+    let mut c = b;
+    qr.q_tr_mul(&mut c);
+    let r = qr.r();
+    let top = c.rows(0, n).into_owned();
+    r.svd(true, true).solve(&top, eps).ok()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -336,26 +356,6 @@ mod tests {
         assert_eq!(s.status, FitStatus::SolvedWithBounds);
         assert!((s.x[1] - 1.0).abs() < 1e-6, "{:?}", s.x);
     }
-}
-
-/// `argmin ‖A Y − B‖` for a tall `A` (`m ≥ n` rows), column by column, with the SVD's
-/// treatment of small singular values (those at or below `eps` are dropped, as
-/// `nalgebra::SVD::solve` does), but the SVD taken of `R` of `A = QR` (`n × n`) with `QᵀB`
-/// applied by the Householder reflections, never forming `U`: for the `2N × k` systems of an
-/// output-error step (thousands of rows, a hundred unknowns) several times cheaper than the
-/// SVD of `A` with its `U`. The singular values and the solution are those of `A`'s SVD up
-/// to rounding. `None` when the SVD fails. A wide `A` falls back to the SVD of `A`.
-pub(crate) fn tall_lstsq(a: DMatrix<f64>, b: DMatrix<f64>, eps: f64) -> Option<DMatrix<f64>> {
-    let (m, n) = a.shape();
-    if m < n {
-        return a.svd(true, true).solve(&b, eps).ok();
-    }
-    let qr = a.qr();
-    let mut c = b;
-    qr.q_tr_mul(&mut c);
-    let r = qr.r();
-    let top = c.rows(0, n).into_owned();
-    r.svd(true, true).solve(&top, eps).ok()
 }
 
 #[cfg(test)]

@@ -214,19 +214,18 @@ pub(crate) fn fit(
     };
     let (mut fit, mut notes) =
         tries.best(fwd, &pooled.mean, &starts(prob, linear, linear_var, poor))?;
-    let shot_sigma = sigma.clone();
+    let shot_sigma = &sigma[..];
     let mut floor = None;
+    let mut sigma_used = sigma.clone();
     if settings.error_floor && from_shots {
-        let (f, s0) = fit_error_floor(fwd, &tries, fit)?;
+        let (f, s0, floored) = fit_error_floor(fwd, &tries, fit)?;
         fit = f;
         floor = Some(s0);
+        sigma_used = floored;
     }
-    let sigma: Vec<f64> = match floor {
-        Some(s0) => shot_sigma.iter().map(|s| s.hypot(s0)).collect(),
-        None => shot_sigma.clone(),
-    };
+    let sigma = sigma_used;
     if let Some(s0) = floor {
-        let mut sorted = shot_sigma.clone();
+        let mut sorted = shot_sigma.to_vec();
         sorted.sort_by(f64::total_cmp);
         let median = sorted.get(sorted.len() / 2).copied().unwrap_or(f64::NAN);
         notes.push(format!(
@@ -296,7 +295,7 @@ pub(crate) fn fit(
         Vec::new()
     };
     let drift = if from_shots {
-        drift_warnings(fwd, &fit.at_estimate(), &shot_sigma, ds_shots, pooled)
+        drift_warnings(fwd, &fit.at_estimate(), shot_sigma, ds_shots, pooled)
     } else {
         Vec::new()
     };
@@ -317,7 +316,7 @@ pub(crate) fn fit(
     goodness.converged = fit.converged;
     if let Some(s0) = floor {
         // Fitted to these residuals: χ² is near its expectation by construction.
-        goodness.expected_chi2_per_dof = floor_expectation(&shot_sigma, s0, e0);
+        goodness.expected_chi2_per_dof = floor_expectation(shot_sigma, s0, e0);
         goodness.p_value = None;
         goodness.fits = None;
         goodness.error_floor = floor;
@@ -392,12 +391,13 @@ const FLOOR_REL_TOL: f64 = 1e-3;
 /// floor `σ₀` at which `χ²` with the noise `√(s² + σ₀²)` is a correct model's expectation at
 /// the current fit ([`floor_for`]; zero when the shot noise alone already gives that), and the
 /// fit with that noise, until the floor settles (`tries`: the data, the shot noise, and `e0`,
-/// a correct model's `χ²/dof` with the shot noise alone). Returns the last fit and its floor (m per quadrature).
+/// a correct model's `χ²/dof` with the shot noise alone). Returns the last fit, its floor (m
+/// per quadrature) and the noise it was fitted with.
 fn fit_error_floor(
     fwd: &mut ForwardModel,
     tries: &Tries,
     mut fit: MlFit,
-) -> Result<(MlFit, f64), OutputErrorFailure> {
+) -> Result<(MlFit, f64, Vec<f64>), OutputErrorFailure> {
     let Tries {
         meas,
         sigma: shot_sigma,
@@ -406,6 +406,7 @@ fn fit_error_floor(
         e0,
     } = *tries;
     let mut floor = 0.0;
+    let mut sigma = shot_sigma.to_vec();
     for _ in 0..FLOOR_ROUNDS {
         let miss2: Vec<f64> = meas
             .iter()
@@ -415,7 +416,7 @@ fn fit_error_floor(
         let next = floor_for(&miss2, shot_sigma, e0, fit.dof.max(1) as f64);
         let settled = (next - floor).abs() <= FLOOR_REL_TOL * next;
         floor = next;
-        let sigma: Vec<f64> = shot_sigma.iter().map(|s| s.hypot(floor)).collect();
+        sigma = shot_sigma.iter().map(|s| s.hypot(floor)).collect();
         fit = ml::refine(
             fwd,
             meas,
@@ -430,7 +431,7 @@ fn fit_error_floor(
             break;
         }
     }
-    Ok((fit, floor))
+    Ok((fit, floor, sigma))
 }
 
 /// A correct model's `χ²/dof` with the noise `√(sᵢ² + σ₀²)`: `1 + (e0 − 1)·mean wᵢ²`, see
