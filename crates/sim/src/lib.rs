@@ -41,7 +41,7 @@ pub use noise::{lockin_noise_sigma, NoiseGen};
 pub use numeric::{parse_monomial, ModeValues, ModelValues, NumericModel, Term};
 pub use sensitivity::{Observation, SensParam, Sensitivity};
 pub use steady::{
-    backbone, check_stability, convergence_report, limit_cycle, steady_state, sweep,
+    backbone, check_stability, convergence_report, limit_cycle, steady_state, stepped_sweep, sweep,
     sweep_two_tone, ConvergenceReport, Fold, HbSettings, HbSolver, HbStatus, LimitCycle, ModeLine,
     Stability, SteadyState, SweepPoint, SweepResult, SweepSettings, TwoToneCurve, TwoToneJump,
     TwoTonePoint, TwoToneSettings, TwoToneStatus, TwoToneSweep, MAX_MODES, MAX_SWEEP_HARMONICS,

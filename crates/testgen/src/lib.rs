@@ -514,7 +514,7 @@ pub struct SteppedSweep {
 /// Simulates `sweeps` the way the experiment runs them (no noise, `shots` identical shots,
 /// one point with `shape`, the drive line measured): each sweep's first step by the drive
 /// ramp from rest, every later step from the previous step's state
-/// ([`harmonid_sim::HbSolver::solve_after`]), so an up-sweep stays on the high branch of a
+/// ([`harmonid_sim::stepped_sweep`]), so an up-sweep stays on the high branch of a
 /// hardening resonance through its bistable range and jumps down past the fold, and a
 /// down-sweep the other way. The dataset holds one `[[sweep]]` per sweep, each step a
 /// measurement `name[k]` with its [`harmonid_data::SweepStep`].
@@ -526,7 +526,7 @@ pub fn simulate_sweeps_clean(
     shots: usize,
 ) -> Dataset {
     use harmonid_data::{PerStep, SweepSpec, SweepStep};
-    use harmonid_sim::{Excitation, HbSettings, HbSolver, NumericModel, SteadyState};
+    use harmonid_sim::{stepped_sweep, Excitation, HbSettings, NumericModel};
     use num_complex::Complex64;
     let numeric =
         NumericModel::from_model(model, &model_values(model, v)).unwrap_or_else(|e| panic!("{e}"));
@@ -559,20 +559,20 @@ pub fn simulate_sweeps_clean(
             sw.steps.iter().map(|&(_, x)| vec![x]).collect(),
         ));
         spec.drive_phases_rad = Some(PerStep::Same(vec![0.0]));
-        let mut prev: Option<SteadyState> = None;
-        for (k, &(f, x)) in sw.steps.iter().enumerate() {
-            let mut force = vec![vec![Complex64::new(0.0, 0.0)]; nm];
-            force[0][0] = Complex64::new(x, 0.0);
-            let drive = Excitation {
-                tones_hz: vec![f],
-                force,
-            };
-            let mut solver = HbSolver::new(&numeric, &drive, &settings.lattice)
-                .unwrap_or_else(|e| panic!("{e}"));
-            let state = match &prev {
-                None => solver.solve(&settings),
-                Some(p) => solver.solve_after(&p.carried_to(solver.lattice()), &settings),
-            };
+        let drives: Vec<Excitation> = sw
+            .steps
+            .iter()
+            .map(|&(f, x)| {
+                let mut force = vec![vec![Complex64::new(0.0, 0.0)]; nm];
+                force[0][0] = Complex64::new(x, 0.0);
+                Excitation {
+                    tones_hz: vec![f],
+                    force,
+                }
+            })
+            .collect();
+        let states = stepped_sweep(&numeric, &drives, &settings).unwrap_or_else(|e| panic!("{e}"));
+        for (k, (&(f, _), state)) in sw.steps.iter().zip(&states).enumerate() {
             assert!(
                 state.converged(),
                 "{} step {k} at {f} Hz: {}",
@@ -593,7 +593,6 @@ pub fn simulate_sweeps_clean(
                 data: vec![x; shots],
                 noise: None,
             });
-            prev = Some(state);
         }
         manifest.sweeps.push(spec);
     }

@@ -56,6 +56,7 @@ pub use solver::{steady_state, HbSolver, MAX_MODES};
 pub(crate) use solver::{term_monomial, variable_spectra};
 pub use stability::check_stability;
 pub use state::{HbSettings, HbStatus, Stability, SteadyState};
+pub use step::stepped_sweep;
 pub use sweep::{
     sweep, Fold, SweepPoint, SweepResult, SweepSettings, MAX_SWEEP_HARMONICS, MAX_SWEEP_HZ,
     MAX_SWEEP_POINTS,

@@ -2,7 +2,30 @@
 //! drive changes from the previous step's to this solver's, starting from where it was.
 
 use super::{HbSettings, HbSolver, HbStatus, SteadyState, Z};
+use crate::{Excitation, NumericModel, SimError};
 use num_complex::Complex64;
+
+/// The states a stepped-sine experiment reaches under `drives`, one per step in the order they
+/// were measured: the first by the drive ramp from rest, each later one from the state before
+/// it ([`HbSolver::solve_after`]), each on its own lattice (`settings.lattice`). A step that
+/// does not converge is returned as such (its status says so), and the next one starts from
+/// it. Errors: a lattice or solver that cannot be set up for a step.
+pub fn stepped_sweep(
+    model: &NumericModel,
+    drives: &[Excitation],
+    settings: &HbSettings,
+) -> Result<Vec<SteadyState>, SimError> {
+    let mut states: Vec<SteadyState> = Vec::with_capacity(drives.len());
+    for drive in drives {
+        let mut solver = HbSolver::new(model, drive, &settings.lattice)?;
+        let state = match states.last() {
+            None => solver.solve(settings),
+            Some(prev) => solver.solve_after(&prev.carried_to(solver.lattice()), settings),
+        };
+        states.push(state);
+    }
+    Ok(states)
+}
 
 impl HbSolver {
     /// The steady state a stepped experiment reaches under this solver's drive from the
@@ -91,7 +114,6 @@ mod tests {
     use super::super::test_models::duffing;
     use super::super::{sweep, SweepSettings};
     use super::*;
-    use crate::{Excitation, LatticeSettings};
     use std::f64::consts::TAU;
 
     /// The single-harmonic amplitudes `a` of `q̈ + γq̇ + ω0²q + βq³ = F cos Ωt`, the real roots
@@ -164,19 +186,16 @@ mod tests {
             } else {
                 steps.iter().rev().copied().collect()
             };
-            let mut prev: Option<SteadyState> = None;
-            let mut bistable = 0;
-            for &f in &order {
-                let drive = Excitation {
+            let drives: Vec<Excitation> = order
+                .iter()
+                .map(|&f| Excitation {
                     tones_hz: vec![f],
                     force: vec![vec![Complex64::new(force, 0.0)]],
-                };
-                let mut solver =
-                    HbSolver::new(&m, &drive, &LatticeSettings::default()).expect("solver");
-                let state = match &prev {
-                    None => solver.solve(&settings),
-                    Some(p) => solver.solve_after(&p.carried_to(solver.lattice()), &settings),
-                };
+                })
+                .collect();
+            let states = stepped_sweep(&m, &drives, &settings).expect("sweep");
+            let mut bistable = 0;
+            for (&f, state) in order.iter().zip(&states) {
                 assert!(
                     state.converged(),
                     "{f} Hz: {} {} folds {f_down} {f_up}",
@@ -201,7 +220,6 @@ mod tests {
                     "{} sweep at {f} Hz: {a:e} where the branch has {want:e} (roots {roots:?}; folds {f_down}, {f_up} Hz)",
                     if upward { "up" } else { "down" }
                 );
-                prev = Some(state);
             }
             assert!(bistable >= 10, "{bistable} steps in the bistable range");
         }
