@@ -274,7 +274,10 @@ pub fn discover(
         let among = pool.len();
         let mut best: Option<(usize, f64, Fitted, Model)> = None;
         for (i, c) in pool.iter().enumerate() {
-            let trial = with_candidate(&current, c);
+            // A candidate whose terms overflow exact arithmetic cannot be written: skipped.
+            let Some(trial) = with_candidate(&current, c) else {
+                continue;
+            };
             let f = fit(&trial, ds, &ident);
             fits += 1;
             progress(fits, total * (steps.len() + 1));
@@ -311,6 +314,7 @@ pub fn discover(
         here = f;
     }
     // Backward: the least needed parameter while its removal is not significant.
+    let mut removed = false;
     loop {
         let free: Vec<usize> = (0..current.params.len())
             .filter(|&p| current.params[p].kind == ParamKind::Unknown)
@@ -350,17 +354,23 @@ pub fn discover(
             p_value: pv,
             among,
         });
-        current = without(&trial, p);
+        // Dropped from the model; fixed at zero (the same equations) should that overflow.
+        current = without(&trial, p).unwrap_or(trial);
         here = f;
+        removed = true;
     }
-    // The selected model's own fit (parameters removed are gone, not fixed at zero).
-    let result = fit(&current, ds, &ident)
-        .map(|f| f.report)
-        .unwrap_or(here.report);
+    // The selected model's own fit: after a removal, the parameter is gone rather than fixed
+    // at zero, so the result lists it no more; otherwise the last fit is that model's.
+    let result = if removed {
+        fits += 1;
+        fit(&current, ds, &ident).map_or(here.report, |f| f.report)
+    } else {
+        here.report
+    };
     Ok(Discovery {
         candidates: total,
         steps,
-        fits: fits + 1,
+        fits,
         model: current,
         result,
     })
@@ -456,8 +466,8 @@ fn monomials(nm: usize, d: u32) -> Vec<PowerProduct> {
     out
 }
 
-/// `model` with candidate `c`'s parameter and terms.
-fn with_candidate(model: &Model, c: &Candidate) -> Model {
+/// `model` with candidate `c`'s parameter and terms (`None` when exact arithmetic overflows).
+fn with_candidate(model: &Model, c: &Candidate) -> Option<Model> {
     let mut m = model.clone();
     let p = VarId(m.params.len() as u32);
     m.params.push(Parameter {
@@ -466,20 +476,18 @@ fn with_candidate(model: &Model, c: &Candidate) -> Model {
         bounds: Bounds::default(),
     });
     for (n, mono, k) in &c.terms {
-        let coeff = Coeff::param(p)
-            .checked_scale_rational(k)
-            .unwrap_or_else(|_| Coeff::param(p));
+        let coeff = Coeff::param(p).checked_scale_rational(k).ok()?;
         m.eom[*n] = m.eom[*n]
             .checked_add(&Poly::term(mono.clone(), coeff))
-            .unwrap_or_else(|_| m.eom[*n].clone());
+            .ok()?;
     }
     if let Some(pm) = &c.potential {
         m.potential = m
             .potential
             .checked_add(&Poly::term(pm.clone(), Coeff::param(p)))
-            .unwrap_or_else(|_| m.potential.clone());
+            .ok()?;
     }
-    m
+    Some(m)
 }
 
 /// The terms parameter `p` enters, in words.
@@ -501,30 +509,29 @@ fn terms_of(model: &Model, p: usize) -> String {
 }
 
 /// `model` (where parameter `p` is fixed at zero) without `p`: its terms dropped, the later
-/// parameters renumbered.
-fn without(model: &Model, p: usize) -> Model {
-    let mut m = model.clone();
-    let zero_and_shift = |poly: &Poly| -> Poly {
+/// parameters renumbered (`None` when exact arithmetic overflows).
+fn without(model: &Model, p: usize) -> Option<Model> {
+    let zero_and_shift = |poly: &Poly| -> Option<Poly> {
         let mut out = Poly::zero();
         for (mono, c) in poly.terms() {
-            let c = without_param(c, p);
+            let c = without_param(c, p)?;
             if !c.is_zero() {
-                out = out
-                    .checked_add(&Poly::term(mono.clone(), c))
-                    .unwrap_or_else(|_| out.clone());
+                out = out.checked_add(&Poly::term(mono.clone(), c)).ok()?;
             }
         }
-        out
+        Some(out)
     };
-    m.eom = m.eom.iter().map(zero_and_shift).collect();
-    m.potential = zero_and_shift(&m.potential);
-    m.dissipation = zero_and_shift(&m.dissipation);
+    let mut m = model.clone();
+    m.eom = m.eom.iter().map(zero_and_shift).collect::<Option<_>>()?;
+    m.potential = zero_and_shift(&m.potential)?;
+    m.dissipation = zero_and_shift(&m.dissipation)?;
     m.params.remove(p);
-    m
+    Some(m)
 }
 
-/// Coefficient `c` with parameter `p` at zero and the later parameters renumbered down by one.
-fn without_param(c: &Coeff, p: usize) -> Coeff {
+/// Coefficient `c` with parameter `p` at zero and the later parameters renumbered down by one
+/// (`None` when exact arithmetic overflows).
+fn without_param(c: &Coeff, p: usize) -> Option<Coeff> {
     let mut out = Coeff::zero();
     for (m, r) in c.terms() {
         if m.exponent(VarId(p as u32)) > 0 {
@@ -534,13 +541,10 @@ fn without_param(c: &Coeff, p: usize) -> Coeff {
             let i = v.index();
             (VarId(if i > p { i - 1 } else { i } as u32), k)
         });
-        if let Ok(m) = PowerProduct::from_factors(shifted) {
-            out = out
-                .checked_add(&Coeff::term(m, *r))
-                .unwrap_or_else(|_| out.clone());
-        }
+        let m = PowerProduct::from_factors(shifted).ok()?;
+        out = out.checked_add(&Coeff::term(m, *r)).ok()?;
     }
-    out
+    Some(out)
 }
 
 impl Discovery {
@@ -657,7 +661,7 @@ mod tests {
         let m = model(
             "mode q1 at 1 MHz\nmode q2 at 2 MHz\nparam a, b, c\neom q1 += a*q1^3 + b*q1*q2^2\neom q2 += c*q2^3 + b*q1^2*q2\n",
         );
-        let w = without(&m, 1);
+        let w = without(&m, 1).expect("no overflow");
         assert_eq!(
             w.params.iter().map(|p| p.name.as_str()).collect::<Vec<_>>(),
             ["a", "c"]
