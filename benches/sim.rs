@@ -35,6 +35,7 @@ fn c(x: f64) -> Complex64 {
 fn steady_state(cr: &mut Criterion) {
     let model = nanostring();
     let drive = Excitation {
+        pumps: Vec::new(),
         tones_hz: vec![207572.5, 207592.5, 415841.5],
         force: vec![vec![c(3.5), c(3.5), c(0.0)], vec![c(0.0), c(0.0), c(1.81)]],
     };
@@ -85,6 +86,7 @@ fn duffing_sweep(cr: &mut Criterion) {
 fn time_domain(cr: &mut Criterion) {
     let model = nanostring();
     let drive = Excitation {
+        pumps: Vec::new(),
         tones_hz: vec![207572.5, 207592.5],
         force: vec![vec![c(3.5), c(3.5)], vec![c(0.0), c(0.0)]],
     };

@@ -90,6 +90,7 @@ fn excitation(truth: &toml::Value, m: &Meas, n_modes: &[&str]) -> Excitation {
         })
         .collect();
     Excitation {
+        pumps: Vec::new(),
         tones_hz: m.drives.clone(),
         force,
     }

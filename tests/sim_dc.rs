@@ -26,6 +26,7 @@ fn quadratic(a: f64) -> NumericModel {
 #[test]
 fn lattice_has_dc_and_even_lines_only_for_even_models() {
     let drive = Excitation {
+        pumps: Vec::new(),
         tones_hz: vec![995.0, 1005.0],
         force: vec![vec![Complex64::new(1.0, 0.0); 2]],
     };
@@ -54,6 +55,7 @@ fn lattice_has_dc_and_even_lines_only_for_even_models() {
     assert!(!odd.iter().any(|&f| (f - 1000.0).abs() < 1e-9));
     // Commensurate tones (f2 = 2 f1): 2 f1 − f2 = 0 is order 3, so a cubic model has a DC line.
     let comm = Excitation {
+        pumps: Vec::new(),
         tones_hz: vec![1000.0, 2000.0],
         force: vec![vec![Complex64::new(1.0, 0.0); 2]],
     };
@@ -66,6 +68,7 @@ fn lattice_has_dc_and_even_lines_only_for_even_models() {
 fn quadratic_errors(a: f64, f: f64, force: f64, linear: bool) -> (f64, f64, f64) {
     let m = quadratic(a);
     let drive = Excitation {
+        pumps: Vec::new(),
         tones_hz: vec![f],
         force: vec![vec![Complex64::new(force, 0.0)]],
     };
@@ -134,6 +137,7 @@ fn two_mode_quadratic() -> NumericModel {
 fn hb_with_offset_and_time_domain_agree() {
     let model = two_mode_quadratic();
     let drive = Excitation {
+        pumps: Vec::new(),
         tones_hz: vec![995.0, 1005.0],
         force: vec![
             vec![Complex64::new(20.0, 0.0), Complex64::new(0.0, 15.0)],

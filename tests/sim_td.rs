@@ -24,6 +24,7 @@ fn small_model() -> NumericModel {
 fn hb_and_time_domain_agree() {
     let model = small_model();
     let drive = Excitation {
+        pumps: Vec::new(),
         tones_hz: vec![995.0, 1005.0, 2105.0],
         force: vec![
             vec![

@@ -54,13 +54,16 @@ fn measurement_from_dict(
     manifest: &Manifest,
     scale: f64,
 ) -> PyResult<Measurement> {
-    const KEYS: [&str; 10] = [
+    const KEYS: [&str; 13] = [
         "drives_hz",
         "freqs_hz",
         "amplitudes",
         "points",
         "drive_levels_v",
         "drive_phases_rad",
+        "pumps_hz",
+        "pump_levels",
+        "pump_phases_rad",
         "bandwidth_hz",
         "file",
         "std",
@@ -144,6 +147,9 @@ fn measurement_from_dict(
             drives_hz,
             drive_levels_v: opt(d, "drive_levels_v")?,
             drive_phases_rad: opt(d, "drive_phases_rad")?,
+            pumps_hz: opt(d, "pumps_hz")?.unwrap_or_default(),
+            pump_levels: opt(d, "pump_levels")?,
+            pump_phases_rad: opt(d, "pump_phases_rad")?,
             bandwidth_hz: opt(d, "bandwidth_hz")?,
             sweep: None,
         },
@@ -214,6 +220,24 @@ fn sweep_from_dict(
     };
     spec.drive_levels_v = per_step(|m| &m.spec.drive_levels_v, "drive_levels_v")?;
     spec.drive_phases_rad = per_step(|m| &m.spec.drive_phases_rad, "drive_phases_rad")?;
+    // A sweep's pump is the same at every step.
+    if let Some(first) = ms.first() {
+        let pump = |m: &Measurement| {
+            (
+                m.spec.pumps_hz.clone(),
+                m.spec.pump_levels.clone(),
+                m.spec.pump_phases_rad.clone(),
+            )
+        };
+        let p0 = pump(first);
+        if ms.iter().any(|m| pump(m) != p0) {
+            return Err(measurement_error(
+                &name,
+                "the pump (\"pumps_hz\", \"pump_levels\", \"pump_phases_rad\") differs between steps: a sweep has one pump for every step".to_string(),
+            ));
+        }
+        (spec.pumps_hz, spec.pump_levels, spec.pump_phases_rad) = p0;
+    }
     for (k, m) in ms.iter_mut().enumerate() {
         m.spec = spec.step_spec(k);
     }
@@ -238,7 +262,8 @@ impl Dataset {
     /// - `amplitudes`: complex amplitudes in `displacement_unit`, shape `(shots, freqs)` or
     ///   `(shots, freqs, points)`;
     /// - optional `points` (names, default all declared points), `drive_levels_v`,
-    ///   `drive_phases_rad` (both or neither, one per drive tone), `bandwidth_hz`, `file`;
+    ///   `drive_phases_rad` (both or neither, one per drive tone), `pumps_hz` with
+    ///   `pump_levels` and `pump_phases_rad` (a parametric pump), `bandwidth_hz`, `file`;
     /// - optional `std` and `samples` (together, one shot): each row an average with its noise,
     ///   one value per frequency and point, frequency-major, `std` in `displacement_unit`.
     ///
@@ -341,7 +366,8 @@ impl Dataset {
 
     /// One measurement: `drives_hz`, `freqs_hz` (numpy, increasing), `amplitudes` (numpy complex,
     /// metres, shape `(shots, freqs, points)`), `points` (names), and `drive_levels_v`,
-    /// `drive_phases_rad`, `bandwidth_hz` when given. The arrays are copies.
+    /// `drive_phases_rad`, `pumps_hz`, `pump_levels`, `pump_phases_rad`, `bandwidth_hz` when
+    /// given. The arrays are copies.
     fn measurement<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyDict>> {
         let m = self.inner.measurement(name).ok_or_else(|| {
             pyo3::exceptions::PyKeyError::new_err(format!(
@@ -371,6 +397,11 @@ impl Dataset {
         d.set_item("points", PyList::new(py, names)?)?;
         d.set_item("drive_levels_v", &m.spec.drive_levels_v)?;
         d.set_item("drive_phases_rad", &m.spec.drive_phases_rad)?;
+        if !m.spec.pumps_hz.is_empty() {
+            d.set_item("pumps_hz", m.spec.pumps_hz.clone())?;
+            d.set_item("pump_levels", &m.spec.pump_levels)?;
+            d.set_item("pump_phases_rad", &m.spec.pump_phases_rad)?;
+        }
         d.set_item("bandwidth_hz", m.spec.bandwidth_hz)?;
         // A noise given with the data: per frequency and point, in data order (metres).
         if let Some(g) = &m.noise {

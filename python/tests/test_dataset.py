@@ -120,3 +120,22 @@ def test_from_arrays_errors_name_the_measurement():
 def test_missing_folder_is_located(tmp_path):
     with pytest.raises(harmonid.DatasetError, match="dataset.toml"):
         harmonid.Dataset.from_folder(tmp_path / "nothing")
+
+
+def test_a_pump_travels_with_its_measurement(tmp_path):
+    """`pumps_hz`, `pump_levels`, `pump_phases_rad` in, out, through a folder; half a pump is refused."""
+    ds = harmonid.Dataset.from_folder(DATA_2)
+    pts = {"p0": {"q1": 0.3, "q2": 0.6}}
+    arrs = arrays_of(ds)
+    arrs["single_q1"].update(pumps_hz=[415165.0], pump_levels=[0.8], pump_phases_rad=[0.25])
+    built = harmonid.Dataset.from_arrays(arrs, points=pts, displacement_unit="nm")
+    m = built.measurement("single_q1")
+    assert m["pumps_hz"] == [415165.0]
+    assert m["pump_levels"] == [0.8] and m["pump_phases_rad"] == [0.25]
+    assert "pumps_hz" not in built.measurement("single_q2")
+    built.to_folder(tmp_path / "pumped")
+    back = harmonid.Dataset.from_folder(tmp_path / "pumped")
+    assert back.measurement("single_q1")["pump_levels"] == [0.8]
+    arrs["single_q1"].pop("pump_levels")
+    with pytest.raises(harmonid.DatasetError, match="pump_levels"):
+        harmonid.Dataset.from_arrays(arrs, points=pts, displacement_unit="nm")

@@ -143,6 +143,13 @@ pub fn run(args: Args) -> miette::Result<()> {
         super::common::check_outputs(&[path.as_path()], &inputs)?;
     }
     let model = harmonid_model::load(&args.model).map_err(miette::Report::new)?;
+    if model.has_pump_terms() {
+        return Err(miette!(
+            help = "leave the pump terms out of a copy of the model to list the other terms' lines; a pump term `lambda*pump*q` moves each line f of q to f_p − f and f_p + f",
+            "{}: mix does not list the lines of pump terms (`pump`) yet",
+            args.model.display()
+        ));
+    }
     let report = build(&args, &model)?;
     let text = if args.json {
         to_json(&report)

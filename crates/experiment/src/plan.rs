@@ -102,6 +102,17 @@ pub struct PlanMeasurement {
     /// Drive phase per tone as the instrument knows it (rad), copied into `dataset.toml`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub drive_phases_rad: Option<Vec<f64>>,
+    /// Pump tones, Hz (parametric pumping: the model's `pump` signal is
+    /// `Σ_k pump_levels[k] cos(2π pumps_hz[k] t + pump_phases_rad[k])`), copied into
+    /// `dataset.toml`; empty: no pump.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub pumps_hz: Vec<f64>,
+    /// Level of each pump tone, in the unit the model's pump coefficients are per.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pump_levels: Option<Vec<f64>>,
+    /// Phase of each pump tone, rad.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pump_phases_rad: Option<Vec<f64>>,
     /// Lock-in bandwidth, Hz (metadata), copied into `dataset.toml`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bandwidth_hz: Option<f64>,
@@ -376,6 +387,34 @@ impl PlanMeasurement {
                 }),
                 "drive_levels_v and drive_phases_rad go together; give both or neither",
             ));
+        }
+        if !self.pumps_hz.is_empty() {
+            frequencies(at("pumps_hz"), &self.pumps_hz, "pump frequency")?;
+        }
+        let np = self.pumps_hz.len();
+        for (k, v) in [
+            ("pump_levels", &self.pump_levels),
+            ("pump_phases_rad", &self.pump_phases_rad),
+        ] {
+            match v {
+                None if np > 0 => {
+                    return Err(issue(
+                        at(k),
+                        format!("missing: pumps_hz lists {np} pump tones; give their pump_levels and pump_phases_rad, one per tone"),
+                    ))
+                }
+                Some(_) if np == 0 => {
+                    return Err(issue(at(k), "given without pumps_hz; list the pump tones in Hz, or remove it"))
+                }
+                Some(l) if l.len() != np => {
+                    return Err(issue(
+                        at(k),
+                        format!("{} entries; expected one per pump tone ({np})", l.len()),
+                    ))
+                }
+                Some(l) => finite_list(at(k), l, "a finite number", |_| true)?,
+                None => {}
+            }
         }
         if let Some(b) = self.bandwidth_hz {
             finite_list(

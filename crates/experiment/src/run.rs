@@ -277,7 +277,21 @@ impl PlanMeasurement {
                     .collect()
             })
             .collect();
+        let pumps = match (&self.pump_levels, &self.pump_phases_rad) {
+            (Some(l), Some(p)) => self
+                .pumps_hz
+                .iter()
+                .zip(l)
+                .zip(p)
+                .map(|((&hz, &l), &p)| sim::PumpTone {
+                    hz,
+                    amplitude: Complex64::from_polar(l, p),
+                })
+                .collect(),
+            _ => Vec::new(),
+        };
         let drive = Excitation {
+            pumps,
             tones_hz: self.drives_hz.clone(),
             force,
         };
@@ -298,6 +312,9 @@ impl PlanMeasurement {
             drives_hz: self.drives_hz.clone(),
             drive_levels_v: self.drive_levels_v.clone(),
             drive_phases_rad: self.drive_phases_rad.clone(),
+            pumps_hz: self.pumps_hz.clone(),
+            pump_levels: self.pump_levels.clone(),
+            pump_phases_rad: self.pump_phases_rad.clone(),
             bandwidth_hz: self.bandwidth_hz,
             sweep: None,
         }

@@ -40,7 +40,7 @@ use harmonid_data::Dataset;
 use harmonid_model::{Linear, Model, ParamKind};
 use harmonid_sim::{
     choose_lattice, Excitation, HbSettings, HbSolver, LatticeSettings, ModeValues, ModelValues,
-    NumericModel, Observation, SensParam, Sensitivity, SteadyState,
+    NumericModel, Observation, PumpTone, SensParam, Sensitivity, SteadyState,
 };
 use num_complex::Complex64;
 use std::collections::BTreeMap;
@@ -138,6 +138,8 @@ struct MeasFwd {
     tone_mode: Vec<usize>,
     /// `V e^{iφ}` of each tone (drive-level force models).
     drive_c: Option<Vec<Complex64>>,
+    /// The pump tones (parametric pumping; empty without a pump).
+    pumps: Vec<PumpTone>,
     obs: Vec<Observation>,
     /// Global index of the first observation.
     offset: usize,
@@ -310,6 +312,12 @@ impl ForwardModel {
                 tones_hz: m.spec.drives_hz.clone(),
                 tone_mode,
                 drive_c,
+                pumps: m
+                    .spec
+                    .pump_tones()
+                    .into_iter()
+                    .map(PumpTone::from)
+                    .collect(),
                 offset: n_obs,
                 sens_params: Vec::new(),
                 chains: Vec::new(),
@@ -710,6 +718,7 @@ impl ForwardModel {
             };
         }
         Excitation {
+            pumps: m.pumps.clone(),
             tones_hz: m.tones_hz.clone(),
             force,
         }

@@ -32,6 +32,9 @@ fn dataset(f0: f64, q: f64, amp: f64) -> Dataset {
         drives_hz: vec![f0 - df, f0 + df],
         drive_levels_v: Some(vec![1.0, 1.0]),
         drive_phases_rad: Some(vec![0.0, 0.0]),
+        pumps_hz: Vec::new(),
+        pump_levels: None,
+        pump_phases_rad: None,
         bandwidth_hz: None,
         sweep: None,
     };

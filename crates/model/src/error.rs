@@ -75,6 +75,8 @@ pub enum Code {
     BadVelocity,
     /// A velocity `d(q1)` in a potential (a potential depends on the positions only).
     VelocityInPotential,
+    /// A declaration of a built-in name (`pump`).
+    ReservedName,
 }
 
 impl Code {
@@ -98,6 +100,7 @@ impl Code {
             Code::EmptyModel => "model::empty-model",
             Code::BadVelocity => "model::bad-velocity",
             Code::VelocityInPotential => "model::velocity-in-potential",
+            Code::ReservedName => "model::reserved-name",
         }
     }
 }

@@ -43,7 +43,9 @@ mod sema;
 mod syntax;
 
 pub use error::{Code, ModelDiagnostic, ModelErrors, Span};
-pub use model::{velocity_name, Bounds, Linear, Mode, Model, NonAffineTerm, ParamKind, Parameter};
+pub use model::{
+    velocity_name, Bounds, Linear, Mode, Model, NonAffineTerm, ParamKind, Parameter, PUMP_NAME,
+};
 pub use output::latex_name;
 pub use sema::equations_from_potential;
 

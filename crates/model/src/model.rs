@@ -84,8 +84,9 @@ pub struct NonAffineTerm {
 pub struct Model {
     /// Where the model came from (file path or a label), for messages and result files.
     pub source: String,
-    /// Modes in declaration order; `VarId(m)` in a [`Poly`] is `modes[m]`, and
-    /// `VarId(modes.len() + m)` its velocity `d(q_m)`.
+    /// Modes in declaration order; `VarId(m)` in a [`Poly`] is `modes[m]`,
+    /// `VarId(modes.len() + m)` its velocity `d(q_m)`, and `VarId(2 · modes.len())` the pump
+    /// signal `pump` (see [`PUMP_NAME`]).
     pub modes: Vec<Mode>,
     /// Parameters in declaration order; `VarId(p)` in a coefficient is `params[p]`.
     pub params: Vec<Parameter>,
@@ -120,21 +121,40 @@ impl Model {
         self.params.iter().position(|p| p.name == name)
     }
 
-    /// The names of the variables of the equations: the modes, then their velocities
-    /// (`q1, q2, d(q1), d(q2)`), as monomial names spell them.
+    /// The names of the variables of the equations: the modes, their velocities, then the
+    /// pump (`q1, q2, d(q1), d(q2), pump`), as monomial names spell them.
     pub fn variable_names(&self) -> Vec<String> {
         let modes = self.modes.iter().map(|m| m.name.clone());
         let velocities = self.modes.iter().map(|m| velocity_name(&m.name));
-        modes.chain(velocities).collect()
+        modes
+            .chain(velocities)
+            .chain(std::iter::once(PUMP_NAME.to_string()))
+            .collect()
+    }
+
+    /// The variable of the pump signal: after every mode and velocity.
+    pub fn pump_var(&self) -> VarId {
+        VarId(2 * self.modes.len() as u32)
     }
 
     /// Whether any equation term holds a velocity `d(q)` (nonlinear damping, velocity
     /// couplings).
     pub fn has_velocity_terms(&self) -> bool {
         let nm = self.modes.len();
+        self.any_factor(|v| (nm..2 * nm).contains(&v.index()))
+    }
+
+    /// Whether any equation term holds the pump signal (parametric pumping: `lambda*pump*q1`
+    /// modulates a stiffness), so that every measurement must declare its pump tones.
+    pub fn has_pump_terms(&self) -> bool {
+        let pump = self.pump_var();
+        self.any_factor(|v| v == pump)
+    }
+
+    fn any_factor(&self, pred: impl Fn(VarId) -> bool) -> bool {
         self.eom.iter().any(|eq| {
             eq.terms()
-                .any(|(m, _)| m.factors().iter().any(|&(v, _)| v.index() >= nm))
+                .any(|(m, _)| m.factors().iter().any(|&(v, _)| pred(v)))
         })
     }
 
@@ -207,6 +227,12 @@ impl Model {
         v
     }
 }
+
+/// The built-in name of the pump signal, `pump(t) = Σ_k Re[P_k e^{i2πf_k t}]` over the pump
+/// tones a measurement declares (`pumps_hz`, `pump_levels`, `pump_phases_rad`): a factor of
+/// equation terms (`lambda*pump*q1` modulates the stiffness of q1), in the unit of the
+/// measurement's pump levels.
+pub const PUMP_NAME: &str = "pump";
 
 /// The name of the velocity of mode `mode` in the language and in monomial names: `d(q1)`.
 pub fn velocity_name(mode: &str) -> String {

@@ -117,8 +117,8 @@ impl Model {
         format!("{lhs} = F{s}(t)")
     }
 
-    /// The LaTeX names of the variables, modes then velocities (`q_{1}`, `\dot{q}_{1}`), in
-    /// the order of [`Model::variable_names`].
+    /// The LaTeX names of the variables, modes, velocities, then the pump (`q_{1}`,
+    /// `\dot{q}_{1}`, `p(t)`), in the order of [`Model::variable_names`].
     pub fn variable_latex_names(&self) -> Vec<String> {
         self.modes
             .iter()
@@ -131,6 +131,7 @@ impl Model {
                     mode_suffix_latex(&m.name)
                 )
             }))
+            .chain(std::iter::once("p(t)".to_string()))
             .collect()
     }
 

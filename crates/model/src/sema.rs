@@ -3,7 +3,7 @@
 
 use crate::ast::{Expr, Family, File, Index, IndexRel, ModeDecl, Name, ParamDecl, Stmt};
 use crate::error::{Code, ModelDiagnostic, Span};
-use crate::model::{Bounds, Linear, Mode, Model, ParamKind, Parameter};
+use crate::model::{Bounds, Linear, Mode, Model, ParamKind, Parameter, PUMP_NAME};
 use crate::{MAX_DEGREE, MAX_FAMILY_INSTANCES, MAX_PRODUCT_WORK, MAX_TERMS};
 use harmonid_poly::{Coeff, Overflow, Poly, PolyBuilder, Rational, Ring, VarId};
 use std::collections::HashMap;
@@ -392,6 +392,16 @@ fn declare(
     sym: Sym,
     span: Span,
 ) -> bool {
+    if name == PUMP_NAME {
+        sink.push(ModelDiagnostic::new(
+            Code::ReservedName,
+            span,
+            format!("`{name}` is the pump signal's built-in name and cannot be declared"),
+            "reserved name",
+            "write the pump's coefficient as a parameter (`param lambda`, then `eom q1 += lambda*pump*q1`), or rename this one",
+        ));
+        return false;
+    }
     if let Some((old, old_span)) = table.get(name) {
         let what = match old {
             Sym::Mode(_) => "a mode",
@@ -985,6 +995,9 @@ impl Eval<'_, '_, '_, '_> {
                 ))));
             }
         }
+        if n.indices.is_none() && n.base == PUMP_NAME {
+            return Some(Poly::var(VarId(2 * self.names.n_modes)));
+        }
         let name = self.canonical(n)?;
         match self.names.table.get(&name) {
             Some((Sym::Mode(m), _)) => Some(Poly::var(VarId(*m))),
@@ -1084,10 +1097,13 @@ impl Eval<'_, '_, '_, '_> {
     }
 }
 
-/// Whether `p` holds a velocity (a variable at or after `n_modes`).
+/// Whether `p` holds a velocity (a variable from `n_modes` on, before the pump's `2 n_modes`).
 fn has_velocity(p: &Poly, n_modes: usize) -> bool {
-    p.terms()
-        .any(|(m, _)| m.factors().iter().any(|&(v, _)| v.index() >= n_modes))
+    p.terms().any(|(m, _)| {
+        m.factors()
+            .iter()
+            .any(|&(v, _)| (n_modes..2 * n_modes).contains(&v.index()))
+    })
 }
 
 fn velocity_in_potential(sink: &mut Sink<'_>, span: Span) {

@@ -344,7 +344,7 @@ fn velocities_are_factors_of_direct_terms() {
                 eom q1 += eta*q1^2*d(q1) + eta12*q2^2*d(q1)\n\
                 eom q2 += -mu*d(q2) + nu*q2^2*d(q2)");
     assert!(m.has_velocity_terms());
-    assert_eq!(m.variable_names(), ["q1", "q2", "d(q1)", "d(q2)"]);
+    assert_eq!(m.variable_names(), ["q1", "q2", "d(q1)", "d(q2)", "pump"]);
     assert_eq!(
         eq(&m, "q1"),
         pairs(&[("q1^2*d(q1)", "eta"), ("q2^2*d(q1)", "eta12")])
@@ -440,5 +440,50 @@ fn to_source_reads_back_to_the_same_model() {
     assert_eq!(
         (back.modes, back.params, back.eom),
         (m.modes, m.params, m.eom)
+    );
+}
+
+#[test]
+fn the_pump_is_a_built_in_factor() {
+    // A modulated stiffness written directly and through a potential, and a pumped coupling.
+    let m = ok("mode q1\nmode q2\nparam lambda, kappa, c\n\
+                eom q1 += lambda*pump*q1\n\
+                potential: kappa/2*pump*q2^2\n\
+                eom q2 += c*pump*q1*d(q2)");
+    assert!(m.has_pump_terms());
+    assert!(m.has_velocity_terms());
+    assert_eq!(m.variable_names(), ["q1", "q2", "d(q1)", "d(q2)", "pump"]);
+    assert_eq!(eq(&m, "q1"), pairs(&[("q1*pump", "lambda")]));
+    assert_eq!(
+        eq(&m, "q2"),
+        pairs(&[("q2*pump", "kappa"), ("q1*d(q2)*pump", "c")])
+    );
+    assert!(m.to_latex().contains("p(t)"), "{}", m.to_latex());
+    let back = crate::parse_str(&m.to_source(""), "back.hb").expect("reads back");
+    assert_eq!(back.eom, m.eom);
+    // A pump-free model has no pump terms, and velocities alone are not a pump.
+    let plain = ok("mode q1\nparam eta\neom q1 += eta*q1^2*d(q1)");
+    assert!(!plain.has_pump_terms());
+    let pumped = ok("mode q1\nparam lambda\neom q1 += lambda*pump*q1");
+    assert!(!pumped.has_velocity_terms());
+}
+
+#[test]
+fn misused_pumps_are_located_errors() {
+    let base = "mode q1\nparam lambda\n";
+    for (body, code) in [
+        ("param pump", Code::ReservedName),
+        ("mode pump", Code::ReservedName),
+        ("eom q1 += lambda*d(pump)*q1", Code::BadVelocity),
+        ("eom pump += lambda*q1", Code::UndeclaredMode),
+    ] {
+        let src = format!("{base}{body}");
+        assert_eq!(err_codes(&src), [code], "{body}");
+    }
+    let e = parse_str(&format!("{base}param pump"), "t.hb").expect_err("reserved");
+    let text = e.render_plain(100);
+    assert!(
+        text.contains("built-in") && text.contains("t.hb:3"),
+        "{text}"
     );
 }

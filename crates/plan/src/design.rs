@@ -105,6 +105,9 @@ fn measurement(name: &str, tones: &[(f64, usize, f64)], names: &[String]) -> Pla
         measure_hz: None,
         drive_levels_v: Some(tones.iter().map(|t| t.2).collect()),
         drive_phases_rad: Some(vec![0.0; tones.len()]),
+        pumps_hz: Vec::new(),
+        pump_levels: None,
+        pump_phases_rad: None,
         bandwidth_hz: None,
     }
 }
@@ -193,6 +196,12 @@ pub fn design_with_progress(
     let s = settings;
     check_settings(s)?;
     let num = NumericModel::from_model(model, values)?;
+    if num.has_pump_terms() {
+        return Err(PlanError::PumpTerms {
+            model: model.source.clone(),
+            terms: num.pump_term_names().join(", "),
+        });
+    }
     let names = num.mode_names.clone();
     let mut base = Plan {
         description: format!("designed by harmonid plan for {}", model.source),

@@ -96,9 +96,14 @@ pub(crate) fn param_modes(model: &Model, p: usize) -> BTreeSet<usize> {
         for (m, c) in eq.terms() {
             if c.variables().iter().any(|v| v.index() == p) {
                 out.insert(n);
-                // A velocity `d(q)` involves its mode.
+                // A velocity `d(q)` involves its mode; the pump none.
                 let nm = model.modes.len();
-                out.extend(m.factors().iter().map(|(v, _)| v.index() % nm));
+                out.extend(
+                    m.factors()
+                        .iter()
+                        .filter(|(v, _)| v.index() < 2 * nm)
+                        .map(|(v, _)| v.index() % nm),
+                );
             }
         }
     }

@@ -239,6 +239,9 @@ mod tests {
             measure_hz: None,
             drive_levels_v: None,
             drive_phases_rad: None,
+            pumps_hz: Vec::new(),
+            pump_levels: None,
+            pump_phases_rad: None,
             bandwidth_hz: None,
         };
         let (all, lines) = simulate(&num, &base, &pm, Fidelity::Search).expect("simulates");

@@ -51,6 +51,20 @@ pub enum PlanError {
         help("the --values must give every mode's f_hz and Q and every parameter of the model")
     )]
     Sim(#[from] harmonid_sim::SimError),
+    /// A model with pump terms: the designer chooses drive tones, not pumps.
+    #[error(
+        "{model}: the model has pump terms ({terms}), and plan designs drive tones only, not pumps"
+    )]
+    #[diagnostic(
+        code(harmonid::plan::pump),
+        help("write the pumped measurements by hand (a plan's `pumps_hz`, `pump_levels`, `pump_phases_rad`) and check them with `harmonid simulate` and `harmonid noise-study`; or plan the drives with a copy of the model without the pump terms")
+    )]
+    PumpTerms {
+        /// The model's source.
+        model: String,
+        /// The pump terms.
+        terms: String,
+    },
     /// A measurement's drive passes a fold: the steady state jumps while the drive ramps up.
     #[error("measurement \"{measurement}\": the drive passes a fold at {percent:.1} % of its level (the response jumps while the drive ramps up); lower its forces below that level or move its tones")]
     #[diagnostic(code(harmonid::plan::fold))]

@@ -125,6 +125,12 @@ fn reconstruct(
         }
     }
     let drive = Excitation {
+        pumps: m
+            .spec
+            .pump_tones()
+            .into_iter()
+            .map(harmonid_sim::PumpTone::from)
+            .collect(),
         tones_hz: drives.clone(),
         force,
     };

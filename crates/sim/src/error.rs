@@ -74,6 +74,16 @@ pub enum SimError {
         /// The computation.
         what: &'static str,
     },
+    /// A computation that has no pump signal to give a model with pump terms.
+    #[error("{what} has no pump, and the model has pump terms ({terms}): {instead}")]
+    PumpTerms {
+        /// The computation.
+        what: &'static str,
+        /// The pump terms, named.
+        terms: String,
+        /// What handles a pump.
+        instead: &'static str,
+    },
     /// A limit cycle was asked of a model no mode of which is self-excited.
     #[error("{mode} is not self-excited: its net linear damping (w/Q plus its own d({mode}) term) is {net_damping:.3e} 1/s, positive, so without a drive the motion decays to rest and there is no limit cycle to follow")]
     NotSelfExcited {
@@ -179,8 +189,14 @@ pub enum SimError {
         /// What to do.
         help: &'static str,
     },
-    /// A drive tone is not a line of the lattice the state is solved on.
-    #[error("drive tone {hz} Hz is not on the lattice")]
+    /// A model with pump terms simulated without a pump.
+    #[error("the model has pump terms ({terms}) and this experiment has no pump: give the pump's frequency, level and phase (a measurement's `pumps_hz`, `pump_levels`, `pump_phases_rad`), or leave the pump terms out of the model")]
+    NoPump {
+        /// The pump terms, named.
+        terms: String,
+    },
+    /// A drive or pump tone is not a line of the lattice the state is solved on.
+    #[error("tone {hz} Hz is not on the lattice")]
     NotOnLattice {
         /// The tone, Hz.
         hz: f64,

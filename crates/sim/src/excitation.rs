@@ -6,12 +6,63 @@ use num_complex::Complex64;
 /// A multi-tone drive: tone `d` at `tones_hz[d]` exerts on mode `n` the force
 /// `Re[force[n][d] · e^{i 2π f_d t}] = |F| cos(2π f_d t + arg F)` (N/kg, mass-normalised), with
 /// `t` the time base shared by the drive and every measured amplitude (`DATA_FORMAT.md`).
+/// Pump tones, if any, make the model's `pump` signal (parametric pumping).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Excitation {
     /// Drive frequencies, Hz (positive, distinct).
     pub tones_hz: Vec<f64>,
     /// `force[n][d]`: complex force amplitude of tone `d` on mode `n`, N/kg.
     pub force: Vec<Vec<Complex64>>,
+    /// The pump tones: the model's `pump` signal is `Σ_k Re[P_k e^{i2πf_k t}]` (empty: no
+    /// pump, and a model with pump terms is refused).
+    pub pumps: Vec<PumpTone>,
+}
+
+/// One tone of the pump signal: `Re[amplitude · e^{i 2π hz t}]`, in the unit of the model's
+/// pump coefficients (a `lambda` in `lambda*pump*q1` is N/kg/m per that unit), on the drive's
+/// time base.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PumpTone {
+    /// Pump frequency, Hz (positive).
+    pub hz: f64,
+    /// Complex pump amplitude `level · e^{i phase}`.
+    pub amplitude: Complex64,
+}
+
+impl From<(f64, Complex64)> for PumpTone {
+    /// `(Hz, level · e^{i phase})`, as a dataset's measurement lists its pump tones.
+    fn from((hz, amplitude): (f64, Complex64)) -> Self {
+        Self { hz, amplitude }
+    }
+}
+
+impl Excitation {
+    /// A drive without a pump.
+    pub fn new(tones_hz: Vec<f64>, force: Vec<Vec<Complex64>>) -> Self {
+        Self {
+            tones_hz,
+            force,
+            pumps: Vec::new(),
+        }
+    }
+
+    /// The pump frequencies, Hz.
+    pub fn pump_hz(&self) -> Vec<f64> {
+        self.pumps.iter().map(|p| p.hz).collect()
+    }
+
+    /// The generators of the response's combination frequencies: the drive tones, then half
+    /// of each pump frequency. A pump at `f_p` mixes a line `f` to `f_p − f`, and its
+    /// instability grows at `f_p / 2` (parametric resonance), so the lattice is built on
+    /// `f_p / 2`; `f_p` itself is the even combination `2 · f_p/2`, which keeps the parity of
+    /// an odd model's lines.
+    pub fn generators_hz(&self) -> Vec<f64> {
+        self.tones_hz
+            .iter()
+            .copied()
+            .chain(self.pumps.iter().map(|p| 0.5 * p.hz))
+            .collect()
+    }
 }
 
 impl Excitation {
@@ -49,6 +100,22 @@ impl Excitation {
                 });
             }
         }
+        for (i, p) in self.pumps.iter().enumerate() {
+            if !(p.hz.is_finite() && p.hz > 0.0) {
+                return Err(SimError::BadValue {
+                    what: format!("pump tone {i}"),
+                    value: p.hz,
+                    why: "pump tones must be finite positive frequencies in Hz".into(),
+                });
+            }
+            if !(p.amplitude.re.is_finite() && p.amplitude.im.is_finite()) {
+                return Err(SimError::BadValue {
+                    what: format!("the level of pump tone {i}"),
+                    value: p.amplitude.norm(),
+                    why: "pump levels and phases must be finite".into(),
+                });
+            }
+        }
         for row in &self.force {
             for z in row {
                 if !(z.re.is_finite() && z.im.is_finite()) {
@@ -72,6 +139,7 @@ impl Excitation {
                 .iter()
                 .map(|r| r.iter().map(|z| z * s).collect())
                 .collect(),
+            pumps: self.pumps.clone(),
         }
     }
 }
@@ -131,6 +199,7 @@ mod tests {
     fn shape_errors_carry_their_numbers() {
         let z = Complex64::new(1.0, 0.0);
         let drive = Excitation {
+            pumps: Vec::new(),
             tones_hz: vec![1000.0, 1001.0],
             force: vec![vec![z, z], vec![z]],
         };
@@ -149,6 +218,7 @@ mod tests {
             "the drive's forces: 3 given, 4 expected (2 modes × 2 tones)"
         );
         let none = Excitation {
+            pumps: Vec::new(),
             tones_hz: vec![],
             force: vec![vec![]],
         };

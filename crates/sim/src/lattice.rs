@@ -52,10 +52,13 @@ pub fn choose_lattice(
     drive: &Excitation,
     s: &LatticeSettings,
 ) -> Result<Vec<f64>, SimError> {
-    let nd = drive.tones_hz.len();
-    let odd_only = model.terms().iter().all(|t| t.degree() % 2 == 1);
+    let generators = drive.generators_hz();
+    let nd = generators.len();
+    let odd_only = model.terms().iter().all(|t| model.state_degree(t) % 2 == 1);
     let dmax = model.max_degree().max(1) as usize;
     let mut out: Vec<f64> = drive.tones_hz.clone();
+    // The pump's own lines: inputs of the products (an odd model does not respond there).
+    out.extend(drive.pumps.iter().map(|p| p.hz));
     out.extend(s.extra_hz.iter().copied().filter(|&f| f > LINE_TOL_HZ));
     let mut dc = !odd_only && !model.terms().is_empty();
     // Slow lines of an even model: beats of two lines near resonances, |f_a − f_b| ≤ 2 w f_n;
@@ -74,11 +77,7 @@ pub fn choose_lattice(
         if ord == 0 || (odd_only && ord % 2 == 0) {
             return;
         }
-        let f: f64 = k
-            .iter()
-            .zip(&drive.tones_hz)
-            .map(|(&a, &b)| a as f64 * b)
-            .sum();
+        let f: f64 = k.iter().zip(&generators).map(|(&a, &b)| a as f64 * b).sum();
         if f.abs() <= LINE_TOL_HZ {
             // An allowed combination on 0 Hz: the response has a static offset.
             dc |= !model.terms().is_empty();
@@ -132,13 +131,10 @@ pub(crate) fn enumerate(k: &mut [i64], d: usize, budget: i64, f: &mut impl FnMut
 /// the branch structure, the higher ones are small corrections.
 pub fn low_order_lines(drive: &Excitation, lattice_hz: &[f64], order: usize) -> Vec<usize> {
     let mut keep = vec![false; lattice_hz.len()];
-    let mut k = vec![0i64; drive.tones_hz.len()];
+    let generators = drive.generators_hz();
+    let mut k = vec![0i64; generators.len()];
     enumerate(&mut k, 0, order as i64, &mut |k| {
-        let f: f64 = k
-            .iter()
-            .zip(&drive.tones_hz)
-            .map(|(&a, &b)| a as f64 * b)
-            .sum();
+        let f: f64 = k.iter().zip(&generators).map(|(&a, &b)| a as f64 * b).sum();
         let f = f.abs();
         let i = lattice_hz.partition_point(|&x| x < f - LINE_TOL_HZ);
         if lattice_hz
@@ -151,7 +147,7 @@ pub fn low_order_lines(drive: &Excitation, lattice_hz: &[f64], order: usize) -> 
     (0..lattice_hz.len()).filter(|&i| keep[i]).collect()
 }
 
-/// The lattice lines a dataset measures by default: every drive tone and every line within
+/// The lattice lines a dataset measures by default (pump lines are not response lines): every drive tone and every line within
 /// `window_rel · f_n` of a resonance `f_n`, Hz (sorted). Leaves out the static offset (datasets
 /// hold positive frequencies only) and the even-order lines far from resonance that
 /// [`choose_lattice`] keeps for the physics of even-degree models. For an odd model with default

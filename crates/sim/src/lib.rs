@@ -35,7 +35,7 @@ mod steady;
 mod time_domain;
 
 pub use error::SimError;
-pub use excitation::{common_grid, linear_response, Excitation};
+pub use excitation::{common_grid, linear_response, Excitation, PumpTone};
 pub use lattice::{choose_lattice, measured_lines, LatticeSettings, LINE_TOL_HZ};
 pub use noise::{lockin_noise_sigma, NoiseGen};
 pub use numeric::{parse_monomial, ModeValues, ModelValues, NumericModel, Term};

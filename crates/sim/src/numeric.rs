@@ -7,8 +7,8 @@ use harmonid_poly::PowerProduct;
 use std::collections::BTreeMap;
 
 /// One term `coef · Π x_var^exp` of an equation, in flat storage. The variables are the
-/// modes `q_0..q_{N−1}` and then their velocities: variable `N + m` is `q̇_m` (`d(q_m)` in the
-/// model language).
+/// modes `q_0..q_{N−1}`, then their velocities (variable `N + m` is `q̇_m`, `d(q_m)` in the
+/// model language), then the pump signal (variable `2N`, `pump`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Term {
     /// Mode whose equation holds the term.
@@ -47,8 +47,10 @@ pub struct NumericModel {
     /// directly). What sensitivities with respect to model parameters need.
     param_grad: Vec<Vec<(usize, f64)>>,
     eq_start: Vec<usize>,
-    /// Highest exponent of each mode in any term.
+    /// Highest exponent of each variable in any term (as many entries as variables in use).
     max_pow: Vec<u32>,
+    /// A term holds a velocity.
+    velocities: bool,
     /// The terms compiled for [`NumericModel::forces`]: term `t` is
     /// `coef[t] · Π pows[pow_idx[fac_start[t]..fac_start[t+1]]]` (indices into the power table).
     flat: FlatTerms,
@@ -104,15 +106,15 @@ fn check_positive(what: &str, v: f64, min: f64) -> Result<f64, SimError> {
     }
 }
 
-/// Parses a monomial name (`q1*q2^2`, `q1^2*d(q1)`) against mode names into sorted
-/// `(variable, exponent)` pairs (the velocity `d(q_m)` is variable `N + m`).
+/// Parses a monomial name (`q1*q2^2`, `q1^2*d(q1)`, `q1*pump`) against mode names into sorted
+/// `(variable, exponent)` pairs (the velocity `d(q_m)` is variable `N + m`, the pump `2N`).
 pub fn parse_monomial(name: &str, modes: &[String]) -> Result<Vec<(usize, u32)>, SimError> {
     let bad = |why: String| SimError::BadMonomial {
         name: name.to_string(),
         why,
         modes: modes.join(", "),
     };
-    let mut exps = vec![0u32; 2 * modes.len()];
+    let mut exps = vec![0u32; 2 * modes.len() + 1];
     for part in name.split('*') {
         let part = part.trim();
         let (var, k) = match part.split_once('^') {
@@ -124,6 +126,13 @@ pub fn parse_monomial(name: &str, modes: &[String]) -> Result<Vec<(usize, u32)>,
             ),
             None => (part, 1),
         };
+        if k == 0 || k > 16 {
+            return Err(bad(format!("exponent {k} is outside 1..=16")));
+        }
+        if var == harmonid_model::PUMP_NAME {
+            exps[2 * modes.len()] += k;
+            continue;
+        }
         let (mode, velocity) = match var.strip_prefix("d(").and_then(|v| v.strip_suffix(')')) {
             Some(v) => (v.trim(), true),
             None => (var, false),
@@ -132,9 +141,6 @@ pub fn parse_monomial(name: &str, modes: &[String]) -> Result<Vec<(usize, u32)>,
             .iter()
             .position(|n| n == mode)
             .ok_or_else(|| bad(format!("`{mode}` is not a mode")))?;
-        if k == 0 || k > 16 {
-            return Err(bad(format!("exponent {k} is outside 1..=16")));
-        }
         exps[if velocity { modes.len() + m } else { m }] += k;
     }
     Ok(exps
@@ -186,7 +192,7 @@ impl NumericModel {
             .filter(|(t, g)| t.coef != 0.0 || !g.is_empty())
             .collect();
         for (t, _) in &terms {
-            if t.eq >= n || t.factors.iter().any(|&(m, k)| m >= 2 * n || k == 0) {
+            if t.eq >= n || t.factors.iter().any(|&(m, k)| m > 2 * n || k == 0) {
                 return Err(SimError::TermBeyondModes { modes: n });
             }
             if !t.coef.is_finite() {
@@ -206,8 +212,22 @@ impl NumericModel {
         for i in 0..n {
             eq_start[i + 1] += eq_start[i];
         }
-        let velocities = terms.iter().any(|t| t.factors.iter().any(|&(m, _)| m >= n));
-        let mut max_pow = vec![1u32; if velocities { 2 * n } else { n }];
+        let velocities = terms
+            .iter()
+            .any(|t| t.factors.iter().any(|&(m, _)| (n..2 * n).contains(&m)));
+        let pump = terms
+            .iter()
+            .any(|t| t.factors.iter().any(|&(m, _)| m == 2 * n));
+        // The variables in use: the modes, the velocities when a term holds one, the pump
+        // after every velocity slot when a term holds it.
+        let n_vars = if pump {
+            2 * n + 1
+        } else if velocities {
+            2 * n
+        } else {
+            n
+        };
+        let mut max_pow = vec![1u32; n_vars];
         for t in &terms {
             for &(m, k) in &t.factors {
                 max_pow[m] = max_pow[m].max(k);
@@ -236,6 +256,7 @@ impl NumericModel {
             param_grad,
             eq_start,
             max_pow,
+            velocities,
             flat,
         };
         out.check_bounded()?;
@@ -395,6 +416,17 @@ impl NumericModel {
         &self.terms[self.eq_start[n]..self.eq_start[n + 1]]
     }
 
+    /// Degree of term `t` in the modes and velocities: the pump's factors left out (the pump
+    /// is a given signal, so `lambda*pump*q1` is linear in the state).
+    pub fn state_degree(&self, t: &Term) -> u32 {
+        let pump = 2 * self.n_modes();
+        t.factors
+            .iter()
+            .filter(|&&(m, _)| m != pump)
+            .map(|&(_, k)| k)
+            .sum()
+    }
+
     /// Largest total degree of any term (0 for a linear model).
     pub fn max_degree(&self) -> u32 {
         self.terms.iter().map(Term::degree).max().unwrap_or(0)
@@ -406,8 +438,9 @@ impl NumericModel {
         self.max_pow[m]
     }
 
-    /// Number of variables the terms are polynomials in: the modes, and their velocities when
-    /// a term holds one (`2N`; otherwise `N`). [`Self::forces`] takes that many values.
+    /// Number of variables the terms are polynomials in: the modes (`N`), their velocities when
+    /// a term holds one (`2N`), and the pump when a term holds it (`2N + 1`, the velocity slots
+    /// then present whether used or not). [`Self::forces`] takes that many values.
     pub fn n_vars(&self) -> usize {
         self.max_pow.len()
     }
@@ -428,10 +461,34 @@ impl NumericModel {
 
     /// Whether a term holds a velocity (nonlinear damping, a velocity coupling).
     pub fn has_velocity_terms(&self) -> bool {
-        self.n_vars() > self.n_modes()
+        self.velocities
     }
 
-    /// Names of the variables: the modes, then `d(q)` of each when there are velocity terms.
+    /// Whether a term holds the pump signal (variable `2N`): every excitation must then give
+    /// its pump tones.
+    pub fn has_pump_terms(&self) -> bool {
+        self.n_vars() > 2 * self.n_modes()
+    }
+
+    /// The terms that hold the pump, as `mode: monomial` (for messages).
+    pub fn pump_term_names(&self) -> Vec<String> {
+        let pump = 2 * self.n_modes();
+        let names = self.variable_names();
+        self.terms
+            .iter()
+            .filter(|t| t.factors.iter().any(|&(m, _)| m == pump))
+            .map(|t| {
+                let pp = crate::steady::term_monomial(self, &t.factors);
+                format!(
+                    "{} in the equation of {}",
+                    pp.name(&names),
+                    self.mode_names[t.eq]
+                )
+            })
+            .collect()
+    }
+
+    /// Names of the variables ([`Self::n_vars`] of them): the modes, `d(q)` of each, `pump`.
     pub fn variable_names(&self) -> Vec<String> {
         let velocities = self
             .mode_names
@@ -441,6 +498,7 @@ impl NumericModel {
             .iter()
             .cloned()
             .chain(velocities)
+            .chain(std::iter::once(harmonid_model::PUMP_NAME.to_string()))
             .take(self.n_vars())
             .collect()
     }

@@ -267,7 +267,7 @@ impl Sensitivity {
                 self.x[n * nr..(n + 1) * nr].copy_from_slice(&state.amplitudes[n]);
             }
             harmonid_spectral::velocity_spectrum(&state.lattice_hz, &self.x, &mut self.vel);
-            let refs = variable_spectra(&self.x, &self.vel, nm, nr);
+            let refs = variable_spectra(&self.x, &self.vel, solver.pump_spectrum(), nm, nr);
             let nv = solver.model().n_vars();
             self.monomials
                 .forces(&refs[..nv], &mut self.mono_amp, &mut self.mono_scratch);

@@ -439,8 +439,8 @@ impl Clock {
     fn new(drive: &Excitation, measure_hz: &[f64], st: &TdSettings) -> Result<Self, SimError> {
         // Window: integer periods of every tone and measured frequency.
         let max_window_s = 100.0;
-        let all: Vec<f64> = drive
-            .tones_hz
+        let tones = all_tones_hz(drive);
+        let all: Vec<f64> = tones
             .iter()
             .chain(measure_hz.iter().filter(|&&f| f > 0.0))
             .copied()
@@ -464,7 +464,7 @@ impl Clock {
             m_dec: m_dec as u64,
             n_win,
             h: window_s / n_win as f64,
-            tone_cyc: drive.tones_hz.iter().map(|&f| cyc(f)).collect(),
+            tone_cyc: tones.iter().map(|&f| cyc(f)).collect(),
             meas_cyc: measure_hz.iter().map(|&f| cyc(f)).collect(),
         })
     }
@@ -478,10 +478,23 @@ impl Clock {
     }
 }
 
+/// Every tone the integrator keeps a phasor of: the drive tones, then the pump tones.
+fn all_tones_hz(drive: &Excitation) -> Vec<f64> {
+    drive
+        .tones_hz
+        .iter()
+        .copied()
+        .chain(drive.pumps.iter().map(|p| p.hz))
+        .collect()
+}
+
 /// The drive's linear steady-state response, which the integrator leaves out: it propagates
-/// only the deviation `w = q − q_lin`, driven by the nonlinear forces.
+/// only the deviation `w = q − q_lin`, driven by the nonlinear forces. Pump tones are tones
+/// with no force (their phasors give the pump signal).
 struct LinearDrive {
     nd: usize,
+    /// Complex amplitude of each pump tone; its phasor is tone `nd − pump.len() + k`.
+    pump: Vec<Complex64>,
     /// `y[n·nd + d]`: linear response of mode `n` to tone `d`.
     y: Vec<Complex64>,
     /// Angular frequencies of the tones.
@@ -494,16 +507,21 @@ struct LinearDrive {
 impl LinearDrive {
     fn new(model: &NumericModel, drive: &Excitation) -> Self {
         let nm = model.n_modes();
-        let nd = drive.tones_hz.len();
+        let tones = all_tones_hz(drive);
+        let (nd, n_drive) = (tones.len(), drive.tones_hz.len());
         let y: Vec<Complex64> = (0..nm)
             .flat_map(|n| {
                 (0..nd).map(move |d| {
-                    linear_response(
-                        model.omega(n),
-                        model.gamma(n),
-                        drive.tones_hz[d],
-                        drive.force[n][d],
-                    )
+                    if d < n_drive {
+                        linear_response(
+                            model.omega(n),
+                            model.gamma(n),
+                            drive.tones_hz[d],
+                            drive.force[n][d],
+                        )
+                    } else {
+                        Complex64::new(0.0, 0.0)
+                    }
                 })
             })
             .collect();
@@ -522,9 +540,10 @@ impl LinearDrive {
             .max(f64::MIN_POSITIVE);
         Self {
             nd,
+            pump: drive.pumps.iter().map(|p| p.amplitude).collect(),
             scale: y_scale.iter().map(|&s| s.max(1e-3 * all_scale)).collect(),
             y,
-            wdr: drive.tones_hz.iter().map(|&f| TAU * f).collect(),
+            wdr: tones.iter().map(|&f| TAU * f).collect(),
         }
     }
 
@@ -542,9 +561,18 @@ impl LinearDrive {
 
     /// Total displacements into `qtot`: the linear response at tone phasors `t_z` plus the
     /// deviations `us`; then, when `qtot` has room (a model with velocity terms), the total
-    /// velocities.
+    /// velocities, and the pump signal after them (a model with pump terms).
     fn q_total(&self, t_z: &[Complex64], us: &[[f64; 2]], qtot: &mut [f64]) {
         let nm = us.len();
+        if let Some(p) = qtot.get_mut(2 * nm) {
+            let first = self.nd - self.pump.len();
+            *p = self
+                .pump
+                .iter()
+                .zip(&t_z[first..])
+                .map(|(a, b)| a.re * b.re - a.im * b.im)
+                .sum();
+        }
         let (q_part, v_part) = qtot.split_at_mut(nm);
         let mut k = 0;
         for (q, un) in q_part.iter_mut().zip(us) {
@@ -556,7 +584,7 @@ impl LinearDrive {
             }
             *q = ql;
         }
-        for (n, (v, un)) in v_part.iter_mut().zip(us).enumerate() {
+        for (n, (v, un)) in v_part.iter_mut().take(nm).zip(us).enumerate() {
             let mut vl = un[1];
             for (d, b) in t_z.iter().enumerate() {
                 let a = self.y[n * self.nd + d];
@@ -901,6 +929,7 @@ mod tests {
         let m =
             NumericModel::new(vec!["q".into()], vec![1000.0], vec![50.0], vec![]).expect("model");
         let drive = Excitation {
+            pumps: Vec::new(),
             tones_hz: vec![990.0, 1010.0],
             force: vec![vec![Complex64::new(1.0, 0.5), Complex64::new(-0.3, 0.2)]],
         };
@@ -935,6 +964,7 @@ mod tests {
         };
         let m = NumericModel::new(vec!["q".into()], vec![1.0], vec![20.0], vec![t]).expect("model");
         let drive = Excitation {
+            pumps: Vec::new(),
             tones_hz: vec![1.0],
             force: vec![vec![Complex64::new(50.0, 0.0)]],
         };
@@ -965,6 +995,7 @@ mod tests {
         )
         .expect("model");
         let drive = Excitation {
+            pumps: Vec::new(),
             tones_hz: vec![1000.0, 1010.0],
             force: vec![vec![Complex64::new(30.0, 0.0), Complex64::new(10.0, 0.0)]],
         };
@@ -1015,6 +1046,7 @@ mod tests {
         )
         .expect("model");
         let drive = Excitation {
+            pumps: Vec::new(),
             tones_hz: vec![1000.0, 1500.0],
             force: vec![
                 vec![Complex64::new(1.0, 0.0), Complex64::new(0.0, 0.0)],

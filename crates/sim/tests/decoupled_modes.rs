@@ -29,6 +29,7 @@ fn numeric(source: &str, modes: &[(f64, f64)], params: &[(&str, f64)]) -> Numeri
 fn compare(num: &NumericModel, tones: &[f64], force: f64, tiny: f64) {
     let nm = num.n_modes();
     let drive = |other: f64| Excitation {
+        pumps: Vec::new(),
         tones_hz: tones.to_vec(),
         force: (0..nm)
             .map(|n| vec![Complex64::new(if n == 0 { force } else { other }, 0.0); tones.len()])

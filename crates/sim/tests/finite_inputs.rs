@@ -77,6 +77,7 @@ proptest! {
     ) {
         let Ok(m) = build(&f, &q, &coef) else { return Ok(()) };
         let drive = Excitation {
+ pumps: Vec::new(),
             force: (0..m.n_modes())
                 .map(|n| (0..tones.len()).map(|d| Complex64::new(forces[(n * 3 + d) % 6], 0.0)).collect())
                 .collect(),

@@ -38,6 +38,7 @@ fn nanostring() -> NumericModel {
 fn drive(force: f64) -> Excitation {
     let c = |x: f64| Complex64::new(x, 0.0);
     Excitation {
+        pumps: Vec::new(),
         tones_hz: TONES.to_vec(),
         force: vec![vec![c(force), c(force)], vec![c(0.0), c(0.0)]],
     }

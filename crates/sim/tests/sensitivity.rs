@@ -2,7 +2,7 @@
 //! steady states (same lattice, Newton from the unperturbed state to machine precision).
 
 use harmonid_sim::{
-    Excitation, HbSettings, HbSolver, ModeValues, ModelValues, NumericModel, Observation,
+    Excitation, HbSettings, HbSolver, ModeValues, ModelValues, NumericModel, Observation, PumpTone,
     SensParam, Sensitivity, SteadyState,
 };
 use num_complex::Complex64;
@@ -32,6 +32,7 @@ struct Theta {
     gamma: Vec<f64>,
     params: Vec<f64>,
     force: Vec<Vec<Complex64>>,
+    pumps: Vec<PumpTone>,
 }
 
 impl Theta {
@@ -68,6 +69,7 @@ impl Theta {
         }
         let nm = NumericModel::from_model(model, &v).expect("numeric model");
         let drive = Excitation {
+            pumps: self.pumps.clone(),
             tones_hz: tones.to_vec(),
             force: self.force.clone(),
         };
@@ -195,6 +197,7 @@ fn nanostring_theta(g12: f64, force: Vec<Vec<Complex64>>) -> Theta {
         gamma: vec![TAU * 207582.0 / 116232.0, TAU * 415842.0 / 599173.0],
         params: vec![2.68e22, 3.70e23, g12],
         force,
+        pumps: Vec::new(),
     }
 }
 
@@ -233,6 +236,7 @@ fn three_wave_with_a_shared_line_matches_finite_differences() {
             vec![c(1.9e4), c(0.0), Complex64::new(1.0, 3.0)],
             vec![c(0.0), c(0.0), c(0.0)],
         ],
+        pumps: Vec::new(),
     };
     let tones = [1.0e6 + 20.0, 1.0e6 + 60.0, 1.6e6 + 30.0];
     let points = vec![vec![0.3, 0.6, 0.8], vec![1.0, -0.5, 0.2]];
@@ -301,5 +305,30 @@ fn nonlinear_damping_and_a_velocity_coupling_match_finite_differences() {
     let points = vec![vec![0.309, 0.588], vec![1.0, -0.5]];
     let params = all_params(2, 5, 3);
     let (worst, ..) = check_against_fd(&model, &theta, &tones, &params, every_line(&points));
+    assert!(worst < 1e-6, "worst relative error {worst:e}");
+}
+
+#[test]
+fn a_pumped_stiffness_matches_finite_differences() {
+    // A Duffing mode with nonlinear damping, pumped at twice its resonance at half the
+    // parametric threshold, driven by two tones: λ is an ordinary unknown.
+    let src = "mode q1 at 1 kHz\n param beta, eta, lambda\n\
+               eom q1 += beta*q1^3 + eta*q1^2*d(q1) + lambda*pump*q1";
+    let model = harmonid_model::parse_str(src, "pumped.hb").expect("model");
+    let w = TAU * 1000.0;
+    let q = 1000.0;
+    let theta = Theta {
+        w2: vec![w * w],
+        gamma: vec![w / q],
+        params: vec![1e13, 1e12, 1.0],
+        force: vec![vec![Complex64::new(3.0, 0.0), Complex64::new(1.0, 0.5)]],
+        pumps: vec![PumpTone {
+            hz: 2000.0,
+            amplitude: Complex64::from_polar(w * w / q, 0.4),
+        }],
+    };
+    let tones = [1001.0, 1002.0];
+    let params = all_params(1, 3, 2);
+    let (worst, ..) = check_against_fd(&model, &theta, &tones, &params, every_line(&[vec![1.0]]));
     assert!(worst < 1e-6, "worst relative error {worst:e}");
 }

@@ -29,6 +29,7 @@ fn the_ramp_stops_at_the_first_fold_when_asked() {
     let mut jumped = 0;
     for force in [0.5, 2.0, 8.0, 32.0] {
         let drive = Excitation {
+            pumps: Vec::new(),
             tones_hz: vec![tone],
             force: vec![vec![Complex64::new(force, 0.0)]],
         };

@@ -41,6 +41,7 @@ fn with_harmonics() -> HbSettings {
 
 fn drive(f_hz: f64, force: f64) -> Excitation {
     Excitation {
+        pumps: Vec::new(),
         tones_hz: vec![f_hz],
         force: vec![vec![Complex64::new(force, 0.0)]],
     }

@@ -172,6 +172,9 @@ pub fn simulate_clean(
                     measure_hz: None,
                     drive_levels_v: Some(d.tones.iter().map(|t| t.2).collect()),
                     drive_phases_rad: Some(vec![0.0; d.tones.len()]),
+                    pumps_hz: Vec::new(),
+                    pump_levels: None,
+                    pump_phases_rad: None,
                     bandwidth_hz: None,
                 }
             })
@@ -566,6 +569,7 @@ pub fn simulate_sweeps_clean(
                 let mut force = vec![vec![Complex64::new(0.0, 0.0)]; nm];
                 force[0][0] = Complex64::new(x, 0.0);
                 Excitation {
+                    pumps: Vec::new(),
                     tones_hz: vec![f],
                     force,
                 }

@@ -199,6 +199,18 @@ pub struct MeasurementSpec {
     /// Drive phase of each tone, radians, same time origin as the measured amplitudes.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub drive_phases_rad: Option<Vec<f64>>,
+    /// The pump tones of a parametrically pumped measurement, Hz: the model's `pump` signal
+    /// is `Σ_k pump_levels[k] · cos(2π pumps_hz[k] t + pump_phases_rad[k])` (empty: no pump).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub pumps_hz: Vec<f64>,
+    /// Level of each pump tone, in the unit the model's pump coefficients are per (V, or the
+    /// relative stiffness modulation, ...); required with `pumps_hz`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pump_levels: Option<Vec<f64>>,
+    /// Phase of each pump tone, rad, on the time base of the drive and the measured amplitudes;
+    /// required with `pumps_hz`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pump_phases_rad: Option<Vec<f64>>,
     /// Measurement bandwidth, Hz (metadata, carried to reports).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bandwidth_hz: Option<f64>,
@@ -218,6 +230,9 @@ impl MeasurementSpec {
             drives_hz,
             drive_levels_v: None,
             drive_phases_rad: None,
+            pumps_hz: Vec::new(),
+            pump_levels: None,
+            pump_phases_rad: None,
             bandwidth_hz: None,
             sweep: None,
         }
@@ -228,6 +243,20 @@ impl MeasurementSpec {
         self.file
             .clone()
             .unwrap_or_else(|| format!("{}.csv", self.name))
+    }
+
+    /// The pump tones `(Hz, complex amplitude level · e^{i phase})` (empty without a pump;
+    /// validation makes levels and phases present with the tones).
+    pub fn pump_tones(&self) -> Vec<(f64, num_complex::Complex64)> {
+        let (Some(l), Some(p)) = (&self.pump_levels, &self.pump_phases_rad) else {
+            return Vec::new();
+        };
+        self.pumps_hz
+            .iter()
+            .zip(l)
+            .zip(p)
+            .map(|((&f, &l), &p)| (f, num_complex::Complex64::from_polar(l, p)))
+            .collect()
     }
 
     /// `Some((levels, phases))` when the manifest gives both drive levels and phases.

@@ -81,6 +81,15 @@ pub struct SweepSpec {
     /// Drive phase of each tone, rad, the same at every step or per step.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub drive_phases_rad: Option<PerStep>,
+    /// The pump tones, Hz, the same at every step (see [`MeasurementSpec::pumps_hz`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub pumps_hz: Vec<f64>,
+    /// Level of each pump tone, the same at every step.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pump_levels: Option<Vec<f64>>,
+    /// Phase of each pump tone, rad, the same at every step.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pump_phases_rad: Option<Vec<f64>>,
     /// Samples whose `time_s` (time since the step began, s) is below this are the response
     /// settling after the step: dropped.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -113,6 +122,9 @@ impl SweepSpec {
             drives_hz,
             drive_levels_v: None,
             drive_phases_rad: None,
+            pumps_hz: Vec::new(),
+            pump_levels: None,
+            pump_phases_rad: None,
             settle_s: None,
             settle_samples: None,
             bandwidth_hz: None,
@@ -139,6 +151,9 @@ impl SweepSpec {
             drives_hz: self.drives_hz.get(k).cloned().unwrap_or_default(),
             drive_levels_v: self.drive_levels_v.as_ref().map(|v| v.at(k).to_vec()),
             drive_phases_rad: self.drive_phases_rad.as_ref().map(|v| v.at(k).to_vec()),
+            pumps_hz: self.pumps_hz.clone(),
+            pump_levels: self.pump_levels.clone(),
+            pump_phases_rad: self.pump_phases_rad.clone(),
             bandwidth_hz: self.bandwidth_hz,
             sweep: Some(SweepStep {
                 sweep: self.name.clone(),

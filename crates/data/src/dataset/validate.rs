@@ -176,5 +176,52 @@ pub(super) fn check_spec(ms: &MeasurementSpec) -> Result<(), String> {
             ms.name
         )));
     }
+    check_pumps(ms).map_err(err)
+}
+
+/// A pump is its tones with a level and a phase each (the `pump` factor of the model's terms
+/// is that signal): positive finite frequencies, finite levels and phases, one of each per tone.
+fn check_pumps(ms: &MeasurementSpec) -> Result<(), String> {
+    let name = &ms.name;
+    if ms.pumps_hz.is_empty() {
+        if ms.pump_levels.is_some() || ms.pump_phases_rad.is_some() {
+            return Err(format!(
+                "measurement \"{name}\": pump_levels or pump_phases_rad without pumps_hz; list the pump tones in Hz, or remove them"
+            ));
+        }
+        return Ok(());
+    }
+    if let Some(f) = ms
+        .pumps_hz
+        .iter()
+        .find(|f| !(f.is_finite() && **f > 0.0 && **f <= MAX_FREQ_HZ))
+    {
+        return Err(format!(
+            "measurement \"{name}\": pump frequency {} is not a positive number of Hz (at most {MAX_FREQ_HZ:e})",
+            num(*f)
+        ));
+    }
+    for (key, v) in [
+        ("pump_levels", &ms.pump_levels),
+        ("pump_phases_rad", &ms.pump_phases_rad),
+    ] {
+        let Some(v) = v else {
+            return Err(format!(
+                "measurement \"{name}\": pumps_hz without {key}; the pump terms need the pump's level and phase of each tone (give pump_levels and pump_phases_rad, one per tone)"
+            ));
+        };
+        if v.len() != ms.pumps_hz.len() {
+            return Err(format!(
+                "measurement \"{name}\": {key} has {} entries but pumps_hz has {}; give one per pump tone, in pumps_hz order",
+                v.len(),
+                ms.pumps_hz.len()
+            ));
+        }
+        if let Some(x) = v.iter().find(|x| !x.is_finite()) {
+            return Err(format!(
+                "measurement \"{name}\": {key} contains {x}, expected finite numbers"
+            ));
+        }
+    }
     Ok(())
 }

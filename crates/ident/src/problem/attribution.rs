@@ -3,7 +3,7 @@
 use super::{ForceModel, IdentError, Problem, Settings, Unknown};
 use harmonid_data::{Dataset, DatasetError};
 use harmonid_model::{Linear, Model};
-use harmonid_spectral::ProductPlan;
+use harmonid_spectral::{ProductPlan, FREQ_TOLERANCE_HZ};
 use num_complex::Complex64;
 
 /// Per measurement: attribution, plan and conversion weights.
@@ -19,7 +19,14 @@ pub(super) struct MeasPrep {
     pub(super) drive_idx: Vec<usize>,
     /// Complex drive `V e^{iφ}` of each tone (if levels are given).
     pub(super) drive_c: Option<Vec<Complex64>>,
-    /// Products plan: input = output = measured frequencies.
+    /// The products' input lines: the measured frequencies, and the pump tones for a model
+    /// with pump terms (Hz, sorted).
+    pub(super) input_hz: Vec<f64>,
+    /// Input line of each measured frequency.
+    pub(super) input_of: Vec<usize>,
+    /// The pump signal's spectrum on the input lines (empty for a model without pump terms).
+    pub(super) pump: Vec<Complex64>,
+    /// Products plan: input = `input_hz`, output = measured frequencies.
     pub(super) plan: ProductPlan,
 }
 
@@ -41,23 +48,39 @@ impl Problem {
         modal
     }
 
-    /// The spectra of the equation terms' variables for one shot: [`Problem::modal_spectra`],
-    /// then, for a model with velocity terms, each mode's velocity `i 2π f X` on the same
-    /// lines.
+    /// The spectra of the equation terms' variables for one shot on the products' input lines
+    /// ([`MeasPrep::input_hz`]): [`Problem::modal_spectra`] (zero on a pump line nothing
+    /// measures), then, for a model with velocity or pump terms, each mode's velocity
+    /// `i 2π f X`, then the pump.
     pub(super) fn variable_spectra(
         &self,
         ds: &Dataset,
         mi: usize,
         shot: usize,
     ) -> Vec<Vec<Complex64>> {
-        let mut spectra = self.modal_spectra(ds, mi, shot);
-        if self.velocities {
-            let freqs = &ds.measurements[mi].freqs_hz;
-            for n in 0..spectra.len() {
-                let mut v = vec![Complex64::new(0.0, 0.0); freqs.len()];
-                harmonid_spectral::velocity_spectrum(freqs, &spectra[n], &mut v);
+        let prep = &self.meas[mi];
+        let modal = self.modal_spectra(ds, mi, shot);
+        let n_in = prep.input_hz.len();
+        let mut spectra: Vec<Vec<Complex64>> = modal
+            .iter()
+            .map(|row| {
+                let mut x = vec![Complex64::new(0.0, 0.0); n_in];
+                for (r, &z) in row.iter().enumerate() {
+                    x[prep.input_of[r]] = z;
+                }
+                x
+            })
+            .collect();
+        let pump = !prep.pump.is_empty();
+        if self.velocities || pump {
+            for n in 0..modal.len() {
+                let mut v = vec![Complex64::new(0.0, 0.0); n_in];
+                harmonid_spectral::velocity_spectrum(&prep.input_hz, &spectra[n], &mut v);
                 spectra.push(v);
             }
+        }
+        if pump {
+            spectra.push(prep.pump.clone());
         }
         spectra
     }
@@ -154,6 +177,8 @@ pub(crate) fn nearest_mode(nominal_hz: &[f64], f: f64) -> usize {
 }
 
 /// Attribution, drive tones, modal conversion weights and the products plan of measurement `mi`.
+/// `pump_terms` names the model's pump terms, if it has any: the measurement must then have a
+/// pump, whose tones become inputs of the products.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn prepare_measurement(
     ds: &Dataset,
@@ -162,6 +187,7 @@ pub(super) fn prepare_measurement(
     nominal_hz: &[f64],
     settings: &Settings,
     max_deg: usize,
+    pump_terms: Option<&str>,
     manifest_path: &str,
 ) -> Result<MeasPrep, IdentError> {
     let m = &ds.measurements[mi];
@@ -226,7 +252,35 @@ pub(super) fn prepare_measurement(
             .map(|(&v, &ph)| Complex64::from_polar(v, ph))
             .collect()
     });
-    let plan = ProductPlan::new(&m.freqs_hz, &m.freqs_hz, max_deg).map_err(|source| {
+    let pump_tones = m.spec.pump_tones();
+    if pump_terms.is_some() && pump_tones.is_empty() {
+        return Err(IdentError::NoPump {
+            file: manifest_path.to_string(),
+            measurement: m.spec.name.clone(),
+            terms: pump_terms.unwrap_or_default().to_string(),
+        });
+    }
+    let mut input_hz = m.freqs_hz.clone();
+    if pump_terms.is_some() {
+        input_hz.extend(pump_tones.iter().map(|&(f, _)| f));
+        input_hz.sort_by(f64::total_cmp);
+        input_hz.dedup_by(|a, b| (*a - *b).abs() <= FREQ_TOLERANCE_HZ);
+    }
+    let line = |f: f64| {
+        input_hz
+            .iter()
+            .position(|&x| (x - f).abs() <= FREQ_TOLERANCE_HZ)
+            .unwrap_or(0)
+    };
+    let input_of = m.freqs_hz.iter().map(|&f| line(f)).collect();
+    let mut pump = Vec::new();
+    if pump_terms.is_some() {
+        pump = vec![Complex64::new(0.0, 0.0); input_hz.len()];
+        for &(f, a) in &pump_tones {
+            pump[line(f)] += a;
+        }
+    }
+    let plan = ProductPlan::new(&input_hz, &m.freqs_hz, max_deg).map_err(|source| {
         IdentError::Spectral {
             measurement: m.spec.name.clone(),
             source,
@@ -238,6 +292,9 @@ pub(super) fn prepare_measurement(
         weights,
         drive_idx,
         drive_c,
+        input_hz,
+        input_of,
+        pump,
         plan,
     })
 }

@@ -22,11 +22,13 @@ impl Problem {
                 for (n, terms) in self.eqs.iter().enumerate() {
                     for t in terms {
                         if t.params.iter().any(|(q, _)| q == p) {
-                            // A velocity involves its mode.
+                            // A velocity involves its mode; the pump (after every velocity)
+                            // none.
                             let nm = self.mode_names.len();
                             let mut s: Vec<usize> = self.monomials[t.monomial]
                                 .factors()
                                 .iter()
+                                .filter(|(v, _)| v.index() < 2 * nm)
                                 .map(|(v, _)| v.index() % nm)
                                 .collect();
                             s.push(n);

@@ -49,6 +49,22 @@ pub enum IdentError {
         /// The limit ([`Settings::near_rel`](super::Settings::near_rel)).
         limit: f64,
     },
+    /// A measurement without a pump for a model with pump terms.
+    #[error(
+        "{file}: measurement \"{measurement}\" has no pump, and the model has pump terms: {terms}"
+    )]
+    #[diagnostic(
+        code(harmonid::ident::no_pump),
+        help("give the measurement's pump tones with their levels and phases (`pumps_hz`, `pump_levels`, `pump_phases_rad` in dataset.toml), or identify with a model without the pump terms")
+    )]
+    NoPump {
+        /// Manifest path.
+        file: String,
+        /// Measurement name.
+        measurement: String,
+        /// The model's pump terms.
+        terms: String,
+    },
     /// A measured mode has zero shape at every measured point.
     #[error("{file}: measurement \"{measurement}\": mode {mode} has zero shape at every measured point, so its amplitude cannot be measured; give a point where it moves")]
     #[diagnostic(

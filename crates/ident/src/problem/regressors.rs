@@ -61,7 +61,7 @@ impl Problem {
         for r in 0..nf {
             let n = prep.mode_of[r];
             let om = 2.0 * PI * m.freqs_hz[r];
-            let q = modal[n][r];
+            let q = modal[n][prep.input_of[r]];
             let mut coefs: Vec<(Unknown, Complex64)> = vec![
                 (Unknown::OmegaSq(n), q),
                 (Unknown::Gamma(n), Complex64::new(0.0, om) * q),

@@ -80,6 +80,9 @@ pub(super) fn dataset(with_pair: bool, shots: usize, sigma: f64, seed: u64) -> D
             drives_hz: drives.iter().map(|d| d.0).collect(),
             drive_levels_v: Some(drives.iter().map(|d| d.2).collect()),
             drive_phases_rad: Some(vec![0.0; drives.len()]),
+            pumps_hz: Vec::new(),
+            pump_levels: None,
+            pump_phases_rad: None,
             bandwidth_hz: None,
             sweep: None,
         };

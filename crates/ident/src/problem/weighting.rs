@@ -98,8 +98,9 @@ impl Problem {
                 jac[r * 2 * nf + 2 * r] += lin;
                 jac[r * 2 * nf + 2 * r + 1] += lin * Complex64::i();
             }
-            let mut jr = vec![Complex64::new(0.0, 0.0); nf * nf];
-            let mut ji = vec![Complex64::new(0.0, 0.0); nf * nf];
+            let n_in = prep.input_hz.len();
+            let mut jr = vec![Complex64::new(0.0, 0.0); nf * n_in];
+            let mut ji = vec![Complex64::new(0.0, 0.0); nf * n_in];
             for &n in &prep.active {
                 for t in &self.eqs[n] {
                     let b = t.konst
@@ -112,6 +113,10 @@ impl Problem {
                     }
                     let mono = &self.monomials[t.monomial];
                     for &(v, _) in mono.factors() {
+                        // The pump is given, without noise.
+                        if v.index() >= 2 * nm {
+                            continue;
+                        }
                         monomial_jacobian(
                             &prep.plan,
                             mono,
@@ -125,7 +130,8 @@ impl Problem {
                         let (mode, velocity) = (v.index() % nm, v.index() >= nm);
                         for o in (0..nf).filter(|&o| prep.mode_of[o] == n) {
                             for s in (0..nf).filter(|&s| prep.mode_of[s] == mode) {
-                                let (mut dre, mut dim) = (jr[o * nf + s], ji[o * nf + s]);
+                                let si = prep.input_of[s];
+                                let (mut dre, mut dim) = (jr[o * n_in + si], ji[o * n_in + si]);
                                 if velocity {
                                     (dre, dim) = velocity_to_amplitude(dre, dim, m.freqs_hz[s]);
                                 }

@@ -465,6 +465,9 @@ mod tests {
                     drives_hz: tones.to_vec(),
                     drive_levels_v: Some(vec![level; 2]),
                     drive_phases_rad: Some(vec![0.0; 2]),
+                    pumps_hz: Vec::new(),
+                    pump_levels: None,
+                    pump_phases_rad: None,
                     bandwidth_hz: None,
                     sweep: None,
                 };

@@ -22,6 +22,13 @@ pub fn backbone(
             what: "the backbone (a free, undamped oscillation)",
         });
     }
+    if model.has_pump_terms() {
+        return Err(SimError::PumpTerms {
+            what: "the backbone (a free oscillation)",
+            terms: model.pump_term_names().join(", "),
+            instead: "leave the pump terms out of the model for its backbone",
+        });
+    }
     let nm = model.n_modes();
     if n >= nm {
         return Err(SimError::ModeIndex {

@@ -74,6 +74,13 @@ impl LimitCycle {
 /// rest); the effective damping stays negative up to 1e3 m (the oscillation grows without
 /// bound); Newton does not converge; a harmonic count of 0 or above the sweeps' limit.
 pub fn limit_cycle(model: &NumericModel, harmonics: usize) -> Result<LimitCycle, SimError> {
+    if model.has_pump_terms() {
+        return Err(SimError::PumpTerms {
+            what: "the undriven limit cycle",
+            terms: model.pump_term_names().join(", "),
+            instead: "a pump fixes the oscillation's frequency at half its own: solve the pumped steady state (`harmonid simulate`) and check its stability",
+        });
+    }
     if harmonics == 0 || harmonics > MAX_SWEEP_HARMONICS {
         return Err(SimError::BadValue {
             what: "highest harmonic".into(),

@@ -23,7 +23,8 @@
 //! One folder, one job per file: [`HbSolver`]'s set-up, residual and Jacobian (`solver`),
 //! Newton (`newton`), the drive ramp (`ramp`), landing after a fold (`land`), stability
 //! (`stability`) and lattice convergence (`convergence`), the next step of a stepped-sine
-//! experiment (`step`), the undriven self-excited oscillation (`limit_cycle`); and the
+//! experiment (`step`), the undriven self-excited oscillation (`limit_cycle`), the oscillation
+//! a pump sustains above its threshold (`pumped`); and the
 //! continuations in frequency:
 //! the single-tone arclength sweep on its alternating frequency–time engine (`sweep`, `aft`),
 //! backbones (`backbone`) and the two-tone sweep on [`HbSolver`] (`two_tone`). Every
@@ -35,6 +36,7 @@ mod convergence;
 mod land;
 mod limit_cycle;
 mod newton;
+mod pumped;
 mod ramp;
 mod solver;
 mod stability;

@@ -32,7 +32,16 @@ impl HbSolver {
     /// are corrections of relative size ~`(nonlinear shift / linewidth)^3` smaller. Newton then
     /// finishes at full drive on the whole lattice from the coarse state. Should that fail, the
     /// ramp is run again on the whole lattice.
+    ///
+    /// With a pump above its parametric threshold the state the ramp follows is unstable, and
+    /// the state returned is the oscillation the resonator settles on from it (the slow flow
+    /// integrated from it plus a small seed) when a nonlinearity limits it.
     pub fn solve(&mut self, settings: &HbSettings) -> SteadyState {
+        let state = self.solve_ramped(settings);
+        self.settle_parametric(&state, settings).unwrap_or(state)
+    }
+
+    fn solve_ramped(&mut self, settings: &HbSettings) -> SteadyState {
         if settings.ramp {
             if let Some(state) = self.solve_via_coarse(settings) {
                 return state;

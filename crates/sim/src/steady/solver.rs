@@ -42,8 +42,11 @@ pub struct HbSolver {
     pub(super) step: Vec<f64>,
     pub(super) x_try: Vec<Complex64>,
     /// Velocity spectra `i Ω_r X_{n,r}` of the state being evaluated, for models with
-    /// velocity terms (empty otherwise).
+    /// velocity or pump terms (empty otherwise).
     pub(super) vel: Vec<Complex64>,
+    /// The pump signal's spectrum on the lattice, for models with pump terms (empty
+    /// otherwise): a known factor of the products, not an unknown.
+    pub(super) pump: Vec<Complex64>,
     /// `lu` holds a factorised Jacobian (of some earlier state).
     pub(super) have_lu: bool,
     /// The factorised Jacobian is that of the current `x`.
@@ -59,6 +62,7 @@ struct Operators {
     lin: Vec<Complex64>,
     force: Vec<Complex64>,
     force_max: f64,
+    pump: Vec<Complex64>,
 }
 
 impl Operators {
@@ -100,6 +104,7 @@ impl Operators {
             lin,
             force,
             force_max,
+            pump: pump_spectrum(model, drive, lattice)?,
         })
     }
 }
@@ -124,7 +129,7 @@ impl HbSolver {
         lattice: Vec<f64>,
     ) -> Result<Self, SimError> {
         let mut solver = Self::single(model, drive, lattice)?;
-        if drive.tones_hz.len() <= RAMP_MAX_TONES {
+        if drive.generators_hz().len() <= RAMP_MAX_TONES {
             let lines = low_order_lines(drive, &solver.lattice, RAMP_ORDER);
             let nr = solver.lattice.len();
             if (lines.len() as f64) <= (1.0 - RAMP_MIN_SAVING) * nr as f64 {
@@ -162,6 +167,7 @@ impl HbSolver {
         self.lin = ops.lin;
         self.force = ops.force;
         self.force_max = ops.force_max;
+        self.pump = ops.pump;
         // A factorised Jacobian stays for [`HbSolver::solve_continued`] (chord steps check
         // that it still contracts); it is no longer that of the current state.
         self.fresh = false;
@@ -212,11 +218,12 @@ impl HbSolver {
             coupled: vec![true; nm * nm],
             step: vec![0.0; nu],
             x_try: vec![Z; nm * nr],
-            vel: if model.has_velocity_terms() {
+            vel: if model.n_vars() > nm {
                 vec![Z; nm * nr]
             } else {
                 Vec::new()
             },
+            pump: ops.pump,
             have_lu: false,
             fresh: false,
             coarse: None,
@@ -241,7 +248,7 @@ impl HbSolver {
         let x = if use_try { &self.x_try } else { &self.x };
         // Velocity spectra (none without velocity terms: `vel` is empty).
         velocity_spectrum(&self.lattice, x, &mut self.vel);
-        let refs = variable_spectra(x, &self.vel, nm, nr);
+        let refs = variable_spectra(x, &self.vel, &self.pump, nm, nr);
         let nv = self.model.n_vars();
         self.system
             .forces(&refs[..nv], &mut self.out, &mut self.scratch);
@@ -281,7 +288,7 @@ impl HbSolver {
             self.jac[(2 * i + 1) * nu + 2 * i + 1] = l.re;
         }
         velocity_spectrum(&self.lattice, &self.x, &mut self.vel);
-        let refs = variable_spectra(&self.x, &self.vel, nm, nr);
+        let refs = variable_spectra(&self.x, &self.vel, &self.pump, nm, nr);
         let nv = self.model.n_vars();
         let jac = &mut self.jac;
         let coupled = &mut self.coupled;
@@ -297,7 +304,8 @@ impl HbSolver {
             |eq, j, jre, jim| {
                 // A zero block (a factor of the derivative vanishes in this state: an undriven
                 // mode) is skipped and leaves the modes uncoupled for the factorisation.
-                if jre.iter().chain(jim).all(|z| *z == Z) {
+                // The pump is given, not solved for: no column.
+                if j >= 2 * nm || jre.iter().chain(jim).all(|z| *z == Z) {
                     return;
                 }
                 // A velocity's block carries back onto its mode's amplitudes.
@@ -377,6 +385,11 @@ impl HbSolver {
         &self.model
     }
 
+    /// The pump signal's spectrum on the lattice (empty for a model without pump terms).
+    pub(crate) fn pump_spectrum(&self) -> &[Complex64] {
+        &self.pump
+    }
+
     /// The product plan of the lattice (input = output = the lattice).
     pub(crate) fn product_plan(&self) -> &ProductPlan {
         self.system.plan()
@@ -436,7 +449,7 @@ pub fn steady_state(
     Ok(solver.solve(settings))
 }
 
-/// The monomial of a term's factors over the model's variables (modes, then velocities).
+/// The monomial of a term's factors over the model's variables (modes, velocities, pump).
 pub(crate) fn term_monomial(model: &NumericModel, factors: &[(usize, u32)]) -> PowerProduct {
     let mut e = vec![0u32; model.n_vars()];
     for &(m, k) in factors {
@@ -446,19 +459,53 @@ pub(crate) fn term_monomial(model: &NumericModel, factors: &[(usize, u32)]) -> P
 }
 
 /// The spectra of the model's variables: each mode's amplitudes in `x`, then each mode's
-/// velocity in `vel` (when not empty), `R = nr` lines each.
+/// velocity in `vel` (when not empty), then the pump (when not empty), `R = nr` lines each.
 pub(crate) fn variable_spectra<'a>(
     x: &'a [Complex64],
     vel: &'a [Complex64],
+    pump: &'a [Complex64],
     nm: usize,
     nr: usize,
-) -> [&'a [Complex64]; 2 * MAX_MODES] {
-    let mut refs: [&[Complex64]; 2 * MAX_MODES] = [&[]; 2 * MAX_MODES];
+) -> [&'a [Complex64]; 2 * MAX_MODES + 1] {
+    let mut refs: [&[Complex64]; 2 * MAX_MODES + 1] = [&[]; 2 * MAX_MODES + 1];
     for n in 0..nm {
         refs[n] = &x[n * nr..(n + 1) * nr];
         if !vel.is_empty() {
             refs[nm + n] = &vel[n * nr..(n + 1) * nr];
         }
     }
+    if !pump.is_empty() {
+        refs[2 * nm] = pump;
+    }
     refs
+}
+
+/// The pump signal's spectrum on `lattice` (empty for a model without pump terms): each pump
+/// tone's amplitude on its line. Errors: a model with pump terms and an excitation without a
+/// pump, a pump tone off the lattice.
+fn pump_spectrum(
+    model: &NumericModel,
+    drive: &Excitation,
+    lattice: &[f64],
+) -> Result<Vec<Complex64>, SimError> {
+    if !model.has_pump_terms() {
+        return Ok(Vec::new());
+    }
+    if drive.pumps.is_empty() {
+        return Err(SimError::NoPump {
+            terms: model.pump_term_names().join(", "),
+        });
+    }
+    let mut pump = vec![Z; lattice.len()];
+    for p in &drive.pumps {
+        let i = lattice.partition_point(|&x| x < p.hz - LINE_TOL_HZ);
+        if lattice
+            .get(i)
+            .is_none_or(|&x| (x - p.hz).abs() > LINE_TOL_HZ)
+        {
+            return Err(SimError::NotOnLattice { hz: p.hz });
+        }
+        pump[i] += p.amplitude;
+    }
+    Ok(pump)
 }

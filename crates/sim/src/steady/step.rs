@@ -189,6 +189,7 @@ mod tests {
             let drives: Vec<Excitation> = order
                 .iter()
                 .map(|&f| Excitation {
+                    pumps: Vec::new(),
                     tones_hz: vec![f],
                     force: vec![vec![Complex64::new(force, 0.0)]],
                 })

@@ -203,6 +203,13 @@ pub fn sweep(
     settings: &SweepSettings,
 ) -> Result<SweepResult, SimError> {
     let nm = model.n_modes();
+    if model.has_pump_terms() {
+        return Err(SimError::PumpTerms {
+            what: "the single-tone arclength sweep",
+            terms: model.pump_term_names().join(", "),
+            instead: "sweep a pumped resonator step by step, as a stepped-sine experiment does (a plan with one measurement per step, each with its `pumps_hz`, for `harmonid simulate`; or harmonid_sim::stepped_sweep, which carries each step's state to the next)",
+        });
+    }
     if force.len() != nm {
         return Err(SimError::Length {
             what: "the sweep's forces",

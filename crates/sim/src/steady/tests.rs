@@ -17,6 +17,7 @@ fn status_reads_as_words() {
 fn vanishing_drive_is_linear_frf() {
     let m = duffing(1e12, 100.0);
     let drive = Excitation {
+        pumps: Vec::new(),
         tones_hz: vec![995.0, 1005.0],
         force: vec![vec![Complex64::new(1e-6, 0.0), Complex64::new(0.0, 2e-6)]],
     };
@@ -35,6 +36,7 @@ fn single_tone_matches_cubic_balance() {
     let beta = 4e13;
     let m = duffing(beta, 100.0);
     let drive = Excitation {
+        pumps: Vec::new(),
         tones_hz: vec![1003.0],
         force: vec![vec![Complex64::new(30.0, 0.0)]],
     };
@@ -100,6 +102,7 @@ fn duffing_branches_stability() {
     }
     let (f, l, roots) = found.expect("a frequency with three branches");
     let drive = Excitation {
+        pumps: Vec::new(),
         tones_hz: vec![f],
         force: vec![vec![Complex64::new(force, 0.0)]],
     };
@@ -129,6 +132,7 @@ fn duffing_branches_stability() {
     let v = check_stability(&m, &drive, &verdicts[1].1).expect("verdict");
     assert!(!v.stable);
     let weak = Excitation {
+        pumps: Vec::new(),
         tones_hz: vec![1000.0],
         force: vec![vec![Complex64::new(1e-3, 0.0)]],
     };
@@ -178,12 +182,14 @@ fn coarse_ramp_lands_where_the_full_ramp_does() {
     let c = |x: f64| Complex64::new(x, 0.0);
     let model = nanostring();
     let three_tone = Excitation {
+        pumps: Vec::new(),
         tones_hz: vec![207572.5, 207592.5, 415841.5],
         force: vec![vec![c(3.5), c(3.5), c(0.0)], vec![c(0.0), c(0.0), c(1.81)]],
     };
     // Two tones above resonance, strong enough for the two-tone response to be bistable:
     // the drive-up branch is the low one, which a direct solve at full drive can miss.
     let bistable = Excitation {
+        pumps: Vec::new(),
         tones_hz: vec![207590.0, 207600.0],
         force: vec![vec![c(4.0), c(0.4)], vec![c(0.0), c(0.0)]],
     };
@@ -235,6 +241,7 @@ fn drive_ramp_jumps_at_a_fold_like_the_experiment() {
     );
     let want = Complex64::new(force, 0.0) / (l + k * roots[0]);
     let drive = Excitation {
+        pumps: Vec::new(),
         tones_hz: vec![f],
         force: vec![vec![Complex64::new(force, 0.0)]],
     };
@@ -260,6 +267,7 @@ fn convergence_report_sees_the_far_harmonics() {
     // agrees with the widened lattice to 2e-8).
     let c = |x: f64| Complex64::new(x, 0.0);
     let drive = Excitation {
+        pumps: Vec::new(),
         tones_hz: vec![207572.5, 207592.5],
         force: vec![vec![c(3.5), c(3.5)], vec![c(0.0), c(0.0)]],
     };

@@ -253,6 +253,7 @@ impl Problem<'_> {
             })
             .collect();
         let drive = Excitation {
+            pumps: Vec::new(),
             tones_hz: tones,
             force,
         };
