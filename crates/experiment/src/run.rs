@@ -566,6 +566,9 @@ impl Plan {
                     notes.push(format!("widening the lattice beyond order {order} still changes the measured lines by {c:.2e} of the largest (written on request)"));
                 }
             }
+            if st.pump_sustained {
+                notes.push("above the parametric threshold: the pump sustains an oscillation (the state the drive alone would hold is unstable), and this is the state the resonator settles on".to_string());
+            }
             let stability = pm.stability(model, &drive, &st, settings, &mut notes)?;
             let mut freqs =
                 pm.measured_hz(model, &drive, &st, HbSettings::default().lattice.window_rel);

@@ -107,7 +107,7 @@ fn the_degenerate_amplifier_has_the_phase_sensitive_gain_of_the_closed_form() {
         let force = Complex64::from_polar(1.0, phase);
         let drive = excitation(F0, force, 2.0 * F0, Complex64::new(p, 0.0));
         let st = steady_state(&m, &drive, &HbSettings::default()).expect("solves");
-        assert!(st.converged());
+        assert!(st.converged() && !st.pump_sustained);
         // X = a + ib: [(λP/2), −ωγ; ωγ, −(λP/2)] [a; b] = [Re F; Im F].
         let h = 0.5 * p;
         let det = -h * h + w * g * w * g;
@@ -274,6 +274,7 @@ fn above_threshold_the_pump_sustains_the_duffing_limited_oscillation() {
         );
         let st = steady_state(&m, &drive, &HbSettings::default()).expect("solves");
         assert!(st.converged(), "{:?}", st.status);
+        assert!(st.pump_sustained);
         assert!(check_stability(&m, &drive, &st).expect("stability").stable);
         let h = 0.5 * ratio * threshold();
         let want = (4.0 / (3.0 * beta) * (h * h - wg * wg).sqrt()).sqrt();

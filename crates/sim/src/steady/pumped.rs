@@ -45,13 +45,14 @@ impl HbSolver {
             return None;
         }
         let r = self.residual(false, 1.0);
-        let settled = self.finish(
+        let mut settled = self.finish(
             HbStatus::Converged { iterations: 0 },
             r,
             state.ramp_steps + 1,
             false,
             state.drive_jumps.clone(),
         );
+        settled.pump_sustained = true;
         self.stability(&settled)
             .ok()
             .filter(|s| s.stable)

@@ -435,6 +435,7 @@ impl HbSolver {
             },
             ramp_steps: steps,
             drive_jumps,
+            pump_sustained: false,
         }
     }
 }

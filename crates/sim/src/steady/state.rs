@@ -97,6 +97,9 @@ pub struct SteadyState {
     /// ([`HbSettings::stop_at_fold`]), or the slow flow after the jump settled on no steady
     /// state of the lattice.
     pub drive_jumps: Vec<f64>,
+    /// The state is an oscillation a pump sustains above its parametric threshold: the state
+    /// the drive ramp followed was unstable, and the resonator settled here from it.
+    pub pump_sustained: bool,
 }
 
 impl SteadyState {
