@@ -14,3 +14,4 @@ pub mod progress;
 pub mod report;
 pub mod simulate;
 pub mod sweep;
+pub mod sweep_pumped;

@@ -1,5 +1,6 @@
 //! `harmonid sweep MODEL --values V --from F0 --to F1 --force q1=F`: single-tone response curve
-//! with continuation through folds, written as CSV (one row per curve point).
+//! with continuation through folds, written as CSV (one row per curve point); with `--pump`,
+//! the stepped sweep of a pumped model (`sweep_pumped`).
 
 use super::simulate::numeric_model;
 use harmonid_sim::{self as sim, SweepSettings};
@@ -43,6 +44,14 @@ pub struct Args {
     /// that reach its resonance (e.g. `2fa`, `fa+fb`, `2fb`).
     #[arg(long = "two-tone", value_name = "SPACING_HZ")]
     pub two_tone: Option<f64>,
+    /// A pump tone (parametric pumping: the model's `pump` signal), as
+    /// `HZ:LEVEL[:PHASE_RAD]`, level in the unit the model's pump coefficients are per; repeat
+    /// for several. With a pump the tone is stepped up and then down through the range as a
+    /// stepped-sine experiment does (`--points` steps each way); CSV columns `direction, f_hz`,
+    /// |X| and phase of each mode at the tone `f`, at each pump's idler `f_p − f` and at its
+    /// half `f_p/2` (the oscillation a pump above threshold sustains), `stable`, `converged`.
+    #[arg(long = "pump", value_name = "HZ:LEVEL[:PHASE_RAD]")]
+    pub pump: Vec<String>,
     /// Output CSV (stdout when absent).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -84,6 +93,14 @@ pub fn run(args: Args) -> miette::Result<()> {
             .filter(|a: &f64| a.is_finite())
             .ok_or_else(|| miette!("--force {f}: `{v}` is not a finite number of N/kg"))?;
         force[n] = Complex64::new(a, 0.0);
+    }
+    if !args.pump.is_empty() {
+        let pumps = args
+            .pump
+            .iter()
+            .map(|p| super::sweep_pumped::parse_pump(p))
+            .collect::<miette::Result<Vec<_>>>()?;
+        return super::sweep_pumped::run(&args, &model, force, pumps, &inputs);
     }
     if let Some(spacing) = args.two_tone {
         return two_tone(&args, &model, force, spacing, &inputs);

@@ -38,6 +38,9 @@ impl HbSolver {
     /// may do (from rest, the drive ramp lands on the low branch of a hardening resonance
     /// where an up-sweep is on the high one).
     ///
+    /// With a pump above its threshold an unstable landing is left the way
+    /// [`HbSolver::solve`] leaves it, from a small seed.
+    ///
     /// Should the flow not settle within its step budget (slow near a fold), Newton from
     /// `start` is tried, and its state kept only when it is stable (not the middle branch).
     /// Never returns NaN: a failure is [`HbStatus::NotConverged`] with the start's residual.
@@ -49,13 +52,16 @@ impl HbSolver {
         self.have_lu = false;
         if self.land_persistently(1.0, settings.tol) {
             let r = self.residual(false, 1.0);
-            return self.finish(
+            let state = self.finish(
                 HbStatus::Converged { iterations: 0 },
                 r,
                 1,
                 false,
                 Vec::new(),
             );
+            // A pump above its threshold: the flow may sit on the unstable state it left no
+            // seed to grow from.
+            return self.settle_parametric(&state, settings).unwrap_or(state);
         }
         let state = self.solve_from(start, settings);
         if state.converged() && self.stability(&state).is_ok_and(|s| s.stable) {
