@@ -164,3 +164,48 @@ fn what_takes_no_pump_says_so_and_writes_nothing() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("pump terms"), "{err}");
 }
+
+#[test]
+fn a_linear_resonator_above_threshold_is_named_a_parametric_instability() {
+    // Without the Duffing term nothing limits the parametron: no bounded state, nothing written.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let m = dir.path().join("linear.hb");
+    std::fs::write(
+        &m,
+        "mode q1 at 1 kHz\nparam lambda\neom q1 += lambda*pump*q1\n",
+    )
+    .expect("model");
+    let v = dir.path().join("values.toml");
+    std::fs::write(
+        &v,
+        "[modes.q1]\nf_hz = 1000.0\nQ = 1000.0\n[parameters]\nlambda = 1.0\n",
+    )
+    .expect("values");
+    let plan = dir.path().join("plan.toml");
+    std::fs::write(
+        &plan,
+        format!(
+            "description = \"above\"\ndisplacement_unit = \"m\"\n[[point]]\nname = \"p\"\n\
+             shape = {{ q1 = 1.0 }}\n[noise]\nsigma_per_quadrature = 1e-12\nshots = 2\n\
+             [[measurement]]\nname = \"above\"\ndrives_hz = [1001.0]\nforce = {{ q1 = [1.0] }}\n\
+             pumps_hz = [2000.0]\npump_levels = [{}]\npump_phases_rad = [0.0]\n",
+            1.5 * threshold()
+        ),
+    )
+    .expect("plan");
+    let out = dir.path().join("out");
+    let run = harmonid(&[
+        "simulate",
+        m.to_str().expect("utf-8"),
+        "--values",
+        v.to_str().expect("utf-8"),
+        "--plan",
+        plan.to_str().expect("utf-8"),
+        "--out",
+        out.to_str().expect("utf-8"),
+    ]);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success());
+    assert!(err.contains("harmonid::parametric_instability"), "{err}");
+    assert!(!out.exists());
+}

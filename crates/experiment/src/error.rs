@@ -98,6 +98,18 @@ pub enum ExperimentError {
         /// `min ω/2Q`, 1/s.
         linear_decay_rate: f64,
     },
+    /// Under a pump the steady state is unstable and no bounded state settles from it.
+    #[error("measurement {measurement}: with the pump on, the steady state is unstable (perturbations grow at {growth_rate:.3e} 1/s) and the motion settles on no bounded state from it: the pump is above its parametric threshold and nothing in the model limits the oscillation it drives at f_p/2")]
+    #[diagnostic(
+        code(harmonid::parametric_instability),
+        help("lower the pump level below the threshold (λ|P| = 2ω²/Q for a mode pumped at twice its resonance), or add the nonlinearity that limits the oscillation (a Duffing term); --allow-unstable writes the unstable state anyway")
+    )]
+    ParametricInstability {
+        /// Measurement name.
+        measurement: String,
+        /// Largest real part of the Floquet exponents, 1/s.
+        growth_rate: f64,
+    },
     /// Widening the lattice keeps changing the measured lines.
     #[error("measurement {measurement}: the harmonic balance's spectrum is truncated too coarsely: widening it from order {order} ({lines} lines) to order {wider_order} ({wider_lines} lines) still changes the measured lines by {change:.2e} of the largest (tolerance {tol:.0e}){why}")]
     #[diagnostic(

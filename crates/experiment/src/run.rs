@@ -738,6 +738,12 @@ impl PlanMeasurement {
                     source,
                 })?;
             if !v.stable {
+                if !settings.allow_unstable && model.has_pump_terms() {
+                    return Err(ExperimentError::ParametricInstability {
+                        measurement: self.name.clone(),
+                        growth_rate: v.growth_rate,
+                    });
+                }
                 if !settings.allow_unstable {
                     return Err(ExperimentError::Unstable {
                         measurement: self.name.clone(),
