@@ -9,7 +9,8 @@
 use crate::coupled::{cheapest_comparable, coupled_variants, Tones, Variant};
 use crate::evaluate::{joint_bounds, param_modes, Evaluation};
 use crate::info::{
-    info_of, is_infeasible, measurement_info, restrict_lines, simulate, Fidelity, MeasInfo, Target,
+    info_of, is_infeasible, measurement_info, restrict_lines, simulate, too_large, Fidelity,
+    MeasInfo, Target,
 };
 use crate::level::{pair_fold_estimate, strongest};
 use crate::PlanError;
@@ -18,6 +19,7 @@ use harmonid_experiment::{Plan, PlanMeasurement, PlanNoise};
 use harmonid_ident::Unknown;
 use harmonid_model::{Linear, Model};
 use harmonid_sim::{ModelValues, NumericModel};
+use std::cell::RefCell;
 use std::collections::BTreeMap;
 
 /// Limits and noise of a design.
@@ -238,6 +240,7 @@ pub fn design_with_progress(
             "forces ≤ {} N/kg per tone, {} lines per measurement, grid {} Hz, no jump while driving up, stable",
             s.max_force, s.max_frequencies, s.grid_hz
         ),
+        skipped: RefCell::new(Vec::new()),
     };
     // Stage 1: a tone pair per mode.
     let mut pairs: Vec<Option<Pair>> = vec![None; names.len()];
@@ -283,9 +286,11 @@ pub fn design_with_progress(
         name: "",
     });
     let limits = designer.limits;
+    let skipped = designer.skipped.into_inner();
     base.measurements = plan_ms;
     let refs: Vec<&MeasInfo> = infos.iter().collect();
-    let ev = joint_bounds(model, &refs, s.shots)?;
+    let mut ev = joint_bounds(model, &refs, s.shots)?;
+    ev.skipped = skipped;
     if let Some(f) = ev.findings.first() {
         return Err(PlanError::Unidentifiable {
             parameter: f.unknown.clone(),
@@ -464,6 +469,8 @@ struct Designer<'a> {
     names: &'a [String],
     /// The limits, for messages.
     limits: String,
+    /// Candidates skipped because their harmonic balance is beyond a size bound.
+    skipped: RefCell<Vec<String>>,
 }
 
 impl Designer<'_> {
@@ -473,8 +480,7 @@ impl Designer<'_> {
         &self,
         mut pm: PlanMeasurement,
     ) -> Result<Option<(PlanMeasurement, MeasInfo)>, PlanError> {
-        let Some((data, lattice)) = feasible(simulate(self.num, self.base, &pm, Fidelity::Search))?
-        else {
+        let Some((data, lattice)) = self.bounded(&pm)? else {
             return Ok(None);
         };
         let keep = choose_lines(&pm, &data, self.s.max_frequencies);
@@ -482,6 +488,28 @@ impl Designer<'_> {
         pm.measure_hz = Some(keep);
         let info = feasible(info_of(self.target, &pm, &data, lattice))?;
         Ok(info.map(|i| (pm, i)))
+    }
+
+    /// [`simulate`] at search fidelity, `None` for an infeasible drive and for one whose
+    /// harmonic balance is beyond a size bound (skipped, with a note in
+    /// [`Evaluation::skipped`]): one oversized candidate costs the design that candidate, not
+    /// the plan.
+    fn bounded(&self, pm: &PlanMeasurement) -> Result<Option<(Dataset, usize)>, PlanError> {
+        match simulate(self.num, self.base, pm, Fidelity::Search) {
+            Err(e) => match too_large(&e) {
+                Some(why) => {
+                    let tones: Vec<String> = pm.drives_hz.iter().map(|f| format!("{f}")).collect();
+                    let note = format!("{} with tones at {} Hz: {why}", pm.name, tones.join(", "));
+                    let mut list = self.skipped.borrow_mut();
+                    if !list.contains(&note) {
+                        list.push(note);
+                    }
+                    Ok(None)
+                }
+                None => feasible(Err(e)),
+            },
+            ok => feasible(ok),
+        }
     }
 
     /// Stage 1 for mode `n`: the tone pair around its resonance, over the spacings, driven
@@ -512,7 +540,7 @@ impl Designer<'_> {
             let tones = |force: f64| [(centre - half, n, force), (centre + half, n, force)];
             let ok = |force: f64| -> Result<bool, PlanError> {
                 let pm = measurement(name, &tones(force), names);
-                Ok(feasible(simulate(num, self.base, &pm, Fidelity::Search))?.is_some())
+                Ok(self.bounded(&pm)?.is_some())
             };
             let start = pair_fold_estimate(num, n, 2.0 * half / kappa).unwrap_or(f_lin);
             let Some((good, folds)) = strongest(start, f_lin, hi, &ok)? else {
@@ -605,12 +633,27 @@ impl Designer<'_> {
                 try_variant(&set.pairs)?;
             }
         }
-        cheapest_comparable(scored).ok_or_else(|| PlanError::Unidentifiable {
-            parameter: wanted.join(", "),
-            reason: format!(
-                "no drive of {label} together has a stable steady state without a jump"
-            ),
-            limits: self.limits.clone(),
+        cheapest_comparable(scored).ok_or_else(|| {
+            let skipped: Vec<String> = self
+                .skipped
+                .borrow()
+                .iter()
+                .filter(|n| n.starts_with(&name))
+                .cloned()
+                .collect();
+            let reason = if skipped.is_empty() {
+                format!("no drive of {label} together has a stable steady state without a jump")
+            } else {
+                format!(
+                    "no drive of {label} together has a stable steady state without a jump within the size bounds of the harmonic balance (skipped: {})",
+                    skipped.join("; ")
+                )
+            };
+            PlanError::Unidentifiable {
+                parameter: wanted.join(", "),
+                reason,
+                limits: self.limits.clone(),
+            }
         })
     }
 }

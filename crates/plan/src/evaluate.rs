@@ -29,6 +29,10 @@ pub struct Evaluation {
     pub findings: Vec<Finding>,
     /// Mode names.
     pub mode_names: Vec<String>,
+    /// Candidate measurements the design skipped because their harmonic balance would exceed a
+    /// size bound, one line each (`couple_q1_q2_q3 with tones …: why`); empty for an evaluated
+    /// plan.
+    pub skipped: Vec<String>,
 }
 
 impl Evaluation {
@@ -172,6 +176,7 @@ pub(crate) fn joint_bounds(
         bounds,
         findings,
         mode_names: first.fwd.mode_names().to_vec(),
+        skipped: Vec::new(),
     })
 }
 

@@ -91,6 +91,28 @@ pub(crate) fn restrict_lines(dataset: &Dataset, pm: &PlanMeasurement, keep_hz: &
     out
 }
 
+/// Why a candidate's harmonic balance cannot be set up within the size bounds (its lattice or
+/// product plan too large), when that is the error: the design skips such a candidate with a
+/// note instead of failing.
+pub(crate) fn too_large(e: &PlanError) -> Option<String> {
+    use harmonid_sim::SimError;
+    use harmonid_spectral::SpectralError;
+    let sim = match e {
+        PlanError::Experiment(x) => match &**x {
+            ExperimentError::Sim { source, .. } => source,
+            _ => return None,
+        },
+        PlanError::Sim(s) => s,
+        _ => return None,
+    };
+    match sim {
+        SimError::Spectral(SpectralError::TooLarge { .. }) | SimError::TooLarge { .. } => {
+            Some(sim.to_string())
+        }
+        _ => None,
+    }
+}
+
 /// Whether an error means the drive configuration is not usable (fold, instability, no
 /// steady state), as opposed to bad input.
 pub(crate) fn is_infeasible(e: &PlanError) -> bool {
@@ -271,5 +293,44 @@ mod tests {
             assert!((x - y).norm() <= 1e-12 * big, "{x} vs {y}");
         }
         assert_eq!(cut.manifest.measurements, direct.manifest.measurements);
+    }
+}
+
+#[cfg(test)]
+mod size_bound_tests {
+    use super::*;
+    use harmonid_sim::SimError;
+    use harmonid_spectral::SpectralError;
+
+    #[test]
+    fn only_a_size_bound_skips_a_candidate() {
+        let sim = |source| {
+            PlanError::from(ExperimentError::Sim {
+                context: "measurement couple_q1_q2_q3".into(),
+                source,
+            })
+        };
+        let big = sim(SimError::Spectral(SpectralError::TooLarge {
+            what: "a product plan's intermediate frequency set",
+            needed: 13_089_924,
+            limit: 8_388_608,
+        }));
+        let why = too_large(&big).expect("skipped");
+        assert!(why.contains("13089924") && why.contains("8388608"), "{why}");
+        let lattice = sim(SimError::TooLarge {
+            what: "combination frequencies of the lattice",
+            count: 2_000_001,
+            limit: 2_000_000,
+            help: "use a lower order or fewer tones",
+        });
+        assert!(too_large(&lattice).is_some());
+        // Anything else is not a size bound: a fold is infeasible, a bad value an error.
+        let fold = PlanError::Fold {
+            measurement: "m".into(),
+            percent: 50.0,
+        };
+        assert!(too_large(&fold).is_none());
+        let bad = sim(SimError::NoTone);
+        assert!(too_large(&bad).is_none());
     }
 }
