@@ -151,8 +151,8 @@ pub fn run(args: Args) -> miette::Result<()> {
         });
         pb.finish_and_clear();
         let (plan, ev) = designed?;
-        for note in &ev.skipped {
-            eprintln!("note: skipped {note}");
+        for note in &ev.notes {
+            eprintln!("note: {note}");
         }
         if let Some(out) = &args.out {
             write_output(out, plan.to_toml().as_bytes(), &inputs)?;

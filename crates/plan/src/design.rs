@@ -9,8 +9,8 @@
 use crate::coupled::{cheapest_comparable, coupled_variants, Tones, Variant};
 use crate::evaluate::{joint_bounds, param_modes, Evaluation};
 use crate::info::{
-    info_of, is_infeasible, measurement_info, restrict_lines, simulate, too_large, Fidelity,
-    MeasInfo, Target,
+    info_of, is_infeasible, measurement_info, restrict_lines, simulate, too_large,
+    truncation_unchecked, Fidelity, MeasInfo, Target,
 };
 use crate::level::{pair_fold_estimate, strongest};
 use crate::PlanError;
@@ -275,11 +275,23 @@ pub fn design_with_progress(
         plan_ms.push(pm);
     }
     // The bounds of the plan as `harmonid simulate --plan` will simulate it (the truncation
-    // check may raise the lattice order the search used).
-    let infos = plan_ms
-        .iter()
-        .map(|pm| measurement_info(&target, &base, pm, Fidelity::User))
-        .collect::<Result<Vec<_>, _>>()?;
+    // check may raise the lattice order the search used). A measurement whose wider lattice is
+    // beyond a size bound keeps the search's lattice, with a note: the check is not possible,
+    // which is not evidence of truncation.
+    let mut infos = Vec::with_capacity(plan_ms.len());
+    for pm in &plan_ms {
+        let info = match measurement_info(&target, &base, pm, Fidelity::User) {
+            Err(e) if truncation_unchecked(&e) => {
+                designer.skipped.borrow_mut().push(format!(
+                    "{}: its harmonic balance's truncation is not checked at a wider lattice ({e})",
+                    pm.name
+                ));
+                measurement_info(&target, &base, pm, Fidelity::Search)?
+            }
+            r => r?,
+        };
+        infos.push(info);
+    }
     progress(DesignStep {
         done: needed,
         total: needed,
@@ -290,7 +302,7 @@ pub fn design_with_progress(
     base.measurements = plan_ms;
     let refs: Vec<&MeasInfo> = infos.iter().collect();
     let mut ev = joint_bounds(model, &refs, s.shots)?;
-    ev.skipped = skipped;
+    ev.notes = skipped;
     if let Some(f) = ev.findings.first() {
         return Err(PlanError::Unidentifiable {
             parameter: f.unknown.clone(),
@@ -492,14 +504,18 @@ impl Designer<'_> {
 
     /// [`simulate`] at search fidelity, `None` for an infeasible drive and for one whose
     /// harmonic balance is beyond a size bound (skipped, with a note in
-    /// [`Evaluation::skipped`]): one oversized candidate costs the design that candidate, not
+    /// [`Evaluation::notes`]): one oversized candidate costs the design that candidate, not
     /// the plan.
     fn bounded(&self, pm: &PlanMeasurement) -> Result<Option<(Dataset, usize)>, PlanError> {
         match simulate(self.num, self.base, pm, Fidelity::Search) {
             Err(e) => match too_large(&e) {
                 Some(why) => {
                     let tones: Vec<String> = pm.drives_hz.iter().map(|f| format!("{f}")).collect();
-                    let note = format!("{} with tones at {} Hz: {why}", pm.name, tones.join(", "));
+                    let note = format!(
+                        "skipped {} with tones at {} Hz: {why}",
+                        pm.name,
+                        tones.join(", ")
+                    );
                     let mut list = self.skipped.borrow_mut();
                     if !list.contains(&note) {
                         list.push(note);
@@ -638,7 +654,7 @@ impl Designer<'_> {
                 .skipped
                 .borrow()
                 .iter()
-                .filter(|n| n.starts_with(&name))
+                .filter(|n| n.starts_with(&format!("skipped {name} ")))
                 .cloned()
                 .collect();
             let reason = if skipped.is_empty() {

@@ -29,10 +29,11 @@ pub struct Evaluation {
     pub findings: Vec<Finding>,
     /// Mode names.
     pub mode_names: Vec<String>,
-    /// Candidate measurements the design skipped because their harmonic balance would exceed a
-    /// size bound, one line each (`couple_q1_q2_q3 with tones …: why`); empty for an evaluated
-    /// plan.
-    pub skipped: Vec<String>,
+    /// What the design skipped or could not check, one line each: candidates whose harmonic
+    /// balance would exceed a size bound (`skipped couple_q1_q2_q3 with tones …: why`), a
+    /// measurement whose truncation could not be checked at a wider lattice; empty for an
+    /// evaluated plan.
+    pub notes: Vec<String>,
 }
 
 impl Evaluation {
@@ -176,7 +177,7 @@ pub(crate) fn joint_bounds(
         bounds,
         findings,
         mode_names: first.fwd.mode_names().to_vec(),
-        skipped: Vec::new(),
+        notes: Vec::new(),
     })
 }
 

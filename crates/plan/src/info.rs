@@ -113,6 +113,14 @@ pub(crate) fn too_large(e: &PlanError) -> Option<String> {
     }
 }
 
+/// Whether the error is a truncation check that could not widen the lattice (the wider one is
+/// beyond a size bound or did not solve): the check was not possible, which says nothing of the
+/// truncation.
+pub(crate) fn truncation_unchecked(e: &PlanError) -> bool {
+    matches!(e, PlanError::Experiment(x)
+        if matches!(**x, ExperimentError::Truncated { change, .. } if change.is_nan()))
+}
+
 /// Whether an error means the drive configuration is not usable (fold, instability, no
 /// steady state), as opposed to bad input.
 pub(crate) fn is_infeasible(e: &PlanError) -> bool {
@@ -332,5 +340,29 @@ mod size_bound_tests {
         assert!(too_large(&fold).is_none());
         let bad = sim(SimError::NoTone);
         assert!(too_large(&bad).is_none());
+    }
+}
+
+#[cfg(test)]
+mod truncation_check_tests {
+    use super::*;
+
+    #[test]
+    fn only_an_impossible_widening_is_an_unchecked_truncation() {
+        let truncated = |change: f64| {
+            PlanError::from(ExperimentError::Truncated {
+                measurement: "couple_q1_q2_q3".into(),
+                order: 9,
+                lines: 905,
+                wider_order: 11,
+                wider_lines: 0,
+                change,
+                tol: 1e-6,
+                why: "; the widened lattice could not be solved".into(),
+            })
+        };
+        assert!(truncation_unchecked(&truncated(f64::NAN)));
+        // A widening that moved the lines is a real truncation.
+        assert!(!truncation_unchecked(&truncated(3e-4)));
     }
 }
