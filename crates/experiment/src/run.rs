@@ -277,21 +277,14 @@ impl PlanMeasurement {
                     .collect()
             })
             .collect();
-        let pumps = match (&self.pump_levels, &self.pump_phases_rad) {
-            (Some(l), Some(p)) => self
-                .pumps_hz
-                .iter()
-                .zip(l)
-                .zip(p)
-                .map(|((&hz, &l), &p)| sim::PumpTone {
-                    hz,
-                    amplitude: Complex64::from_polar(l, p),
-                })
-                .collect(),
-            _ => Vec::new(),
-        };
         let drive = Excitation {
-            pumps,
+            // The pump as the dataset will record it.
+            pumps: self
+                .spec()
+                .pump_tones()
+                .into_iter()
+                .map(sim::PumpTone::from)
+                .collect(),
             tones_hz: self.drives_hz.clone(),
             force,
         };
