@@ -110,3 +110,30 @@ def test_errors_are_located(tmp_path):
         harmonid.simulate(model, {"parameters": {"beta1": "big"}}, PLAN)
     with pytest.raises(harmonid.SimulationError, match="nope.toml"):
         harmonid.simulate(model, "nope.toml", PLAN)
+
+
+def test_a_pumped_plan_simulates_and_identifies_its_pump_coefficient():
+    """Parametric pumping from Python: a plan dict with a pump, its coefficient identified."""
+    model = harmonid.Model.from_str(
+        "mode q1 at 1 kHz\nparam beta1, lambda\npotential: beta1/4*q1^4\n"
+        "eom q1 += lambda*pump*q1\n"
+    )
+    values = {"modes": {"q1": {"f_hz": 1000.0, "Q": 1000.0}},
+              "parameters": {"beta1": 1e12, "lambda": 1.0}}
+    pump = {"pumps_hz": [2000.0], "pump_phases_rad": [0.0]}
+    plan = {
+        "noise": {"sigma_per_quadrature": 1e-10, "shots": 5},
+        "point": [{"name": "p", "shape": {"q1": 1.0}}],
+        "measurement": [
+            {"name": name, "drives_hz": [1001.0], "force": {"q1": [10.0]},
+             "drive_levels_v": [1.0], "drive_phases_rad": [0.0],
+             "pump_levels": [level], **pump}
+            for name, level in [("off", 0.0), ("on", 4e4)]
+        ],
+    }
+    ds = harmonid.simulate(model, values, plan)
+    assert ds.measurement("on")["pumps_hz"] == [2000.0]
+    r = harmonid.identify(model, ds).to_dict()
+    lam = r["parameters"]["lambda"]
+    assert abs(lam["value"] - 1.0) < 4 * lam["stderr"] and lam["stderr"] < 1e-3
+    assert "q1*pump" in r["eom"]["q1"]
