@@ -108,6 +108,8 @@ pub fn plan(
         max_measurements,
         grid_hz: bandwidth_hz,
         max_force: max_force.unwrap_or(f64::INFINITY),
+        // Python callers bound the work themselves.
+        time_budget_s: None,
         points: points
             .unwrap_or_default()
             .into_iter()

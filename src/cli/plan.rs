@@ -51,6 +51,11 @@ pub struct Args {
     /// Largest drive force per tone, N/kg.
     #[arg(long)]
     pub max_force: Option<f64>,
+    /// Wall-clock budget of the design's search, s: once spent, each measurement still to
+    /// design keeps the first feasible candidate (or the best tried so far), and the plan says
+    /// so. 0 for no budget.
+    #[arg(long, value_name = "SECONDS", default_value_t = 120.0)]
+    pub time_budget: f64,
     /// A measurement point with the mode shapes there: `--point q1=0.309,q2=0.588`
     /// (repeatable; default: modal amplitudes).
     #[arg(long, value_name = "MODE=SHAPE,...")]
@@ -142,6 +147,7 @@ pub fn run(args: Args) -> miette::Result<()> {
             grid_hz: args.bandwidth,
             max_force: args.max_force.unwrap_or(f64::INFINITY),
             points,
+            time_budget_s: (args.time_budget > 0.0).then_some(args.time_budget),
         };
         let pb = super::progress::bar(0, "designing measurement", false);
         let designed = design_with_progress(&model, &values, &settings, &mut |step| {

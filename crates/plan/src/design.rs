@@ -39,6 +39,10 @@ pub struct DesignSettings {
     pub max_force: f64,
     /// Measurement points (mode shapes); empty: modal amplitudes.
     pub points: Vec<Point>,
+    /// Wall-clock budget of the search, s (`None`: none). Once spent, each measurement still to
+    /// design keeps the first feasible candidate (or the best of those already tried) and the
+    /// plan notes it; the final scoring pass always runs.
+    pub time_budget_s: Option<f64>,
 }
 
 impl Default for DesignSettings {
@@ -51,6 +55,7 @@ impl Default for DesignSettings {
             grid_hz: 0.5,
             max_force: f64::INFINITY,
             points: Vec::new(),
+            time_budget_s: None,
         }
     }
 }
@@ -241,6 +246,9 @@ pub fn design_with_progress(
             s.max_force, s.max_frequencies, s.grid_hz
         ),
         skipped: RefCell::new(Vec::new()),
+        deadline: s
+            .time_budget_s
+            .map(|t| std::time::Instant::now() + std::time::Duration::from_secs_f64(t.max(0.0))),
     };
     // Stage 1: a tone pair per mode.
     let mut pairs: Vec<Option<Pair>> = vec![None; names.len()];
@@ -481,8 +489,11 @@ struct Designer<'a> {
     names: &'a [String],
     /// The limits, for messages.
     limits: String,
-    /// Candidates skipped because their harmonic balance is beyond a size bound.
+    /// Candidates skipped because their harmonic balance is beyond a size bound, and other
+    /// notes of the design.
     skipped: RefCell<Vec<String>>,
+    /// When the search's time budget runs out.
+    deadline: Option<std::time::Instant>,
 }
 
 impl Designer<'_> {
@@ -500,6 +511,23 @@ impl Designer<'_> {
         pm.measure_hz = Some(keep);
         let info = feasible(info_of(self.target, &pm, &data, lattice))?;
         Ok(info.map(|i| (pm, i)))
+    }
+
+    /// Whether the time budget is spent; when it is, notes once per measurement that `name`
+    /// kept what it had (the budget's note says which candidates were left untried).
+    fn out_of_time(&self, name: &str) -> bool {
+        if self.deadline.is_none_or(|d| std::time::Instant::now() < d) {
+            return false;
+        }
+        let note = format!(
+            "{name}: the time budget ({} s) was spent, so it keeps the best of the candidates tried so far (a larger --time-budget may find better bounds)",
+            self.s.time_budget_s.unwrap_or_default()
+        );
+        let mut list = self.skipped.borrow_mut();
+        if !list.contains(&note) {
+            list.push(note);
+        }
+        true
     }
 
     /// [`simulate`] at search fidelity, `None` for an infeasible drive and for one whose
@@ -552,6 +580,9 @@ impl Designer<'_> {
         };
         let mut best: Option<Candidate> = None;
         for mult in SPACINGS {
+            if best.is_some() && self.out_of_time(name) {
+                break;
+            }
             let half = (on_grid(0.5 * mult * kappa, s.grid_hz)).max(s.grid_hz);
             let tones = |force: f64| [(centre - half, n, force), (centre + half, n, force)];
             let ok = |force: f64| -> Result<bool, PlanError> {
@@ -638,15 +669,24 @@ impl Designer<'_> {
             }
             Ok(f64::INFINITY)
         };
-        for set in coupled_variants(self.num, modes) {
+        let mut tried = false;
+        'sets: for set in coupled_variants(self.num, modes) {
             let mut best = f64::INFINITY;
             for v in &set.three_tone {
-                best = best.min(try_variant(v)?);
+                if tried && self.out_of_time(&name) {
+                    break 'sets;
+                }
+                let score = try_variant(v)?;
+                tried |= score.is_finite();
+                best = best.min(score);
             }
             // Two pairs cost a lattice several times larger: only when fewer tones fail or
             // leave the group's unknowns poorly determined.
             if best.is_nan() || best > GOOD_ENOUGH {
-                try_variant(&set.pairs)?;
+                if tried && self.out_of_time(&name) {
+                    break 'sets;
+                }
+                tried |= try_variant(&set.pairs)?.is_finite();
             }
         }
         cheapest_comparable(scored).ok_or_else(|| {

@@ -241,3 +241,28 @@ fn the_shipped_five_mode_plan_is_designed_cheap_and_determines_everything() {
         }
     }
 }
+
+#[test]
+fn a_spent_time_budget_keeps_the_first_feasible_candidates_and_says_so() {
+    // A budget of zero: every measurement keeps its first feasible candidate; the plan is
+    // complete, determines every unknown, and names each measurement the budget cut short.
+    let (model, values) = model_values();
+    let s = DesignSettings {
+        time_budget_s: Some(0.0),
+        ..two_mode_settings()
+    };
+    let (plan, ev) = design(&model, &values, &s).expect("design");
+    let (full, full_ev) = design(&model, &values, &two_mode_settings()).expect("design");
+    assert_eq!(plan.measurements.len(), full.measurements.len());
+    assert!(ev.findings.is_empty());
+    assert!(full_ev.notes.is_empty(), "{:?}", full_ev.notes);
+    let cut: Vec<&String> = ev
+        .notes
+        .iter()
+        .filter(|n| n.contains("time budget"))
+        .collect();
+    assert!(!cut.is_empty(), "{:?}", ev.notes);
+    for q in &ev.bounds.quantities {
+        assert!(q.rel.is_finite(), "{}: {}", q.name, q.rel);
+    }
+}
