@@ -143,6 +143,35 @@ fn what_takes_no_pump_says_so_and_writes_nothing() {
         }
         assert!(!csv.exists());
     }
+    // A pump on a model without pump terms would act on nothing.
+    let plain = dir.path().join("plain.hb");
+    std::fs::write(
+        &plain,
+        "mode q1 at 1 kHz\nparam beta1, lambda\npotential: beta1/4*q1^4 + lambda*q1^2\n",
+    )
+    .expect("model");
+    let out = harmonid(&[
+        "sweep",
+        plain.to_str().expect("utf-8"),
+        "--values",
+        v,
+        "--from",
+        "990",
+        "--to",
+        "1010",
+        "--force",
+        "q1=1",
+        "--pump",
+        "2000:1e4",
+        "--out",
+        csv_s,
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("no pump terms"),
+        "{err}"
+    );
+    assert!(!csv.exists());
     let plan = dir.path().join("plan.toml");
     let out = harmonid(&[
         "plan",

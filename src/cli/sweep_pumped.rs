@@ -70,6 +70,12 @@ pub fn run(
     pumps: Vec<PumpTone>,
     inputs: &[&Path],
 ) -> miette::Result<()> {
+    if !model.has_pump_terms() {
+        return Err(miette!(
+            help = "add the term the pump modulates to the model (e.g. `eom q1 += lambda*pump*q1`), or leave out --pump",
+            "--pump: the model has no pump terms, so the pump would act on nothing"
+        ));
+    }
     if args.two_tone.is_some() {
         return Err(miette!(
             help = "sweep one tone with the pump on (leave out --two-tone)",
