@@ -151,6 +151,24 @@ impl Model {
         self.any_factor(|v| v == pump)
     }
 
+    /// The terms that hold the pump, as `monomial in the equation of mode` (for messages).
+    pub fn pump_term_names(&self) -> Vec<String> {
+        let pump = self.pump_var();
+        let mut out = Vec::new();
+        for (n, eq) in self.eom.iter().enumerate() {
+            for (m, _) in eq.terms() {
+                if m.exponent(pump) > 0 {
+                    out.push(format!(
+                        "{} in the equation of {}",
+                        self.monomial_name(m),
+                        self.modes[n].name
+                    ));
+                }
+            }
+        }
+        out
+    }
+
     fn any_factor(&self, pred: impl Fn(VarId) -> bool) -> bool {
         self.eom.iter().any(|eq| {
             eq.terms()

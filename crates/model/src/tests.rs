@@ -455,6 +455,14 @@ fn the_pump_is_a_built_in_factor() {
     assert_eq!(m.variable_names(), ["q1", "q2", "d(q1)", "d(q2)", "pump"]);
     assert_eq!(eq(&m, "q1"), pairs(&[("q1*pump", "lambda")]));
     assert_eq!(
+        m.pump_term_names(),
+        [
+            "q1*pump in the equation of q1",
+            "q2*pump in the equation of q2",
+            "q1*d(q2)*pump in the equation of q2"
+        ]
+    );
+    assert_eq!(
         eq(&m, "q2"),
         pairs(&[("q2*pump", "kappa"), ("q1*d(q2)*pump", "c")])
     );

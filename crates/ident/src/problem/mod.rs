@@ -107,7 +107,9 @@ impl Problem {
         let force_model =
             force_model::resolve_force_model(settings.force_model, ds, &manifest_path)?;
         let max_deg = model.max_degree() as usize;
-        let pump_terms = model.has_pump_terms().then(|| pump_term_names(model));
+        let pump_terms = model
+            .has_pump_terms()
+            .then(|| model.pump_term_names().join(", "));
         let mut meas = Vec::with_capacity(ds.measurements.len());
         let mut tone_modes = Vec::with_capacity(ds.measurements.len());
         for mi in 0..ds.measurements.len() {
@@ -194,24 +196,6 @@ impl Problem {
             }
         }
     }
-}
-
-/// The model's pump terms, `monomial (equation of mode)`, for messages.
-fn pump_term_names(model: &Model) -> String {
-    let pump = model.pump_var();
-    let mut out = Vec::new();
-    for (n, eq) in model.eom.iter().enumerate() {
-        for (m, _) in eq.terms() {
-            if m.exponent(pump) > 0 {
-                out.push(format!(
-                    "{} (equation of {})",
-                    model.monomial_name(m),
-                    model.modes[n].name
-                ));
-            }
-        }
-    }
-    out.join(", ")
 }
 
 /// The shape of a dataset as a problem sees it: per measurement its name, the number of
