@@ -59,21 +59,22 @@ impl Problem {
         shot: usize,
     ) -> Vec<Vec<Complex64>> {
         let prep = &self.meas[mi];
-        let modal = self.modal_spectra(ds, mi, shot);
+        let mut spectra = self.modal_spectra(ds, mi, shot);
         let n_in = prep.input_hz.len();
-        let mut spectra: Vec<Vec<Complex64>> = modal
-            .iter()
-            .map(|row| {
+        let nm = spectra.len();
+        let pump = !prep.pump.is_empty();
+        // Without a pump the input lines are the measured ones: nothing to move.
+        if pump {
+            for row in &mut spectra {
                 let mut x = vec![Complex64::new(0.0, 0.0); n_in];
                 for (r, &z) in row.iter().enumerate() {
                     x[prep.input_of[r]] = z;
                 }
-                x
-            })
-            .collect();
-        let pump = !prep.pump.is_empty();
+                *row = x;
+            }
+        }
         if self.velocities || pump {
-            for n in 0..modal.len() {
+            for n in 0..nm {
                 let mut v = vec![Complex64::new(0.0, 0.0); n_in];
                 harmonid_spectral::velocity_spectrum(&prep.input_hz, &spectra[n], &mut v);
                 spectra.push(v);
