@@ -245,7 +245,7 @@ pub fn design_with_progress(
             "forces ≤ {} N/kg per tone, {} lines per measurement, grid {} Hz, no jump while driving up, stable",
             s.max_force, s.max_frequencies, s.grid_hz
         ),
-        skipped: RefCell::new(Vec::new()),
+        notes: RefCell::new(Vec::new()),
         deadline: s
             .time_budget_s
             .map(|t| std::time::Instant::now() + std::time::Duration::from_secs_f64(t.max(0.0))),
@@ -290,7 +290,7 @@ pub fn design_with_progress(
     for pm in &plan_ms {
         let info = match measurement_info(&target, &base, pm, Fidelity::User) {
             Err(e) if truncation_unchecked(&e) => {
-                designer.skipped.borrow_mut().push(format!(
+                designer.note(format!(
                     "{}: its harmonic balance's truncation is not checked at a wider lattice ({e})",
                     pm.name
                 ));
@@ -306,11 +306,11 @@ pub fn design_with_progress(
         name: "",
     });
     let limits = designer.limits;
-    let skipped = designer.skipped.into_inner();
+    let notes = designer.notes.into_inner();
     base.measurements = plan_ms;
     let refs: Vec<&MeasInfo> = infos.iter().collect();
     let mut ev = joint_bounds(model, &refs, s.shots)?;
-    ev.notes = skipped;
+    ev.notes = notes;
     if let Some(f) = ev.findings.first() {
         return Err(PlanError::Unidentifiable {
             parameter: f.unknown.clone(),
@@ -489,9 +489,9 @@ struct Designer<'a> {
     names: &'a [String],
     /// The limits, for messages.
     limits: String,
-    /// Candidates skipped because their harmonic balance is beyond a size bound, and other
-    /// notes of the design.
-    skipped: RefCell<Vec<String>>,
+    /// The design's notes ([`Evaluation::notes`]): candidates skipped because their harmonic
+    /// balance is beyond a size bound, measurements the time budget cut, unchecked truncations.
+    notes: RefCell<Vec<String>>,
     /// When the search's time budget runs out.
     deadline: Option<std::time::Instant>,
 }
@@ -519,15 +519,19 @@ impl Designer<'_> {
         if self.deadline.is_none_or(|d| std::time::Instant::now() < d) {
             return false;
         }
-        let note = format!(
+        self.note(format!(
             "{name}: the time budget ({} s) was spent, so it keeps the best of the candidates tried so far (a larger --time-budget may find better bounds)",
             self.s.time_budget_s.unwrap_or_default()
-        );
-        let mut list = self.skipped.borrow_mut();
+        ));
+        true
+    }
+
+    /// Adds a note once (the searches revisit the same candidates and measurements).
+    fn note(&self, note: String) {
+        let mut list = self.notes.borrow_mut();
         if !list.contains(&note) {
             list.push(note);
         }
-        true
     }
 
     /// [`simulate`] at search fidelity, `None` for an infeasible drive and for one whose
@@ -539,15 +543,11 @@ impl Designer<'_> {
             Err(e) => match too_large(&e) {
                 Some(why) => {
                     let tones: Vec<String> = pm.drives_hz.iter().map(|f| format!("{f}")).collect();
-                    let note = format!(
+                    self.note(format!(
                         "skipped {} with tones at {} Hz: {why}",
                         pm.name,
                         tones.join(", ")
-                    );
-                    let mut list = self.skipped.borrow_mut();
-                    if !list.contains(&note) {
-                        list.push(note);
-                    }
+                    ));
                     Ok(None)
                 }
                 None => feasible(Err(e)),
@@ -691,7 +691,7 @@ impl Designer<'_> {
         }
         cheapest_comparable(scored).ok_or_else(|| {
             let skipped: Vec<String> = self
-                .skipped
+                .notes
                 .borrow()
                 .iter()
                 .filter(|n| n.starts_with(&format!("skipped {name} ")))
