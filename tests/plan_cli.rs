@@ -106,3 +106,143 @@ fn a_truth_file_is_a_guess() {
         "{note}"
     );
 }
+
+/// A guess with uncertainties: the range is stated (given and default spreads), the plan is
+/// written with its bounds at the guess and over devices drawn from the range (table and
+/// `--bounds` JSON); `--nominal` designs at the guess alone.
+#[test]
+fn a_guess_with_uncertainties_is_planned_over_its_range() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let guess = tmp.path().join("guess.toml");
+    std::fs::write(
+        &guess,
+        "[modes.q1]\nf_hz = { value = 207582.3, abs_hz = 0.5 }\nQ = { value = 8.5e4, rel = 0.4 }\n\
+         [modes.q2]\nf_hz = { value = 415841.7, abs_hz = 0.5 }\nQ = 4.5e5\n\
+         [parameters]\nbeta1 = 2.0e22\nbeta2 = { value = 3.0e23, factor = 3 }\ng12 = 8.57e22\n",
+    )
+    .expect("write");
+    let ex = root().join("examples/nanostring_2mode");
+    let run = |extra: &[&str]| {
+        let out = tmp.path().join("plan.toml");
+        let bounds = tmp.path().join("bounds.json");
+        let st = Command::new(env!("CARGO_BIN_EXE_harmonid"))
+            .arg("plan")
+            .arg(ex.join("model.hb"))
+            .arg("--values")
+            .arg(&guess)
+            .args([
+                "--noise",
+                "0.05nm",
+                "--shots",
+                "20",
+                "--max-measurements",
+                "3",
+            ])
+            .arg("--out")
+            .arg(&out)
+            .arg("--bounds")
+            .arg(&bounds)
+            .args(extra)
+            .output()
+            .expect("runs");
+        let stdout = String::from_utf8_lossy(&st.stdout).into_owned();
+        let stderr = String::from_utf8_lossy(&st.stderr).into_owned();
+        assert!(st.status.success(), "{stdout}{stderr}");
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&bounds).expect("bounds")).expect("json");
+        (stdout, stderr, json)
+    };
+    let (stdout, stderr, json) = run(&["--draws", "6"]);
+    for want in [
+        "f_hz:q1 = 2.075823e5 ± 5.0000e-1 (given)",
+        "Q:q2 = 4.500000e5 ± 30 % (default: ± 30 %)",
+        "beta2 = 3.000000e23 ×/÷ 3 (given)",
+        "beta1 = 2.000000e22 ×/÷ 2 (default: ×/÷ 2)",
+    ] {
+        assert!(stderr.contains(want), "{want}: {stderr}");
+    }
+    assert!(
+        stdout.contains("median") && stdout.contains("worst"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("over 6 devices drawn from the range, 6 of them"),
+        "{stdout}"
+    );
+    let over = &json["over_range"];
+    assert_eq!(over["draws"], 6);
+    assert_eq!(over["failures"].as_array().map(Vec::len), Some(0));
+    let worst = over["worst"]["parameters"]["beta2"]
+        .as_f64()
+        .expect("worst beta2");
+    let at_guess = json["parameters"]["beta2"].as_f64().expect("beta2");
+    assert!(
+        worst
+            >= over["median"]["parameters"]["beta2"]
+                .as_f64()
+                .expect("median")
+    );
+    assert!(worst.is_finite() && at_guess.is_finite());
+    let (stdout, stderr, json) = run(&["--nominal"]);
+    assert!(
+        !stdout.contains("worst") && !stderr.contains("range"),
+        "{stdout}{stderr}"
+    );
+    assert!(json.get("over_range").is_none());
+}
+
+/// A malformed uncertainty: the file, the line and what to write; nothing written.
+#[test]
+fn a_malformed_uncertainty_is_refused_with_its_line() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let guess = tmp.path().join("guess.toml");
+    let out = tmp.path().join("plan.toml");
+    let ex = root().join("examples/nanostring_2mode");
+    let values = std::fs::read_to_string(ex.join("values.toml")).expect("values");
+    for (bad, want) in [
+        ("beta2 = { value = 3.7e23, rel = 2 }", "[0, 1)"),
+        (
+            "beta2 = { value = 3.7e23, fator = 2 }",
+            "unknown key `fator`",
+        ),
+    ] {
+        let text = values.replace("beta2 = 3.70e23", bad);
+        assert_ne!(text, values);
+        std::fs::write(&guess, &text).expect("write");
+        let st = Command::new(env!("CARGO_BIN_EXE_harmonid"))
+            .arg("plan")
+            .arg(ex.join("model.hb"))
+            .arg("--values")
+            .arg(&guess)
+            .args(["--noise", "0.05nm", "--shots", "20", "--out"])
+            .arg(&out)
+            .output()
+            .expect("runs");
+        let stderr = String::from_utf8_lossy(&st.stderr);
+        assert!(!st.status.success());
+        assert!(
+            stderr.contains(want) && stderr.contains("guess.toml") && stderr.contains("line 13"),
+            "{stderr}"
+        );
+        assert!(!out.exists());
+    }
+    // A spread that reaches a zero quality factor names the quantity and what to do.
+    let text = values.replace("Q = 599173.0", "Q = { value = 599173.0, abs = 6e5 }");
+    std::fs::write(&guess, &text).expect("write");
+    let st = Command::new(env!("CARGO_BIN_EXE_harmonid"))
+        .arg("plan")
+        .arg(ex.join("model.hb"))
+        .arg("--values")
+        .arg(&guess)
+        .args(["--noise", "0.05nm", "--shots", "20", "--out"])
+        .arg(&out)
+        .output()
+        .expect("runs");
+    let stderr = String::from_utf8_lossy(&st.stderr);
+    assert!(!st.status.success());
+    assert!(
+        stderr.contains("Q:q2") && stderr.contains("narrow"),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+}

@@ -119,6 +119,9 @@ pub fn plan(
                 shape,
             })
             .collect(),
+        // At the guess only: the Python dict carries no uncertainties.
+        range: None,
+        draws: 0,
     };
     let m = std::sync::Arc::clone(&model.inner);
     let (plan, ev) = py

@@ -4,8 +4,8 @@
 
 use crate::cli::common::{check_outputs, print_out, write_output};
 use harmonid_data::Point;
-use harmonid_experiment::{read_values, Plan};
-use harmonid_plan::{design_with_progress, evaluate, DesignSettings};
+use harmonid_experiment::{read_guess, Plan};
+use harmonid_plan::{design_with_progress, evaluate, robustness, DesignSettings, GuessRange};
 use miette::{miette, IntoDiagnostic, WrapErr};
 use std::path::PathBuf;
 
@@ -14,9 +14,19 @@ use std::path::PathBuf;
 pub struct Args {
     /// The model file (`*.hb`).
     pub model: PathBuf,
-    /// Guessed values (TOML `[modes.*]`/`[parameters]`, a truth.toml or a result JSON).
+    /// Guessed values (TOML `[modes.*]`/`[parameters]`, a truth.toml or a result JSON). A
+    /// value may carry its uncertainty (`beta1 = { value = 6e23, factor = 2 }`, `Q = { value =
+    /// 4.5e5, rel = 0.3 }`, `f_hz = { value = 207600, abs_hz = 3 }`; a result's estimates are
+    /// spread by 3 standard errors); the others get defaults (f ± 2 linewidths, Q ± 30 %,
+    /// parameters ×/÷ 2). The plan is designed to survive every device of that range.
     #[arg(long)]
     pub values: PathBuf,
+    /// Design and score at the guess only, as if it were the device (no range, no corners).
+    #[arg(long)]
+    pub nominal: bool,
+    /// Devices drawn from the guess's range for the plan's median and worst bounds.
+    #[arg(long, value_name = "N", default_value_t = harmonid_plan::DEFAULT_DRAWS)]
+    pub draws: usize,
     /// Per-quadrature noise σ of every lock-in amplitude: metres, or with a unit (`0.05nm`,
     /// `50pm`, `1e-10m`).
     #[arg(long)]
@@ -99,7 +109,8 @@ fn parse_point(i: usize, s: &str) -> miette::Result<Point> {
 /// Runs the subcommand.
 pub fn run(args: Args) -> miette::Result<()> {
     let model = harmonid_model::load(&args.model).map_err(miette::Report::new)?;
-    let values = values_with_parameters(&model, read_values(&args.values)?, &args.values)?;
+    let guess = read_guess(&args.values)?;
+    let values = values_with_parameters(&model, guess.values, &args.values)?;
     let sigma = parse_sigma(&args.noise)?;
     if args.shots == 0 {
         return Err(miette!("--shots must be at least 1"));
@@ -122,13 +133,41 @@ pub fn run(args: Args) -> miette::Result<()> {
     if let Some(p) = &args.plot {
         super::figure::check(p, &inputs)?;
     }
+    let range = if args.nominal {
+        None
+    } else {
+        let r = GuessRange::new(&model, &values, &guess.spread)?;
+        eprintln!(
+            "the guess's range (the plan is checked over it; --nominal for the guess alone):"
+        );
+        for line in r.describe() {
+            eprintln!("  {line}");
+        }
+        if r.entries()
+            .iter()
+            .any(|e| e.name.starts_with("f_hz:") && !e.given)
+        {
+            eprintln!(
+                "note: a frequency known only to ± {} linewidths keeps every drive weak (the \
+                 resonance may sit under any tone); identify a low-drive sweep first and plan \
+                 with its result (--values result.json: its estimates ± 3 standard errors)",
+                harmonid_plan::DEFAULT_F_LINEWIDTHS
+            );
+        }
+        Some(r)
+    };
     let (plan, ev) = if let Some(path) = &args.evaluate {
         let text = std::fs::read_to_string(path)
             .into_diagnostic()
             .wrap_err_with(|| format!("cannot read the plan {}", path.display()))?;
         let plan = Plan::from_toml(&text, &path.display().to_string())?;
         let pb = super::progress::spinner("scoring the plan");
-        let ev = evaluate(&model, &values, &plan, sigma, args.shots);
+        let ev = evaluate(&model, &values, &plan, sigma, args.shots).and_then(|mut ev| {
+            if let Some(r) = &range {
+                ev.robustness = Some(robustness(&model, r, &plan, sigma, args.shots, args.draws)?);
+            }
+            Ok(ev)
+        });
         pb.finish_and_clear();
         let ev = ev?;
         (plan, ev)
@@ -148,6 +187,8 @@ pub fn run(args: Args) -> miette::Result<()> {
             max_force: args.max_force.unwrap_or(f64::INFINITY),
             points,
             time_budget_s: (args.time_budget > 0.0).then_some(args.time_budget),
+            range,
+            draws: args.draws,
         };
         let pb = super::progress::bar(0, "designing measurement", false);
         let designed = design_with_progress(&model, &values, &settings, &mut |step| {

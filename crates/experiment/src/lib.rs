@@ -57,4 +57,7 @@ pub use run::{
     add_noise, Engine, MeasurementReport, Settings, Simulation, TimeDomain, Truncation, MAX_ORDER,
     MAX_TD_RUNS,
 };
-pub use values::{read_values, values_from_json, values_from_report, values_from_toml};
+pub use values::{
+    guess_from_report, guess_from_toml, read_guess, read_values, values_from_json,
+    values_from_report, values_from_toml, Guess, Spread, RESULT_SPREAD_STDERR,
+};

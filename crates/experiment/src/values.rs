@@ -1,11 +1,80 @@
 //! Parameter values for a simulation: a values file (TOML: `[modes.q1] f_hz, Q`, `[parameters]`,
 //! optionally `[eom.q1]`; a `truth.toml` is accepted too) or an identification result
 //! (`harmonid-result/1` JSON, read through its own types).
+//!
+//! A value of a mode or parameter may carry its uncertainty, for planning before the device is
+//! known (`beta1 = { value = 6e23, factor = 2 }`, `Q = { value = 4.5e5, rel = 0.3 }`,
+//! `f_hz = { value = 207600, abs_hz = 3 }`): [`read_guess`] keeps it as a [`Spread`], every
+//! other reader takes the value.
 
 use crate::ExperimentError;
 use harmonid_data::result::Report;
 use harmonid_sim::{ModeValues, ModelValues};
+use std::collections::BTreeMap;
 use std::path::Path;
+
+/// How far the device's value may be from a guessed one.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Spread {
+    /// Between `value / k` and `value · k` (`k ≥ 1`).
+    Factor(f64),
+    /// Between `value (1 − r)` and `value (1 + r)` (`0 ≤ r < 1`).
+    Rel(f64),
+    /// Between `value − a` and `value + a` (`a ≥ 0`, in the quantity's unit).
+    Abs(f64),
+}
+
+impl Spread {
+    /// The range's ends around `value`, lower first.
+    pub fn ends(self, value: f64) -> (f64, f64) {
+        let (a, b) = match self {
+            Spread::Factor(k) => (value / k, value * k),
+            Spread::Rel(r) => (value * (1.0 - r), value * (1.0 + r)),
+            Spread::Abs(a) => (value - a, value + a),
+        };
+        (a.min(b), a.max(b))
+    }
+
+    /// As written in messages: `×/÷ 2`, `± 30 %`, `± 3`.
+    pub fn describe(self) -> String {
+        match self {
+            Spread::Factor(k) => format!("×/÷ {k}"),
+            Spread::Rel(r) => format!("± {} %", 100.0 * r),
+            Spread::Abs(a) => format!("± {a:.4e}"),
+        }
+    }
+}
+
+/// Guessed values and the uncertainty of those that carry one, by quantity name: `f_hz:q1`,
+/// `Q:q1` and parameter names (the names of a plan's bounds).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Guess {
+    /// The guessed values.
+    pub values: ModelValues,
+    /// Uncertainties given with the values (none for a plain number).
+    pub spread: BTreeMap<String, Spread>,
+}
+
+/// Reads a values file with the uncertainties it gives: TOML (`{ value, factor | rel | abs }`
+/// per value), or an identification result, whose standard errors give each estimate a
+/// spread of [`RESULT_SPREAD_STDERR`] standard errors.
+pub fn read_guess(path: &Path) -> Result<Guess, ExperimentError> {
+    let origin = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| ExperimentError::Values {
+        origin: origin.clone(),
+        message: format!("cannot read the values file: {e}"),
+    })?;
+    if path.extension().is_some_and(|e| e == "json") {
+        let r = report_from_json(&text, &origin)?;
+        Ok(guess_from_report(&r))
+    } else {
+        guess_from_toml(&text, &origin)
+    }
+}
+
+/// Standard errors of an estimate that make the spread of a guess read from a result: the
+/// device is taken to be within 3 standard errors of the estimate.
+pub const RESULT_SPREAD_STDERR: f64 = 3.0;
 
 /// Reads a values file: an identification result when the name ends in `.json`, TOML otherwise.
 pub fn read_values(path: &Path) -> Result<ModelValues, ExperimentError> {
@@ -21,9 +90,17 @@ pub fn read_values(path: &Path) -> Result<ModelValues, ExperimentError> {
     }
 }
 
-/// Values from TOML text. Keys of a `truth.toml` other than modes, parameters and eom
-/// (`forces`, `noise`) are ignored; any other table is refused.
+/// Values from TOML text (a value with an uncertainty gives its value). Keys of a
+/// `truth.toml` other than modes, parameters and eom (`forces`, `noise`) are ignored; any other
+/// table is refused.
 pub fn values_from_toml(text: &str, origin: &str) -> Result<ModelValues, ExperimentError> {
+    guess_from_toml(text, origin).map(|g| g.values)
+}
+
+/// Values and their uncertainties from TOML text: `[modes.<mode>]` `f_hz`/`Q` and
+/// `[parameters]` entries are numbers or `{ value = .., factor | rel | abs = .. }` (`abs_hz`
+/// for a frequency); `[eom.<mode>]` coefficients are numbers.
+pub fn guess_from_toml(text: &str, origin: &str) -> Result<Guess, ExperimentError> {
     let err = |message: String| ExperimentError::Values {
         origin: origin.to_string(),
         message,
@@ -43,28 +120,157 @@ pub fn values_from_toml(text: &str, origin: &str) -> Result<ModelValues, Experim
             "unknown table `{k}` (a values file has [modes.<mode>], [parameters] and optionally [eom.<mode>])"
         )));
     }
+    let spans = toml::from_str::<Spans>(text).ok();
+    let mut spread = BTreeMap::new();
     let mut t = toml::Table::new();
     for key in ["modes", "parameters", "eom"] {
         if let Some(x) = v.get(key) {
             t.insert(key.into(), x.clone());
         }
     }
-    toml::Value::Table(t)
+    // Uncertain values become their value, their spread kept by quantity name.
+    let mut take = |slot: &mut toml::Value, label: String, name: String, span| {
+        if let toml::Value::Table(u) = slot {
+            let (value, s) = uncertain(u, &label, name.starts_with("f_hz:"))
+                .map_err(|m| err(located(text, span, m)))?;
+            *slot = toml::Value::Float(value);
+            spread.insert(name, s);
+        }
+        Ok::<(), ExperimentError>(())
+    };
+    if let Some(toml::Value::Table(modes)) = t.get_mut("modes") {
+        for (mode, entry) in modes.iter_mut() {
+            if let toml::Value::Table(entry) = entry {
+                for (key, slot) in entry.iter_mut() {
+                    let span = spans.as_ref().and_then(|s| s.mode_span(mode, key));
+                    let name = format!("{key}:{mode}");
+                    take(slot, format!("modes.{mode}.{key}"), name, span)?;
+                }
+            }
+        }
+    }
+    if let Some(toml::Value::Table(params)) = t.get_mut("parameters") {
+        for (p, slot) in params.iter_mut() {
+            let span = spans
+                .as_ref()
+                .and_then(|s| s.parameters.get(p).map(|v| v.span()));
+            take(slot, format!("parameters.{p}"), p.clone(), span)?;
+        }
+    }
+    let values = toml::Value::Table(t)
         .try_into::<ModelValues>()
         .map_err(|e| {
             err(format!(
-                "expected [modes.<mode>] f_hz/Q, [parameters] name = value, [eom.<mode>]: {e}"
+                "expected [modes.<mode>] f_hz/Q, [parameters] name = value (or {{ value = .., factor = .. }}), [eom.<mode>]: {e}"
             ))
-        })
+        })?;
+    Ok(Guess { values, spread })
+}
+
+/// Where the modes' and parameters' values are in the text, for messages.
+#[derive(serde::Deserialize)]
+struct Spans {
+    #[serde(default)]
+    modes: BTreeMap<String, BTreeMap<String, toml::Spanned<toml::Value>>>,
+    #[serde(default)]
+    parameters: BTreeMap<String, toml::Spanned<toml::Value>>,
+}
+
+impl Spans {
+    fn mode_span(&self, mode: &str, key: &str) -> Option<std::ops::Range<usize>> {
+        self.modes.get(mode)?.get(key).map(|v| v.span())
+    }
+}
+
+/// `message`, with the line of `span` quoted when known.
+fn located(text: &str, span: Option<std::ops::Range<usize>>, message: String) -> String {
+    match span {
+        Some(s) => format!("{message} ({})", harmonid_files::quote_line(text, s)),
+        None => message,
+    }
+}
+
+/// The value and spread of an uncertain value `{ value = .., factor | rel | abs = .. }`
+/// (`abs_hz` too for a frequency) written at `label`.
+fn uncertain(t: &toml::Table, label: &str, frequency: bool) -> Result<(f64, Spread), String> {
+    let kinds: &[&str] = if frequency {
+        &["factor", "rel", "abs", "abs_hz"]
+    } else {
+        &["factor", "rel", "abs"]
+    };
+    let expected = format!("`value` and one of {}", kinds.join(", "));
+    if let Some(k) = t
+        .keys()
+        .find(|k| k.as_str() != "value" && !kinds.contains(&k.as_str()))
+    {
+        return Err(format!(
+            "{label}: unknown key `{k}` in an uncertain value (expected {expected})"
+        ));
+    }
+    let number = |k: &str| -> Result<Option<f64>, String> {
+        match t.get(k) {
+            None => Ok(None),
+            Some(toml::Value::Float(x)) if x.is_finite() => Ok(Some(*x)),
+            Some(toml::Value::Integer(i)) => Ok(Some(*i as f64)),
+            Some(v) => Err(format!("{label}.{k}: expected a finite number, found {v}")),
+        }
+    };
+    let value = number("value")?.ok_or_else(|| {
+        format!("{label}: an uncertain value needs `value` (expected {expected})")
+    })?;
+    let given: Vec<(&str, f64)> = kinds
+        .iter()
+        .filter_map(|&k| number(k).transpose().map(|x| x.map(|x| (k, x))))
+        .collect::<Result<_, _>>()?;
+    let [(kind, x)] = given[..] else {
+        return Err(format!(
+            "{label}: give exactly one uncertainty ({}), or write the plain number",
+            kinds.join(", ")
+        ));
+    };
+    let spread = match kind {
+        "factor" if x >= 1.0 => Spread::Factor(x),
+        "factor" => return Err(format!("{label}.factor = {x}: a factor must be at least 1 (2 means ×/÷ 2)")),
+        "rel" if (0.0..1.0).contains(&x) => Spread::Rel(x),
+        "rel" => return Err(format!("{label}.rel = {x}: a relative uncertainty must be in [0, 1) (0.3 means ± 30 %); use factor for a wider range")),
+        _ if x >= 0.0 => Spread::Abs(x),
+        _ => return Err(format!("{label}.{kind} = {x}: an absolute uncertainty must not be negative")),
+    };
+    Ok((value, spread))
 }
 
 /// Values from an identification result (`harmonid-result/1`).
 pub fn values_from_json(text: &str, origin: &str) -> Result<ModelValues, ExperimentError> {
-    let r = Report::from_json(text).map_err(|e| ExperimentError::Values {
+    Ok(values_from_report(&report_from_json(text, origin)?))
+}
+
+fn report_from_json(text: &str, origin: &str) -> Result<Report, ExperimentError> {
+    Report::from_json(text).map_err(|e| ExperimentError::Values {
         origin: origin.to_string(),
         message: format!("not an identification result (harmonid-result/1): {e}"),
-    })?;
-    Ok(values_from_report(&r))
+    })
+}
+
+/// The guess of an identification result: its values ([`values_from_report`]), each estimate
+/// with a finite positive standard error spread by [`RESULT_SPREAD_STDERR`] of them.
+pub fn guess_from_report(r: &Report) -> Guess {
+    let mut spread = BTreeMap::new();
+    let mut put = |name: String, value: f64, stderr: f64| {
+        if value.is_finite() && stderr.is_finite() && stderr > 0.0 {
+            spread.insert(name, Spread::Abs(RESULT_SPREAD_STDERR * stderr));
+        }
+    };
+    for (k, m) in &r.modes {
+        put(format!("f_hz:{k}"), m.f_hz.value, m.f_hz.stderr);
+        put(format!("Q:{k}"), m.q.value, m.q.stderr);
+    }
+    for (k, e) in &r.parameters {
+        put(k.clone(), e.value, e.stderr);
+    }
+    Guess {
+        values: values_from_report(r),
+        spread,
+    }
 }
 
 /// The values of an identification result: each mode's f and Q, each parameter's value (an
@@ -97,4 +303,82 @@ pub fn values_from_report(r: &Report) -> ModelValues {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GUESS: &str = r#"
+[modes.q1]
+f_hz = { value = 207600.0, abs_hz = 3 }
+Q = { value = 4.5e5, rel = 0.3 }
+
+[modes.q2]
+f_hz = 415849.0
+Q = 99173
+
+[parameters]
+beta1 = { value = 6e23, factor = 2 }
+g12 = 2.9e22
+"#;
+
+    #[test]
+    fn uncertain_values_give_their_value_and_spread() {
+        let g = guess_from_toml(GUESS, "guess.toml").expect("a guess");
+        assert_eq!(g.values.modes["q1"].f_hz, Some(207600.0));
+        assert_eq!(g.values.modes["q1"].q, Some(4.5e5));
+        assert_eq!(g.values.modes["q2"].q, Some(99173.0));
+        assert_eq!(g.values.parameters["beta1"], 6e23);
+        assert_eq!(g.values.parameters["g12"], 2.9e22);
+        let want: BTreeMap<String, Spread> = [
+            ("f_hz:q1".to_string(), Spread::Abs(3.0)),
+            ("Q:q1".to_string(), Spread::Rel(0.3)),
+            ("beta1".to_string(), Spread::Factor(2.0)),
+        ]
+        .into_iter()
+        .collect();
+        assert_eq!(g.spread, want);
+        // The plain reader takes the values.
+        assert_eq!(
+            values_from_toml(GUESS, "guess.toml").expect("values"),
+            g.values
+        );
+        assert_eq!(Spread::Factor(2.0).ends(-6.0), (-12.0, -3.0));
+        assert_eq!(Spread::Rel(0.5).ends(4.0), (2.0, 6.0));
+        assert_eq!(Spread::Abs(3.0).ends(10.0), (7.0, 13.0));
+    }
+
+    #[test]
+    fn a_malformed_uncertainty_is_located_and_explained() {
+        let cases = [
+            ("beta1 = { value = 6e23, factor = 0.5 }", "at least 1"),
+            ("beta1 = { value = 6e23, rel = 1.5 }", "[0, 1)"),
+            ("beta1 = { value = 6e23, abs = -1 }", "must not be negative"),
+            ("beta1 = { value = 6e23 }", "exactly one uncertainty"),
+            (
+                "beta1 = { value = 6e23, rel = 0.1, factor = 2 }",
+                "exactly one",
+            ),
+            ("beta1 = { factor = 2 }", "needs `value`"),
+            (
+                "beta1 = { value = 6e23, spread = 2 }",
+                "unknown key `spread`",
+            ),
+            (
+                "beta1 = { value = 6e23, abs_hz = 2 }",
+                "unknown key `abs_hz`",
+            ),
+            ("beta1 = { value = \"big\", factor = 2 }", "finite number"),
+        ];
+        for (line, want) in cases {
+            let text = format!("[parameters]\n{line}\n");
+            let e = guess_from_toml(&text, "g.toml")
+                .expect_err(line)
+                .to_string();
+            assert!(e.contains(want), "{line}: {e}");
+            assert!(e.contains("g.toml") && e.contains("line 2"), "{line}: {e}");
+            assert!(e.contains("parameters.beta1"), "{line}: {e}");
+        }
+    }
 }

@@ -6,21 +6,23 @@
 //! with the smaller bounds. Lines: the drive tones and the largest predicted lines near any
 //! resonance, at most `max_frequencies`; every tone on the instrument grid, so every line is.
 
-use crate::coupled::{cheapest_comparable, coupled_variants, Tones, Variant};
-use crate::evaluate::{joint_bounds, param_modes, Evaluation};
+use crate::coupled::{cheapest_comparable, coupled_variants, Tones, Variant, COMPARABLE};
+use crate::evaluate::{joint_bounds, param_modes, robustness, Evaluation};
 use crate::info::{
     info_of, is_infeasible, measurement_info, restrict_lines, simulate, too_large,
     truncation_unchecked, Fidelity, MeasInfo, Target,
 };
 use crate::level::{pair_fold_estimate, strongest};
+use crate::range::GuessRange;
 use crate::PlanError;
 use harmonid_data::{Dataset, Point};
 use harmonid_experiment::{Plan, PlanMeasurement, PlanNoise};
 use harmonid_ident::Unknown;
 use harmonid_model::{Linear, Model};
 use harmonid_sim::{ModelValues, NumericModel};
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 use std::collections::BTreeMap;
+use std::rc::Rc;
 
 /// Limits and noise of a design.
 #[derive(Debug, Clone)]
@@ -43,6 +45,12 @@ pub struct DesignSettings {
     /// design keeps the first feasible candidate (or the best of those already tried) and the
     /// plan notes it; the final scoring pass always runs.
     pub time_budget_s: Option<f64>,
+    /// The devices the plan must survive (`None`: the guess only). Every candidate drive is
+    /// checked at the corners of this range ([`GuessRange::corners`]) as well as at the guess,
+    /// and the plan's bounds are reported over [`Self::draws`] devices drawn from it.
+    pub range: Option<GuessRange>,
+    /// Devices drawn from the range for the plan's worst-case bounds.
+    pub draws: usize,
 }
 
 impl Default for DesignSettings {
@@ -56,13 +64,21 @@ impl Default for DesignSettings {
             max_force: f64::INFINITY,
             points: Vec::new(),
             time_budget_s: None,
+            range: None,
+            draws: DEFAULT_DRAWS,
         }
     }
 }
 
+/// Devices drawn from the guess's range for a plan's worst-case bounds, by default.
+pub const DEFAULT_DRAWS: usize = 10;
+
 /// A scored candidate measurement: worst bound, the measurement, its information, and its tone
 /// spacing, level and centre.
 type Candidate = (f64, PlanMeasurement, MeasInfo, Pair);
+
+/// The fraction of the strongest feasible level a single-mode pair is planned at.
+const LEVEL_MARGIN: f64 = 0.8;
 
 /// Tone-pair spacings tried per mode, in linewidths, narrowest first.
 const SPACINGS: [f64; 3] = [3.0, 6.0, 12.0];
@@ -249,6 +265,7 @@ pub fn design_with_progress(
         deadline: s
             .time_budget_s
             .map(|t| std::time::Instant::now() + std::time::Duration::from_secs_f64(t.max(0.0))),
+        corners: RefCell::new(BTreeMap::new()),
     };
     // Stage 1: a tone pair per mode.
     let mut pairs: Vec<Option<Pair>> = vec![None; names.len()];
@@ -317,6 +334,18 @@ pub fn design_with_progress(
             reason: f.reason.clone(),
             limits,
         });
+    }
+    if let Some(range) = &s.range {
+        let mut r = robustness(model, range, &base, s.sigma_m, s.shots, s.draws)?;
+        r.corners = Some(format!(
+            "every measurement reaches its level without a jump and is stable at the guess and on \
+             devices of the range with every Q at its upper end: each driven mode's frequency at \
+             either end and stepped across its range by a half-width, parameters at their larger \
+             magnitude; and the guess's frequencies with parameters at their smaller magnitude. \
+             Single-mode pairs are then planned {:.0} % below the strongest such level",
+            100.0 * (1.0 - LEVEL_MARGIN)
+        ));
+        ev.robustness = Some(r);
     }
     Ok((base, ev))
 }
@@ -494,16 +523,35 @@ struct Designer<'a> {
     notes: RefCell<Vec<String>>,
     /// When the search's time budget runs out.
     deadline: Option<std::time::Instant>,
+    /// The devices of the range checked per set of tones (frequency bits, mode), built when
+    /// first needed, with the one that failed last (tried first: a drive too strong for one
+    /// device is usually too strong for the same one at the next level).
+    corners: RefCell<BTreeMap<Vec<(u64, usize)>, CornerSet>>,
 }
+
+/// The devices checked for one set of tones and the index of the one that failed last.
+type CornerSet = (Rc<Vec<(String, NumericModel)>>, Rc<Cell<usize>>);
 
 impl Designer<'_> {
     /// A candidate measurement simulated once at search fidelity, its lines chosen, its
-    /// information computed on those lines; `None` for an infeasible drive.
+    /// information computed on those lines; `None` for an infeasible drive (at the guess or on
+    /// a corner of the range).
     fn candidate(
+        &self,
+        pm: PlanMeasurement,
+    ) -> Result<Option<(PlanMeasurement, MeasInfo)>, PlanError> {
+        let Some(c) = self.candidate_at_guess(pm)? else {
+            return Ok(None);
+        };
+        Ok(self.survives_range(&c.0)?.then_some(c))
+    }
+
+    /// [`Self::candidate`] at the guess only.
+    fn candidate_at_guess(
         &self,
         mut pm: PlanMeasurement,
     ) -> Result<Option<(PlanMeasurement, MeasInfo)>, PlanError> {
-        let Some((data, lattice)) = self.bounded(&pm)? else {
+        let Some((data, lattice)) = self.bounded_at_guess(&pm)? else {
             return Ok(None);
         };
         let keep = choose_lines(&pm, &data, self.s.max_frequencies);
@@ -534,11 +582,72 @@ impl Designer<'_> {
         }
     }
 
-    /// [`simulate`] at search fidelity, `None` for an infeasible drive and for one whose
-    /// harmonic balance is beyond a size bound (skipped, with a note in
-    /// [`Evaluation::notes`]): one oversized candidate costs the design that candidate, not
-    /// the plan.
+    /// Whether `pm` is feasible on every device of the range it is checked at
+    /// ([`GuessRange::corners`]; `true` without a range). A device whose harmonic balance is
+    /// beyond a size bound counts as failed: the drive is not shown to survive it.
+    fn survives_range(&self, pm: &PlanMeasurement) -> Result<bool, PlanError> {
+        let Some(range) = &self.s.range else {
+            return Ok(true);
+        };
+        let mut tones: Vec<(f64, usize)> = Vec::new();
+        for (n, name) in self.names.iter().enumerate() {
+            if let Some(f) = pm.force.get(name) {
+                tones.extend(
+                    f.iter()
+                        .zip(&pm.drives_hz)
+                        .filter(|(&x, _)| x != 0.0)
+                        .map(|(_, &hz)| (hz, n)),
+                );
+            }
+        }
+        let key: Vec<(u64, usize)> = tones.iter().map(|&(f, n)| (f.to_bits(), n)).collect();
+        let cached = self.corners.borrow().get(&key).cloned();
+        let (corners, last_failed) = match cached {
+            Some(c) => c,
+            None => {
+                let c = (
+                    Rc::new(range.corners(self.model, &tones)?),
+                    Rc::new(Cell::new(0)),
+                );
+                self.corners.borrow_mut().insert(key, c.clone());
+                c
+            }
+        };
+        let first = last_failed.get();
+        let order = std::iter::once(first).chain((0..corners.len()).filter(|&k| k != first));
+        for k in order {
+            let Some((_, num)) = corners.get(k) else {
+                continue;
+            };
+            match simulate(num, self.base, pm, Fidelity::Search) {
+                Ok(_) => {}
+                Err(e) if is_infeasible(&e) || too_large(&e).is_some() => {
+                    last_failed.set(k);
+                    return Ok(false);
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        Ok(true)
+    }
+
+    /// [`simulate`] at search fidelity, `None` for an infeasible drive (at the guess or at a
+    /// corner of the range) and for one whose harmonic balance is beyond a size bound
+    /// (skipped, with a note in [`Evaluation::notes`]): one oversized candidate costs the
+    /// design that candidate, not the plan.
     fn bounded(&self, pm: &PlanMeasurement) -> Result<Option<(Dataset, usize)>, PlanError> {
+        let found = self.bounded_at_guess(pm)?;
+        if found.is_some() && !self.survives_range(pm)? {
+            return Ok(None);
+        }
+        Ok(found)
+    }
+
+    /// [`Self::bounded`] at the guess only.
+    fn bounded_at_guess(
+        &self,
+        pm: &PlanMeasurement,
+    ) -> Result<Option<(Dataset, usize)>, PlanError> {
         match simulate(self.num, self.base, pm, Fidelity::Search) {
             Err(e) => match too_large(&e) {
                 Some(why) => {
@@ -594,7 +703,7 @@ impl Designer<'_> {
                 continue;
             };
             // A margin below the fold: the guess is a guess.
-            let force = round3(if folds { 0.8 * good } else { good });
+            let force = round3(if folds { LEVEL_MARGIN * good } else { good });
             // The search probed upwards from its first guess: a level reached only past a
             // region where the ramp fails (a fold the ramp's steps happened to hop over, the
             // state then on another branch) is not a drive a lab can ramp up to.
@@ -657,13 +766,21 @@ impl Designer<'_> {
                     }
                 }
                 tones.sort_by(|a, b| a.0.total_cmp(&b.0));
-                if let Some((pm, info)) = self.candidate(measurement(&name, &tones, self.names))? {
+                let pm = measurement(&name, &tones, self.names);
+                if let Some((pm, info)) = self.candidate_at_guess(pm)? {
                     let mut all: Vec<&MeasInfo> = infos.iter().collect();
                     all.push(&info);
                     let ev = joint_bounds(self.model, &all, self.s.shots)?;
                     let score = worst_of(&ev, &wanted);
-                    scored.push((score, info.lattice_lines, (pm, info)));
-                    return Ok(score);
+                    // Checking the range's corners costs a simulation per corner: only for a
+                    // candidate that could still be chosen (a weaker drive scores no better).
+                    if !could_win(&scored, score, info.lattice_lines) {
+                        return Ok(score);
+                    }
+                    if self.survives_range(&pm)? {
+                        scored.push((score, info.lattice_lines, (pm, info)));
+                        return Ok(score);
+                    }
                 }
                 scale *= 0.7;
             }
@@ -712,6 +829,17 @@ impl Designer<'_> {
             }
         })
     }
+}
+
+/// Whether a candidate of worst bound `score` and `lattice` lines could still be chosen by
+/// [`cheapest_comparable`] among `scored` and the candidates to come: not when its bound is
+/// beyond [`COMPARABLE`] of the best so far (the best only improves), nor when a candidate
+/// already has as small a lattice and as good a bound.
+fn could_win<T>(scored: &[(f64, usize, T)], score: f64, lattice: usize) -> bool {
+    let best = scored.iter().map(|v| v.0).fold(f64::INFINITY, f64::min);
+    score.is_finite()
+        && score <= COMPARABLE * best
+        && !scored.iter().any(|v| v.1 <= lattice && v.0 <= score)
 }
 
 #[cfg(test)]

@@ -1,13 +1,16 @@
 //! Scores a plan: structural identifiability and the Cramér–Rao bound of every unknown.
 
-use crate::info::{measurement_info, n_shared, Fidelity, MeasInfo, Target};
+use crate::info::{
+    is_infeasible, measurement_info, n_shared, too_large, Fidelity, MeasInfo, Target,
+};
+use crate::range::GuessRange;
 use crate::PlanError;
 use harmonid_experiment::Plan;
 use harmonid_ident::Unknown;
 use harmonid_ident::{bounds_from_information, Bounds};
 use harmonid_model::Model;
 use harmonid_sim::{ModelValues, NumericModel};
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 
 /// An unknown the plan cannot determine, and the drive that would fix it.
 #[derive(Debug, Clone, PartialEq)]
@@ -34,6 +37,29 @@ pub struct Evaluation {
     /// measurement whose truncation could not be checked at a wider lattice; empty for an
     /// evaluated plan.
     pub notes: Vec<String>,
+    /// How the plan fares over the range of devices the guess stands for (`None`: scored at
+    /// the guess only).
+    pub robustness: Option<Robustness>,
+}
+
+/// A plan's bounds over the devices of a guess's range.
+#[derive(Debug, Clone, Default)]
+pub struct Robustness {
+    /// The range, one line per quantity ([`GuessRange::describe`]).
+    pub range: Vec<String>,
+    /// How the design checked each measurement against the range (`None` for a plan scored,
+    /// not designed).
+    pub corners: Option<String>,
+    /// Devices drawn from the range.
+    pub draws: usize,
+    /// Per quantity, the largest relative bound over the draws where every measurement was
+    /// feasible.
+    pub worst: BTreeMap<String, f64>,
+    /// Per quantity, the median relative bound over those draws.
+    pub median: BTreeMap<String, f64>,
+    /// The draws where a measurement failed (a jump, an unstable or unfound state), one line
+    /// each: which draw, which measurement, why, and the draw's values of its modes.
+    pub failures: Vec<String>,
 }
 
 impl Evaluation {
@@ -65,25 +91,79 @@ impl Evaluation {
                 }
             }
         }
-        json!({"modes": modes, "parameters": params})
+        let mut out = json!({"modes": modes, "parameters": params});
+        if let Some(r) = &self.robustness {
+            let split = |m: &BTreeMap<String, f64>| {
+                let (mut modes, mut params) = (Map::new(), Map::new());
+                for (name, &rel) in m {
+                    match name.split_once(':') {
+                        Some((what, mode)) => {
+                            if let Value::Object(o) = modes
+                                .entry(mode.to_string())
+                                .or_insert_with(|| Value::Object(Map::new()))
+                            {
+                                o.insert(what.to_string(), num(rel));
+                            }
+                        }
+                        None => {
+                            params.insert(name.clone(), num(rel));
+                        }
+                    }
+                }
+                json!({"modes": modes, "parameters": params})
+            };
+            out["over_range"] = json!({
+                "range": r.range,
+                "draws": r.draws,
+                "checked": r.corners,
+                "worst": split(&r.worst),
+                "median": split(&r.median),
+                "failures": r.failures,
+            });
+        }
+        out
     }
 
-    /// A text table: quantity, value, absolute and relative bound.
+    /// A text table: quantity, value, absolute and relative bound (and, over a range, the
+    /// median and worst relative bound of the draws).
     pub fn table(&self) -> String {
+        let r = self.robustness.as_ref();
         let mut s = format!(
-            "{:<12} {:>14} {:>12} {:>10}\n",
+            "{:<12} {:>14} {:>12} {:>10}",
             "quantity", "value", "bound", "relative"
         );
+        if r.is_some() {
+            s += &format!(" {:>10} {:>10}", "median", "worst");
+        }
+        s += "\n";
         for b in &self.bounds.quantities {
             s += &format!(
-                "{:<12} {:>14.6e} {:>12.3e} {:>10.3e}\n",
+                "{:<12} {:>14.6e} {:>12.3e} {:>10.3e}",
                 b.name, b.value, b.std, b.rel
             );
+            if let Some(r) = r {
+                let get = |m: &BTreeMap<String, f64>| m.get(&b.name).copied().unwrap_or(f64::NAN);
+                s += &format!(" {:>10.3e} {:>10.3e}", get(&r.median), get(&r.worst));
+            }
+            s += "\n";
         }
         s += &format!(
             "(Cramér–Rao, {} shots; condition of the scaled information {:.2e})\n",
             self.bounds.shots, self.bounds.condition
         );
+        if let Some(r) = r {
+            s += &format!(
+                "(relative: at the guess; median and worst: over {} devices drawn from the range, {} of them with every measurement feasible)\n",
+                r.draws,
+                r.draws - r.failures.len()
+            );
+            if let Some(c) = &r.corners {
+                s += &format!("(designed so that {c})\n");
+            }
+            for f in &r.failures {
+                s += &format!("FAILS ON A DEVICE OF THE RANGE: {f}\n");
+            }
+        }
         for f in &self.findings {
             s += &format!(
                 "NOT IDENTIFIABLE: {}: {}; {}\n",
@@ -178,27 +258,84 @@ pub(crate) fn joint_bounds(
         findings,
         mode_names: first.fwd.mode_names().to_vec(),
         notes: Vec::new(),
+        robustness: None,
     })
 }
 
-/// Scores `plan` for a model with the guessed `values`: every measurement simulated
-/// noise-free, its Fisher information for `shots` shots of per-quadrature noise `sigma_m`
-/// (m) with one complex gain per mode and measurement profiled out (drive levels: the plan's
-/// `drive_levels_v`/`drive_phases_rad`, or the forces themselves when it gives none), summed.
-/// Errors: a measurement whose drive passes a fold or whose state is unstable or not found.
-pub fn evaluate(
+/// How `plan` fares over `range`: `draws` devices drawn from it (seed 0), every measurement
+/// simulated noise-free on each at the search's fidelity (the lattice at its starting order),
+/// the relative bounds of the draws where every measurement is feasible, and the failures of
+/// the others. `corners` is left `None` (the design fills it in).
+pub fn robustness(
     model: &Model,
-    values: &ModelValues,
+    range: &GuessRange,
     plan: &Plan,
     sigma_m: f64,
     shots: usize,
-) -> Result<Evaluation, PlanError> {
-    let num = NumericModel::from_model(model, values)?;
+    draws: usize,
+) -> Result<Robustness, PlanError> {
+    let plan = with_levels(plan, &NumericModel::from_model(model, range.guess())?)?;
+    let mut per_quantity: BTreeMap<String, Vec<f64>> = BTreeMap::new();
+    let mut failures = Vec::new();
+    for (k, values) in range.draws(model, draws, 0).iter().enumerate() {
+        let num = NumericModel::from_model(model, values)?;
+        let target = Target {
+            model,
+            num: &num,
+            values,
+            sigma_m,
+            shots,
+        };
+        let mut infos = Vec::with_capacity(plan.measurements.len());
+        let mut failed = None;
+        for pm in &plan.measurements {
+            match measurement_info(&target, &plan, pm, Fidelity::Search) {
+                Ok(i) => infos.push(i),
+                Err(e) if is_infeasible(&e) || too_large(&e).is_some() => {
+                    failed = Some(format!(
+                        "draw {k} ({}): {}: {e}",
+                        range.describe_device(model, values, pm),
+                        pm.name
+                    ));
+                    break;
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        if let Some(f) = failed {
+            failures.push(f);
+            continue;
+        }
+        let refs: Vec<&MeasInfo> = infos.iter().collect();
+        let ev = joint_bounds(model, &refs, shots)?;
+        for b in &ev.bounds.quantities {
+            per_quantity.entry(b.name.clone()).or_default().push(b.rel);
+        }
+    }
+    let mut worst = BTreeMap::new();
+    let mut median = BTreeMap::new();
+    for (name, mut rels) in per_quantity {
+        rels.sort_by(f64::total_cmp);
+        worst.insert(name.clone(), rels.last().copied().unwrap_or(f64::NAN));
+        median.insert(name, rels[rels.len() / 2]);
+    }
+    Ok(Robustness {
+        range: range.describe(),
+        corners: None,
+        draws,
+        worst,
+        median,
+        failures,
+    })
+}
+
+/// `plan` with drive levels on every measurement: one that gives none gets its forces as
+/// levels (gain 1 N/kg per unit) and phases, so the gains can be profiled out.
+fn with_levels(plan: &Plan, num: &NumericModel) -> Result<Plan, PlanError> {
     let mut plan = plan.clone();
     for pm in &mut plan.measurements {
         if pm.drive_levels_v.is_none() || pm.drive_phases_rad.is_none() {
-            // Levels the gains can multiply: the forces (gain 1 N/kg per unit).
-            let drive = pm.excitation(&num)?;
+            let drive = pm.excitation(num)?;
             let (lv, ph): (Vec<f64>, Vec<f64>) = (0..pm.drives_hz.len())
                 .map(|d| {
                     let z = drive
@@ -214,6 +351,23 @@ pub fn evaluate(
             pm.drive_phases_rad = Some(ph);
         }
     }
+    Ok(plan)
+}
+
+/// Scores `plan` for a model with the guessed `values`: every measurement simulated
+/// noise-free, its Fisher information for `shots` shots of per-quadrature noise `sigma_m`
+/// (m) with one complex gain per mode and measurement profiled out (drive levels: the plan's
+/// `drive_levels_v`/`drive_phases_rad`, or the forces themselves when it gives none), summed.
+/// Errors: a measurement whose drive passes a fold or whose state is unstable or not found.
+pub fn evaluate(
+    model: &Model,
+    values: &ModelValues,
+    plan: &Plan,
+    sigma_m: f64,
+    shots: usize,
+) -> Result<Evaluation, PlanError> {
+    let num = NumericModel::from_model(model, values)?;
+    let plan = with_levels(plan, &num)?;
     let target = Target {
         model,
         num: &num,

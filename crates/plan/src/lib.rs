@@ -17,9 +17,13 @@ mod design;
 mod evaluate;
 mod info;
 mod level;
+mod range;
 
-pub use design::{design, design_with_progress, DesignSettings, DesignStep};
-pub use evaluate::{evaluate, Evaluation, Finding};
+pub use design::{design, design_with_progress, DesignSettings, DesignStep, DEFAULT_DRAWS};
+pub use evaluate::{evaluate, robustness, Evaluation, Finding, Robustness};
+pub use range::{
+    GuessRange, RangeEntry, DEFAULT_F_LINEWIDTHS, DEFAULT_PARAM_FACTOR, DEFAULT_Q_REL,
+};
 
 use harmonid_experiment::ExperimentError;
 use harmonid_ident::{FisherError, ForwardError};
@@ -109,6 +113,18 @@ pub enum PlanError {
         found: String,
         /// What it must be.
         expected: &'static str,
+    },
+    /// An uncertainty of the guess that cannot be used.
+    #[error("{quantity}: {message}")]
+    #[diagnostic(
+        code(harmonid::plan::range),
+        help("a guess's uncertainty is written with its value: `beta1 = {{ value = 6e23, factor = 2 }}`, `Q = {{ value = 4.5e5, rel = 0.3 }}`, `f_hz = {{ value = 207600, abs_hz = 3 }}`")
+    )]
+    Range {
+        /// The quantity (`Q:q1`, `beta1`).
+        quantity: String,
+        /// What is wrong and what to relax.
+        message: String,
     },
     /// A plan with no measurement to score.
     #[error("the plan has no measurement")]
