@@ -76,18 +76,10 @@ pub fn read_guess(path: &Path) -> Result<Guess, ExperimentError> {
 /// device is taken to be within 3 standard errors of the estimate.
 pub const RESULT_SPREAD_STDERR: f64 = 3.0;
 
-/// Reads a values file: an identification result when the name ends in `.json`, TOML otherwise.
+/// Reads a values file: an identification result when the name ends in `.json`, TOML otherwise
+/// (the values of [`read_guess`], without their uncertainties).
 pub fn read_values(path: &Path) -> Result<ModelValues, ExperimentError> {
-    let origin = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| ExperimentError::Values {
-        origin: origin.clone(),
-        message: format!("cannot read the values file: {e}"),
-    })?;
-    if path.extension().is_some_and(|e| e == "json") {
-        values_from_json(&text, &origin)
-    } else {
-        values_from_toml(&text, &origin)
-    }
+    Ok(read_guess(path)?.values)
 }
 
 /// Values from TOML text (a value with an uncertainty gives its value). Keys of a
