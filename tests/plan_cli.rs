@@ -237,3 +237,104 @@ fn a_malformed_uncertainty_is_refused_with_its_line() {
         "{stderr}"
     );
 }
+
+/// The lab loop on the command line: a plan from a rough guess (default ranges: weak drives),
+/// simulated on the device and identified, then `plan --after` the result: the range is
+/// narrowed by the estimates and the next plan drives every mode harder.
+#[test]
+fn plan_after_a_result_narrows_the_range_and_drives_harder() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let ex = root().join("examples/nanostring_2mode");
+    let guess = tmp.path().join("guess.toml");
+    std::fs::write(
+        &guess,
+        "[modes.q1]\nf_hz = 207582.3\nQ = 8.5e4\n[modes.q2]\nf_hz = 415841.7\nQ = 4.5e5\n\
+         [parameters]\nbeta1 = 2.0e22\nbeta2 = 3.0e23\ng12 = 8.57e22\n",
+    )
+    .expect("write");
+    let harmonid = |args: &[&std::ffi::OsStr]| -> String {
+        let st = Command::new(env!("CARGO_BIN_EXE_harmonid"))
+            .args(args)
+            .output()
+            .expect("runs");
+        let stderr = String::from_utf8_lossy(&st.stderr).into_owned();
+        assert!(
+            st.status.success(),
+            "{args:?}: {}{stderr}",
+            String::from_utf8_lossy(&st.stdout)
+        );
+        stderr
+    };
+    let p = |name: &str| tmp.path().join(name).into_os_string();
+    let model = ex.join("model.hb").into_os_string();
+    let os = |s: &str| std::ffi::OsString::from(s);
+    let plan_args = |out: &str| {
+        vec![
+            os("plan"),
+            model.clone(),
+            os("--values"),
+            guess.clone().into_os_string(),
+            os("--noise"),
+            os("0.05nm"),
+            os("--shots"),
+            os("20"),
+            os("--max-measurements"),
+            os("3"),
+            os("--point"),
+            os("q1=0.309,q2=0.588"),
+            os("--draws"),
+            os("0"),
+            os("--out"),
+            p(out),
+        ]
+    };
+    let run = |v: Vec<std::ffi::OsString>| {
+        let r: Vec<&std::ffi::OsStr> = v.iter().map(|s| s.as_os_str()).collect();
+        harmonid(&r)
+    };
+    run(plan_args("p0.toml"));
+    run(vec![
+        os("simulate"),
+        model.clone(),
+        os("--values"),
+        ex.join("values.toml").into_os_string(),
+        os("--plan"),
+        p("p0.toml"),
+        os("--out"),
+        p("d0"),
+    ]);
+    run(vec![
+        os("identify"),
+        model.clone(),
+        p("d0"),
+        os("--out"),
+        p("r0.json"),
+    ]);
+    let mut after = plan_args("p1.toml");
+    after.extend([os("--after"), p("r0.json")]);
+    let stderr = run(after);
+    assert!(
+        stderr.contains("1 result(s)") && stderr.contains("narrowed by the results"),
+        "{stderr}"
+    );
+    assert!(
+        !stderr.contains("linewidths keeps every drive weak"),
+        "{stderr}"
+    );
+    let force = |name: &str, m: &str| -> f64 {
+        let text = std::fs::read_to_string(tmp.path().join(name)).expect("plan");
+        let plan = harmonid_experiment::Plan::from_toml(&text, name).expect("plan");
+        plan.measurements
+            .iter()
+            .find(|x| x.name == m)
+            .and_then(|x| x.force.values().flatten().copied().reduce(f64::max))
+            .expect("force")
+    };
+    for m in ["single_q1", "single_q2"] {
+        let (before, after) = (force("p0.toml", m), force("p1.toml", m));
+        assert!(
+            after > 2.0 * before,
+            "{m}: {before} N/kg, then {after} N/kg"
+        );
+    }
+}

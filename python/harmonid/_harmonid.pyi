@@ -176,6 +176,8 @@ def plan(
     bandwidth_hz: float = 0.5,
     max_force: Optional[float] = None,
     points: Optional[Sequence[Mapping[str, float]]] = None,
+    nominal: bool = False,
+    draws: int = 10,
 ) -> PlanResult: ...
 def evaluate_plan(
     model: Model,
@@ -183,6 +185,9 @@ def evaluate_plan(
     plan: Union[Mapping[str, Any], PlanResult, _Path],
     noise_m: float,
     shots: int = 1,
+    *,
+    nominal: bool = False,
+    draws: int = 10,
 ) -> PlanResult: ...
 def read_table(files: Sequence[_Path], mapping: _Path) -> Dataset: ...
 def read_zi_csv(

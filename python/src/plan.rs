@@ -5,10 +5,10 @@
 use crate::convert::json_to_py;
 use crate::errors::{render, PlanError};
 use crate::model::Model;
-use crate::values::guess_values;
+use crate::values::{guess_spread, guess_values};
 use harmonid_data::Point;
 use harmonid_experiment::Plan;
-use harmonid_plan::{DesignSettings, Evaluation};
+use harmonid_plan::{DesignSettings, Evaluation, GuessRange};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use serde_json::{json, Value};
@@ -50,6 +50,24 @@ pub fn plan_from(
     Plan::from_toml(&text, &origin).map_err(|e| err(render(&e)))
 }
 
+/// The guess and, unless `nominal`, its range (the values' uncertainties, defaults for the
+/// rest), as `harmonid plan` builds them: the design and the scores are at the range's guess.
+fn guess_range(
+    py: Python<'_>,
+    model: &Model,
+    values: &Bound<'_, PyAny>,
+    nominal: bool,
+) -> PyResult<(harmonid_sim::ModelValues, Option<GuessRange>)> {
+    let guess = guess_values(py, &model.inner, values)?;
+    if nominal {
+        return Ok((guess, None));
+    }
+    let spread = guess_spread(py, values)?;
+    let range = GuessRange::new(&model.inner, &guess, &spread)
+        .map_err(|e| PlanError::new_err(render(&e)))?;
+    Ok((range.guess().clone(), Some(range)))
+}
+
 fn plan_error(msg: String) -> PyErr {
     PlanError::new_err(msg)
 }
@@ -78,6 +96,9 @@ fn check_noise(noise_m: f64, shots: usize) -> PyResult<()> {
 /// (`--max-frequencies`), `max_measurements` (`--max-measurements`), `bandwidth_hz` the
 /// instrument grid (`--bandwidth`), `max_force` N/kg per tone (`--max-force`), `points` a list
 /// of `{mode: shape}` dicts, one per measurement point (`--point`; default: modal amplitudes).
+/// The design is checked over the guess's range, as the command line's: the uncertainties a
+/// values file or result gives, defaults for the rest (a dict gives none); `nominal=True`
+/// designs at the guess alone (`--nominal`), `draws` devices of the range score it (`--draws`).
 ///
 /// Returns a `PlanResult` (`.toml`, `.plan`, `.bounds`, ...). Raises `PlanError` when an
 /// unknown cannot be identified within the limits, the budget is too small or a drive passes a
@@ -85,7 +106,7 @@ fn check_noise(noise_m: f64, shots: usize) -> PyResult<()> {
 /// GIL: a design simulates every candidate (0.2 s for one mode, minutes for the two-mode
 /// nanostring).
 #[pyfunction]
-#[pyo3(signature = (model, values, noise_m, shots = 1, *, max_frequencies = 32, max_measurements = None, bandwidth_hz = 0.5, max_force = None, points = None))]
+#[pyo3(signature = (model, values, noise_m, shots = 1, *, max_frequencies = 32, max_measurements = None, bandwidth_hz = 0.5, max_force = None, points = None, nominal = false, draws = harmonid_plan::DEFAULT_DRAWS))]
 #[allow(clippy::too_many_arguments)] // the Python signature, keyword arguments included
 pub fn plan(
     py: Python<'_>,
@@ -98,8 +119,10 @@ pub fn plan(
     bandwidth_hz: f64,
     max_force: Option<f64>,
     points: Option<Vec<BTreeMap<String, f64>>>,
+    nominal: bool,
+    draws: usize,
 ) -> PyResult<PlanResult> {
-    let values = guess_values(py, &model.inner, values)?;
+    let (values, range) = guess_range(py, model, values, nominal)?;
     check_noise(noise_m, shots)?;
     let settings = DesignSettings {
         sigma_m: noise_m,
@@ -119,9 +142,8 @@ pub fn plan(
                 shape,
             })
             .collect(),
-        // At the guess only: the Python dict carries no uncertainties.
-        range: None,
-        draws: 0,
+        range,
+        draws,
     };
     let m = std::sync::Arc::clone(&model.inner);
     let (plan, ev) = py
@@ -140,7 +162,8 @@ pub fn plan(
 /// Raises `PlanError` (a plan file's error with its line and caret, a drive that passes a
 /// fold, an unstable state). Runs without holding the GIL.
 #[pyfunction]
-#[pyo3(signature = (model, values, plan, noise_m, shots = 1))]
+#[pyo3(signature = (model, values, plan, noise_m, shots = 1, *, nominal = false, draws = harmonid_plan::DEFAULT_DRAWS))]
+#[allow(clippy::too_many_arguments)] // the Python signature, keyword arguments included
 pub fn evaluate_plan(
     py: Python<'_>,
     model: &Model,
@@ -148,16 +171,24 @@ pub fn evaluate_plan(
     plan: &Bound<'_, PyAny>,
     noise_m: f64,
     shots: usize,
+    nominal: bool,
+    draws: usize,
 ) -> PyResult<PlanResult> {
-    let values = guess_values(py, &model.inner, values)?;
+    let (values, range) = guess_range(py, model, values, nominal)?;
     let plan = plan_from(py, plan, plan_error)?;
     check_noise(noise_m, shots)?;
     let m = std::sync::Arc::clone(&model.inner);
     let ev = py
         .detach(|| {
-            harmonid_plan::evaluate(&m, &values, &plan, noise_m, shots).map_err(|e| e.to_string())
+            let mut ev = harmonid_plan::evaluate(&m, &values, &plan, noise_m, shots)?;
+            if let Some(r) = &range {
+                ev.robustness = Some(harmonid_plan::robustness(
+                    &m, r, &plan, noise_m, shots, draws,
+                )?);
+            }
+            Ok::<_, harmonid_plan::PlanError>(ev)
         })
-        .map_err(PlanError::new_err)?;
+        .map_err(|e| PlanError::new_err(e.to_string()))?;
     PlanResult::new(plan, &ev)
 }
 

@@ -9,6 +9,7 @@ use harmonid_ident::Report;
 use harmonid_sim::ModelValues;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 /// Reads `values` (see the module docs).
@@ -35,6 +36,27 @@ pub fn model_values(py: Python<'_>, values: &Bound<'_, PyAny>) -> PyResult<Model
         )
     })?;
     py.detach(|| harmonid_experiment::read_values(&path).map_err(|e| render(&e)))
+        .map_err(SimulationError::new_err)
+}
+
+/// The uncertainties `values` gives with its values, by quantity name: a values file's
+/// (`beta1 = { value = .., factor = 2 }`), an identification's (its estimates ± 3 standard
+/// errors); none for a dict.
+pub fn guess_spread(
+    py: Python<'_>,
+    values: &Bound<'_, PyAny>,
+) -> PyResult<BTreeMap<String, harmonid_experiment::Spread>> {
+    if let Ok(r) = values.cast::<IdentifyResult>() {
+        let report: Report = serde_json::from_value(r.get().json.clone())
+            .map_err(|e| SimulationError::new_err(format!("the result does not read back: {e}")))?;
+        return Ok(harmonid_experiment::guess_from_report(&report).spread);
+    }
+    if values.is_instance_of::<PyDict>() {
+        return Ok(BTreeMap::new());
+    }
+    let path: PathBuf = values.extract()?;
+    py.detach(|| harmonid_experiment::read_guess(&path).map_err(|e| render(&e)))
+        .map(|g| g.spread)
         .map_err(SimulationError::new_err)
 }
 

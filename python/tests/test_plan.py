@@ -52,18 +52,25 @@ def test_design_equals_cli(cli, tmp_path, points, flags):
     assert r.table() == printed
     assert len(r.plan["measurement"]) == 1
     assert "PlanResult(1 measurements" in repr(r)
-    # The designed plan scores as designed, and simulates (a PlanResult is a plan).
-    assert_close(harmonid.evaluate_plan(model, DUFFING_VALUES, r, 5e-11, 20).bounds, r.bounds)
+    # The designed plan scores as designed (over the same devices of the guess's range; only
+    # the design says how it checked them), and simulates (a PlanResult is a plan).
+    scored = harmonid.evaluate_plan(model, DUFFING_VALUES, r, 5e-11, 20).bounds
+    assert scored["over_range"].pop("checked") is None
+    designed = r.bounds
+    assert "stepped across its range" in designed["over_range"].pop("checked")
+    assert_close(scored, designed)
     data = harmonid.simulate(model, DUFFING_VALUES, r, noise=False)
     assert data.measurements == ["single_q1"]
 
 
 def test_design_two_mode_equals_cli(cli, tmp_path):
-    """The two-mode nanostring at 0.05 nm, 20 shots, at most three measurements."""
+    """The two-mode nanostring at 0.05 nm, 20 shots, at most three measurements, designed at
+    the guess alone (the guess is the device)."""
     printed = cli("plan", MODEL_2, "--values", VALUES_2, "--noise", "0.05nm", "--shots", "20",
                   "--max-measurements", "3", "--out", tmp_path / "plan.toml",
-                  "--bounds", tmp_path / "bounds.json")
-    r = harmonid.plan(harmonid.Model.from_file(MODEL_2), VALUES_2, 0.05e-9, 20, max_measurements=3)
+                  "--bounds", tmp_path / "bounds.json", "--nominal")
+    r = harmonid.plan(harmonid.Model.from_file(MODEL_2), VALUES_2, 0.05e-9, 20, max_measurements=3,
+                      nominal=True)
     assert r.toml == (tmp_path / "plan.toml").read_text()
     assert_close(r.bounds, load_json((tmp_path / "bounds.json").read_text()))
     assert r.table() == printed

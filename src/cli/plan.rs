@@ -4,7 +4,7 @@
 
 use crate::cli::common::{check_outputs, print_out, write_output};
 use harmonid_data::Point;
-use harmonid_experiment::{read_guess, Plan};
+use harmonid_experiment::{guess_from_reports, read_guess, read_result, Plan};
 use harmonid_plan::{design_with_progress, evaluate, robustness, DesignSettings, GuessRange};
 use miette::{miette, IntoDiagnostic, WrapErr};
 use std::path::PathBuf;
@@ -21,6 +21,12 @@ pub struct Args {
     /// parameters ×/÷ 2). The plan is designed to survive every device of that range.
     #[arg(long)]
     pub values: PathBuf,
+    /// An identification result of this device (`identify --out`; repeatable, one per round of
+    /// measurements): the estimates, combined over the results by inverse-variance weights,
+    /// ± 3 standard errors, narrow the --values guess's range where they are determined (the
+    /// lab loop: plan, measure, identify, plan --after the results).
+    #[arg(long, value_name = "RESULT.json")]
+    pub after: Vec<PathBuf>,
     /// Design and score at the guess only, as if it were the device (no range, no corners).
     #[arg(long)]
     pub nominal: bool,
@@ -111,6 +117,19 @@ pub fn run(args: Args) -> miette::Result<()> {
     let model = harmonid_model::load(&args.model).map_err(miette::Report::new)?;
     let guess = read_guess(&args.values)?;
     let values = values_with_parameters(&model, guess.values, &args.values)?;
+    let mut results = Vec::with_capacity(args.after.len());
+    for p in &args.after {
+        results.push(read_result(p)?);
+    }
+    let found = guess_from_reports(&results);
+    if !results.is_empty() {
+        eprintln!(
+            "{} result(s): {} estimates with a standard error narrow the guess (± {} combined standard errors)",
+            results.len(),
+            found.spread.len(),
+            harmonid_experiment::RESULT_SPREAD_STDERR
+        );
+    }
     let sigma = parse_sigma(&args.noise)?;
     if args.shots == 0 {
         return Err(miette!("--shots must be at least 1"));
@@ -122,6 +141,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     ]
     .into_iter()
     .flatten()
+    .chain(&args.after)
     .map(|p| p.as_path())
     .collect();
     let outputs: Vec<&std::path::Path> = [args.out.as_ref(), args.bounds.as_ref()]
@@ -133,10 +153,14 @@ pub fn run(args: Args) -> miette::Result<()> {
     if let Some(p) = &args.plot {
         super::figure::check(p, &inputs)?;
     }
-    let range = if args.nominal {
-        None
+    let (values, range) = if args.nominal {
+        let g = harmonid_experiment::Guess {
+            values,
+            spread: guess.spread,
+        };
+        (g.updated_by(&found).values, None)
     } else {
-        let r = GuessRange::new(&model, &values, &guess.spread)?;
+        let r = GuessRange::new(&model, &values, &guess.spread)?.narrowed(&model, &found)?;
         eprintln!(
             "the guess's range (the plan is checked over it; --nominal for the guess alone):"
         );
@@ -149,12 +173,12 @@ pub fn run(args: Args) -> miette::Result<()> {
         {
             eprintln!(
                 "note: a frequency known only to ± {} linewidths keeps every drive weak (the \
-                 resonance may sit under any tone); identify a low-drive sweep first and plan \
-                 with its result (--values result.json: its estimates ± 3 standard errors)",
+                 resonance may sit under any tone); identify a low-drive measurement first and \
+                 plan --after its result (its estimates ± 3 standard errors narrow the range)",
                 harmonid_plan::DEFAULT_F_LINEWIDTHS
             );
         }
-        Some(r)
+        (r.guess().clone(), Some(r))
     };
     let (plan, ev) = if let Some(path) = &args.evaluate {
         let text = std::fs::read_to_string(path)

@@ -58,6 +58,6 @@ pub use run::{
     MAX_TD_RUNS,
 };
 pub use values::{
-    guess_from_report, guess_from_toml, read_guess, read_values, values_from_json,
-    values_from_report, values_from_toml, Guess, Spread, RESULT_SPREAD_STDERR,
+    guess_from_report, guess_from_reports, guess_from_toml, read_guess, read_result, read_values,
+    values_from_json, values_from_report, values_from_toml, Guess, Spread, RESULT_SPREAD_STDERR,
 };

@@ -22,6 +22,8 @@ pub enum Spread {
     Rel(f64),
     /// Between `value − a` and `value + a` (`a ≥ 0`, in the quantity's unit).
     Abs(f64),
+    /// Between two values, whatever the guess (a range narrowed by an identification).
+    Ends(f64, f64),
 }
 
 impl Spread {
@@ -31,6 +33,7 @@ impl Spread {
             Spread::Factor(k) => (value / k, value * k),
             Spread::Rel(r) => (value * (1.0 - r), value * (1.0 + r)),
             Spread::Abs(a) => (value - a, value + a),
+            Spread::Ends(a, b) => (a, b),
         };
         (a.min(b), a.max(b))
     }
@@ -41,6 +44,7 @@ impl Spread {
             Spread::Factor(k) => format!("×/÷ {k}"),
             Spread::Rel(r) => format!("± {} %", 100.0 * r),
             Spread::Abs(a) => format!("± {a:.4e}"),
+            Spread::Ends(a, b) => format!("in [{a:.6e}, {b:.6e}]"),
         }
     }
 }
@@ -53,6 +57,37 @@ pub struct Guess {
     pub values: ModelValues,
     /// Uncertainties given with the values (none for a plain number).
     pub spread: BTreeMap<String, Spread>,
+}
+
+impl Guess {
+    /// This guess updated by a later one (an identification's, [`guess_from_report`]): each
+    /// value `later` gives replaces this one's, with `later`'s spread (none: the quantity's
+    /// default); what `later` leaves out (an estimate it did not determine) keeps this guess's
+    /// value and spread. `later`'s `[eom]` coefficients are not used.
+    pub fn updated_by(mut self, later: &Guess) -> Guess {
+        let mut set = |name: String, slot: &mut Option<f64>, x: Option<f64>| {
+            if let Some(x) = x {
+                *slot = Some(x);
+                match later.spread.get(&name) {
+                    Some(&s) => self.spread.insert(name, s),
+                    None => self.spread.remove(&name),
+                };
+            }
+        };
+        for (mode, m) in &later.values.modes {
+            let entry = self.values.modes.entry(mode.clone()).or_default();
+            set(format!("f_hz:{mode}"), &mut entry.f_hz, m.f_hz);
+            set(format!("Q:{mode}"), &mut entry.q, m.q);
+        }
+        for (name, &x) in &later.values.parameters {
+            self.values.parameters.insert(name.clone(), x);
+            match later.spread.get(name) {
+                Some(&s) => self.spread.insert(name.clone(), s),
+                None => self.spread.remove(name),
+            };
+        }
+        self
+    }
 }
 
 /// Reads a values file with the uncertainties it gives: TOML (`{ value, factor | rel | abs }`
@@ -236,6 +271,16 @@ pub fn values_from_json(text: &str, origin: &str) -> Result<ModelValues, Experim
     Ok(values_from_report(&report_from_json(text, origin)?))
 }
 
+/// Reads an identification result (`harmonid-result/1` JSON).
+pub fn read_result(path: &Path) -> Result<Report, ExperimentError> {
+    let origin = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| ExperimentError::Values {
+        origin: origin.clone(),
+        message: format!("cannot read the result: {e}"),
+    })?;
+    report_from_json(&text, &origin)
+}
+
 fn report_from_json(text: &str, origin: &str) -> Result<Report, ExperimentError> {
     Report::from_json(text).map_err(|e| ExperimentError::Values {
         origin: origin.to_string(),
@@ -246,23 +291,57 @@ fn report_from_json(text: &str, origin: &str) -> Result<Report, ExperimentError>
 /// The guess of an identification result: its values ([`values_from_report`]), each estimate
 /// with a finite positive standard error spread by [`RESULT_SPREAD_STDERR`] of them.
 pub fn guess_from_report(r: &Report) -> Guess {
-    let mut spread = BTreeMap::new();
-    let mut put = |name: String, value: f64, stderr: f64| {
-        if value.is_finite() && stderr.is_finite() && stderr > 0.0 {
-            spread.insert(name, Spread::Abs(RESULT_SPREAD_STDERR * stderr));
-        }
+    guess_from_reports(std::slice::from_ref(r))
+}
+
+/// The guess of several identification results of one device, each from its own data (the
+/// rounds of a lab loop): per quantity, the estimates with a finite positive standard error
+/// combined by inverse-variance weights (`Σ(x/σ²)/Σ(1/σ²)`, standard error `(Σ 1/σ²)^(−1/2)`;
+/// correlations between quantities are not used), spread by [`RESULT_SPREAD_STDERR`] combined
+/// standard errors. A quantity with no standard error in any result keeps the last result's
+/// value, without a spread. No results: an empty guess.
+pub fn guess_from_reports(reports: &[Report]) -> Guess {
+    let Some(last) = reports.last() else {
+        return Guess::default();
     };
-    for (k, m) in &r.modes {
-        put(format!("f_hz:{k}"), m.f_hz.value, m.f_hz.stderr);
-        put(format!("Q:{k}"), m.q.value, m.q.stderr);
+    let mut values = values_from_report(last);
+    let mut spread = BTreeMap::new();
+    // (value, stderr) of every estimate of each quantity, by name.
+    let mut estimates: BTreeMap<String, Vec<(f64, f64)>> = BTreeMap::new();
+    for r in reports {
+        let mut put = |name: String, e: &harmonid_data::result::Estimate| {
+            if e.value.is_finite() && e.stderr.is_finite() && e.stderr > 0.0 {
+                estimates.entry(name).or_default().push((e.value, e.stderr));
+            }
+        };
+        for (k, m) in &r.modes {
+            put(format!("f_hz:{k}"), &m.f_hz);
+            put(format!("Q:{k}"), &m.q);
+        }
+        for (k, e) in &r.parameters {
+            put(k.clone(), e);
+        }
     }
-    for (k, e) in &r.parameters {
-        put(k.clone(), e.value, e.stderr);
+    for (name, list) in estimates {
+        // One estimate is taken as it is (the weighted mean would round its last digit).
+        let (value, stderr) = match list[..] {
+            [one] => one,
+            _ => {
+                let weight: f64 = list.iter().map(|(_, s)| s.powi(-2)).sum();
+                let mean = list.iter().map(|(x, s)| x * s.powi(-2)).sum::<f64>() / weight;
+                (mean, weight.powf(-0.5))
+            }
+        };
+        match name.split_once(':') {
+            Some(("f_hz", m)) => values.modes.entry(m.to_string()).or_default().f_hz = Some(value),
+            Some(("Q", m)) => values.modes.entry(m.to_string()).or_default().q = Some(value),
+            _ => {
+                values.parameters.insert(name.clone(), value);
+            }
+        }
+        spread.insert(name, Spread::Abs(RESULT_SPREAD_STDERR * stderr));
     }
-    Guess {
-        values: values_from_report(r),
-        spread,
-    }
+    Guess { values, spread }
 }
 
 /// The values of an identification result: each mode's f and Q, each parameter's value (an
@@ -339,6 +418,29 @@ g12 = 2.9e22
         assert_eq!(Spread::Factor(2.0).ends(-6.0), (-12.0, -3.0));
         assert_eq!(Spread::Rel(0.5).ends(4.0), (2.0, 6.0));
         assert_eq!(Spread::Abs(3.0).ends(10.0), (7.0, 13.0));
+    }
+
+    #[test]
+    fn a_later_guess_replaces_what_it_gives_and_keeps_the_rest() {
+        let first = guess_from_toml(GUESS, "guess.toml").expect("a guess");
+        let later = guess_from_toml(
+            "[modes.q1]\nQ = { value = 5.1e5, abs = 900 }\n[modes.q2]\nf_hz = 415850.5\n\
+             [parameters]\nbeta1 = { value = 5e23, abs = 4e22 }\n",
+            "result",
+        )
+        .expect("later");
+        let g = first.clone().updated_by(&later);
+        assert_eq!(g.values.modes["q1"].q, Some(5.1e5));
+        assert_eq!(g.spread["Q:q1"], Spread::Abs(900.0));
+        // Not given later: kept, value and spread.
+        assert_eq!(g.values.modes["q1"].f_hz, Some(207600.0));
+        assert_eq!(g.spread["f_hz:q1"], Spread::Abs(3.0));
+        assert_eq!(g.values.parameters["g12"], 2.9e22);
+        // Given later without a spread: its default applies.
+        assert_eq!(g.values.modes["q2"].f_hz, Some(415850.5));
+        assert!(!g.spread.contains_key("f_hz:q2"));
+        assert_eq!(g.values.parameters["beta1"], 5e23);
+        assert_eq!(g.spread["beta1"], Spread::Abs(4e22));
     }
 
     #[test]

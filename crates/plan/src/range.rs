@@ -3,7 +3,7 @@
 //! checked at, and the draws its bounds are reported over.
 
 use crate::PlanError;
-use harmonid_experiment::Spread;
+use harmonid_experiment::{Guess, Spread};
 use harmonid_model::{Linear, Model, ParamKind};
 use harmonid_sim::{ModelValues, NumericModel};
 use rand::{Rng, SeedableRng};
@@ -38,6 +38,9 @@ pub struct RangeEntry {
     pub spread: Spread,
     /// Whether the spread was given with the values (else it is the default).
     pub given: bool,
+    /// What narrowing it by an identification did, when worth saying (the estimate outside
+    /// the guess's range).
+    pub remark: Option<String>,
     kind: Kind,
 }
 
@@ -119,12 +122,22 @@ impl GuessRange {
                     guess,
                     spread: spread.unwrap_or(default),
                     given: spread.is_some(),
+                    remark: None,
                     kind,
                     name,
                 }
             })
             .collect();
-        for e in &entries {
+        let mut base = values.clone();
+        base.eom.clear();
+        let range = Self { entries, base };
+        range.check_positive()?;
+        Ok(range)
+    }
+
+    /// Refuses a range that reaches a non-positive frequency or quality factor.
+    fn check_positive(&self) -> Result<(), PlanError> {
+        for e in &self.entries {
             let (lo, _) = e.ends();
             if e.kind != Kind::Parameter && (lo.is_nan() || lo <= 0.0) {
                 return Err(PlanError::Range {
@@ -138,9 +151,66 @@ impl GuessRange {
                 });
             }
         }
-        let mut base = values.clone();
-        base.eom.clear();
-        Ok(Self { entries, base })
+        Ok(())
+    }
+
+    /// This range narrowed by what an identification of the device found (`later`, e.g.
+    /// [`harmonid_experiment::guess_from_reports`]): a quantity `later` gives with a spread is
+    /// where both ranges agree, its guess the estimate (moved into that interval if outside;
+    /// [`RangeEntry::remark`] says so); when they do not overlap, the estimate's range alone
+    /// (the data win over the guess). A
+    /// quantity `later` gives without a spread takes its value and keeps its spread about it;
+    /// the others are kept. Errors as [`Self::new`].
+    pub fn narrowed(&self, model: &Model, later: &Guess) -> Result<Self, PlanError> {
+        let mut out = self.clone();
+        for e in &mut out.entries {
+            let value = match e.kind {
+                Kind::Frequency(n) => later
+                    .values
+                    .modes
+                    .get(&model.modes[n].name)
+                    .and_then(|m| m.f_hz),
+                Kind::Quality(n) => later
+                    .values
+                    .modes
+                    .get(&model.modes[n].name)
+                    .and_then(|m| m.q),
+                Kind::Parameter => later.values.parameters.get(&e.name).copied(),
+            };
+            let Some(v) = value.filter(|v| v.is_finite()) else {
+                continue;
+            };
+            match later.spread.get(&e.name) {
+                Some(s) => {
+                    let (a, b) = e.ends();
+                    let (c, d) = s.ends(v);
+                    let overlap = a.max(c) <= b.min(d);
+                    let (lo, hi) = if overlap {
+                        (a.max(c), b.min(d))
+                    } else {
+                        (c, d)
+                    };
+                    if !(a..=b).contains(&v) {
+                        e.remark = Some(format!(
+                            "the estimate {v:.6e} is outside the guess's range [{a:.6e}, {b:.6e}]: {}",
+                            if overlap {
+                                "the range is where the two overlap; widen the guess's uncertainty if the device may be outside it"
+                            } else {
+                                "they do not overlap, so the estimate's range replaces the guess's"
+                            }
+                        ));
+                    }
+                    e.guess = v.clamp(lo, hi);
+                    e.spread = Spread::Ends(lo, hi);
+                    e.given = true;
+                }
+                None => e.guess = v,
+            }
+        }
+        let names: Vec<String> = model.modes.iter().map(|m| m.name.clone()).collect();
+        out.base = out.device(|e| e.guess, &names);
+        out.check_positive()?;
+        Ok(out)
     }
 
     /// The guess at the range's centre (without `[eom]` coefficients: its parameters act).
@@ -211,7 +281,9 @@ impl GuessRange {
             .iter()
             .map(|e| {
                 let (lo, hi) = e.ends();
-                let why = if e.given {
+                let why = if matches!(e.spread, Spread::Ends(..)) {
+                    "narrowed by the results".to_string()
+                } else if e.given {
                     "given".to_string()
                 } else {
                     match e.kind {
@@ -220,8 +292,12 @@ impl GuessRange {
                         Kind::Parameter => format!("default: ×/÷ {DEFAULT_PARAM_FACTOR}"),
                     }
                 };
+                let remark = e
+                    .remark
+                    .as_ref()
+                    .map_or(String::new(), |r| format!("; {r}"));
                 format!(
-                    "{} = {:.6e} {} ({why}): {lo:.6e} … {hi:.6e}",
+                    "{} = {:.6e} {} ({why}): {lo:.6e} … {hi:.6e}{remark}",
                     e.name,
                     e.guess,
                     e.spread.describe()
@@ -495,6 +571,54 @@ mod tests {
         }
         // Log-uniform: as many below the guess as above.
         assert!(below > 70 && above > 70, "{below} {above}");
+    }
+
+    #[test]
+    fn a_result_narrows_the_range_where_both_agree() {
+        let m = model();
+        let r = GuessRange::new(&m, &values(), &BTreeMap::new()).expect("range");
+        let later = harmonid_experiment::guess_from_toml(
+            "[modes.q1]\nf_hz = { value = 1001.0, abs = 0.01 }\nQ = { value = 700, abs = 100 }\n\
+             [parameters]\nbeta1 = { value = -3e12, abs = 2e12 }\neta1 = { value = 9e6, abs = 1e6 }\n",
+            "result",
+        )
+        .expect("later");
+        let n = r.narrowed(&m, &later).expect("narrowed");
+        let get = |name: &str| {
+            n.entries()
+                .iter()
+                .find(|e| e.name == name)
+                .expect(name)
+                .clone()
+        };
+        // Inside the guess's range: the estimate's range.
+        let f = get("f_hz:q1");
+        assert_eq!((f.guess, f.ends()), (1001.0, (1000.99, 1001.01)));
+        assert!(f.remark.is_none());
+        // Overlapping: where both agree; the estimate outside is moved in, with a remark.
+        let q = get("Q:q1");
+        assert_eq!((q.guess, q.ends()), (650.0, (600.0, 650.0)));
+        assert!(q.remark.as_deref().is_some_and(|r| r.contains("overlap")));
+        let b = get("beta1");
+        assert_eq!((b.guess, b.ends()), (-3e12, (-5e12, -2e12)));
+        // No overlap (eta1 ×/÷ 2 of 2e6 against 9e6 ± 1e6): the data's.
+        let eta = get("eta1");
+        assert_eq!((eta.guess, eta.ends()), (9e6, (8e6, 1e7)));
+        assert!(eta
+            .remark
+            .as_deref()
+            .is_some_and(|r| r.contains("replaces")));
+        // Untouched, and the guess the range's centre.
+        assert_eq!(
+            get("Q:q2").ends(),
+            r.entries()
+                .iter()
+                .find(|e| e.name == "Q:q2")
+                .expect("Q2")
+                .ends()
+        );
+        assert_eq!(n.guess().parameters["eta1"], 9e6);
+        assert_eq!(n.guess().modes["q1"].q, Some(650.0));
     }
 
     #[test]
