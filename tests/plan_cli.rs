@@ -338,3 +338,38 @@ fn plan_after_a_result_narrows_the_range_and_drives_harder() {
         );
     }
 }
+
+/// Instrument settings that cannot be used: volts without a gain, a malformed gain, a grid
+/// coarser than a resonance; each names what to give, nothing is written.
+#[test]
+fn instrument_settings_that_cannot_be_used_are_refused() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let out = tmp.path().join("plan.toml");
+    for (args, want) in [
+        (
+            &["--max-voltage", "1"][..],
+            "none for q1, q2 (give --gain q1=",
+        ),
+        (
+            &["--gain", "q1=0.8", "--max-voltage", "1"][..],
+            "none for q2",
+        ),
+        (&["--gain", "q1=-2"][..], "--gain q1=-2: expected MODE=GAIN"),
+        (
+            &["--gain", "q7=2", "--gain", "q1=1", "--gain", "q2=1"][..],
+            "a gain for q7",
+        ),
+        (&["--grid-hz", "2"][..], "coarser than 2 linewidths of q2"),
+    ] {
+        let mut all = args.to_vec();
+        all.extend(["--out", out.to_str().expect("utf8")]);
+        let (ok, stdout, stderr) = plan(&all);
+        // miette wraps long messages: compare the words.
+        let words: Vec<&str> = stderr.split_whitespace().filter(|w| *w != "│").collect();
+        assert!(
+            !ok && words.join(" ").contains(want),
+            "{args:?}: {stdout}{stderr}"
+        );
+        assert!(!out.exists(), "{args:?}");
+    }
+}

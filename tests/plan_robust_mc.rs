@@ -37,13 +37,14 @@ fn truth_of(v: &ModelValues, name: &str) -> f64 {
 
 /// Per device of `devices`: the plan simulated on it with noise (seed = its index) and
 /// identified; returns, per device, the quantities that missed (|estimate − truth| > 4
-/// stderr, or no estimate) or why the device failed.
+/// stderr, or no estimate) or why the device failed, and the quantities left undetermined
+/// (relative stderr above `harmonid_ident::MAX_REL_STDERR`).
 fn run(
     model: &Model,
     plan: &Plan,
     range: &GuessRange,
     devices: &[ModelValues],
-) -> Vec<Vec<String>> {
+) -> Vec<(Vec<String>, Vec<String>)> {
     let mut out = Vec::new();
     for (k, truth) in devices.iter().enumerate() {
         let settings = Settings {
@@ -53,7 +54,8 @@ fn run(
         let sim = match plan.simulate(model, truth, &settings) {
             Ok(s) => s,
             Err(e) => {
-                out.push(vec![format!("device {k}: the plan does not simulate: {e}")]);
+                let why = format!("device {k}: the plan does not simulate: {e}");
+                out.push((vec![why], Vec::new()));
                 continue;
             }
         };
@@ -64,7 +66,7 @@ fn run(
             .map(|r| format!("device {k}: {} jumps", r.name))
             .collect();
         if !jumps.is_empty() {
-            out.push(jumps);
+            out.push((jumps, Vec::new()));
             continue;
         }
         let rep =
@@ -85,16 +87,25 @@ fn run(
                 }
             })
             .collect();
-        out.push(missed);
+        let undetermined = range
+            .entries()
+            .iter()
+            .filter(|e| {
+                estimate(&rep, &e.name).is_none_or(|(v, s)| {
+                    !(s.is_finite() && s <= harmonid_ident::MAX_REL_STDERR * v.abs())
+                })
+            })
+            .map(|e| e.name.clone())
+            .collect();
+        out.push((missed, undetermined));
     }
     out
 }
 
-/// The two-mode nanostring planned from a guess off the device (Q1 and Q2 25 % low, β1 and β2
-/// 20–25 % low, frequencies 0.3 Hz off, as after a low-drive sweep), with frequencies ± 0.5 Hz,
-/// Q ± 40 % and parameters ×/÷ 2 (default); 20 devices drawn from that range.
-#[test]
-fn a_plan_over_an_uncertain_guess_determines_every_unknown_on_the_devices_of_its_range() {
+/// The guess of the two-mode nanostring's tests: off the device (Q1 and Q2 25 % low, β1 and β2
+/// 20–25 % low, frequencies 0.3 Hz off, as after a low-drive sweep), with frequencies
+/// ± 0.5 Hz, Q ± 40 % and parameters ×/÷ 2 (default).
+fn two_mode_guess() -> (Model, ModelValues, GuessRange) {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/nanostring_2mode");
     let model = harmonid_model::load(&root.join("model.hb")).expect("model");
     let guess = values_from_toml(
@@ -113,7 +124,11 @@ fn a_plan_over_an_uncertain_guess_determines_every_unknown_on_the_devices_of_its
     .map(|(k, v)| (k.to_string(), v))
     .collect();
     let range = GuessRange::new(&model, &guess, &spread).expect("range");
-    let s = DesignSettings {
+    (model, guess, range)
+}
+
+fn two_mode_settings(range: &GuessRange) -> DesignSettings {
+    DesignSettings {
         sigma_m: 5e-11,
         shots: 20,
         max_measurements: Some(3),
@@ -123,20 +138,93 @@ fn a_plan_over_an_uncertain_guess_determines_every_unknown_on_the_devices_of_its
         }],
         range: Some(range.clone()),
         ..DesignSettings::default()
-    };
-    let (plan, ev) = design(&model, &guess, &s).expect("design");
-    println!("{}", ev.table());
-    // Devices drawn with another seed than the design's report.
+    }
+}
+
+/// Designs from the guess with `s`, runs the plan on 20 devices drawn from the range (another
+/// seed than the design's report) and asserts that at most one misses an unknown by more than
+/// 4 stderr (the error bars hold on devices the plan was not designed at); prints how often
+/// each unknown stays undetermined; returns the plan.
+fn designed_and_run(label: &str, s: &DesignSettings) -> Plan {
+    let (model, guess, range) = two_mode_guess();
+    let (plan, ev) = design(&model, &guess, s).expect("design");
+    println!("{label}\n{}", ev.table());
     let devices = range.draws(&model, 20, 1);
-    let missed = run(&model, &plan, &range, &devices);
-    let bad: Vec<&Vec<String>> = missed.iter().filter(|m| !m.is_empty()).collect();
+    let outcome = run(&model, &plan, &range, &devices);
+    let bad: Vec<&Vec<String>> = outcome
+        .iter()
+        .map(|o| &o.0)
+        .filter(|m| !m.is_empty())
+        .collect();
     for m in &bad {
         println!("{m:?}");
     }
+    let mut undetermined: BTreeMap<&str, usize> = BTreeMap::new();
+    for o in &outcome {
+        for q in &o.1 {
+            *undetermined.entry(q.as_str()).or_default() += 1;
+        }
+    }
     println!(
-        "{} of {} devices with every unknown within 4 stderr",
-        missed.len() - bad.len(),
-        missed.len()
+        "{label}: {} of {} devices with every unknown within 4 stderr; undetermined (relative \
+         stderr > {}): {undetermined:?}",
+        outcome.len() - bad.len(),
+        outcome.len(),
+        harmonid_ident::MAX_REL_STDERR
     );
-    assert!(bad.len() <= 1, "{bad:?}");
+    assert!(bad.len() <= 1, "{label}: {bad:?}");
+    plan
+}
+
+#[test]
+fn a_plan_over_an_uncertain_guess_determines_every_unknown_on_the_devices_of_its_range() {
+    let (_, _, range) = two_mode_guess();
+    designed_and_run("two-mode nanostring", &two_mode_settings(&range));
+}
+
+/// Issue 23's instrument units: a 1 Hz grid (every tone, so every line, an integer multiple),
+/// actuator gains of 0.8 and 0.3 N/kg per V and at most 0.3 V per tone (the cap binds on q1:
+/// 0.24 N/kg where the range allows 0.34); the plan's levels are volts, and its error bars hold
+/// on the devices of the range as the plan's in N/kg do (measured: 20 of 20; the capped drive
+/// leaves β1 and β2 undetermined on most devices, which the table says before the lab does).
+#[test]
+fn a_plan_in_volts_on_an_instrument_grid_determines_every_unknown_on_the_devices_of_its_range() {
+    let (_, _, range) = two_mode_guess();
+    let s = DesignSettings {
+        grid_hz: 1.0,
+        gains: [("q1".to_string(), 0.8), ("q2".to_string(), 0.3)].into(),
+        max_voltage: Some(0.3),
+        ..two_mode_settings(&range)
+    };
+    let plan = designed_and_run("two-mode nanostring in volts on a 1 Hz grid", &s);
+    let top = plan
+        .measurements
+        .iter()
+        .flat_map(|pm| pm.drive_levels_v.iter().flatten().copied())
+        .fold(0.0, f64::max);
+    assert_eq!(top, 0.3, "the voltage cap binds");
+    for pm in &plan.measurements {
+        let levels = pm.drive_levels_v.as_ref().expect("levels");
+        for (d, &hz) in pm.drives_hz.iter().enumerate() {
+            assert_eq!(hz, hz.round(), "{}: tone {hz} off the 1 Hz grid", pm.name);
+            assert!(
+                levels[d] > 0.0 && levels[d] <= 0.3,
+                "{}: {} V",
+                pm.name,
+                levels[d]
+            );
+            for (mode, gain) in [("q1", 0.8), ("q2", 0.3)] {
+                if let Some(f) = pm.force.get(mode).map(|f| f[d]).filter(|&f| f != 0.0) {
+                    assert!(
+                        (f - gain * levels[d]).abs() <= 1e-12 * f,
+                        "{}: {f} N/kg",
+                        pm.name
+                    );
+                }
+            }
+        }
+        for hz in pm.measure_hz.as_ref().expect("lines") {
+            assert_eq!(*hz, hz.round(), "{}: line {hz} off the grid", pm.name);
+        }
+    }
 }

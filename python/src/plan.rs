@@ -131,6 +131,8 @@ pub fn plan(
         max_measurements,
         grid_hz: bandwidth_hz,
         max_force: max_force.unwrap_or(f64::INFINITY),
+        gains: BTreeMap::new(),
+        max_voltage: None,
         // Python callers bound the work themselves.
         time_budget_s: None,
         points: points

@@ -61,9 +61,26 @@ pub struct Args {
     /// Most measurements in the designed plan.
     #[arg(long)]
     pub max_measurements: Option<usize>,
-    /// Instrument frequency grid, Hz: every tone and so every measured line is a multiple.
-    #[arg(long, default_value_t = 0.5)]
-    pub bandwidth: f64,
+    /// Instrument frequency grid, Hz: every tone and so every measured line is a multiple (a
+    /// multi-frequency lock-in's base frequency; a shot integrates at least 1/grid s).
+    #[arg(
+        long = "grid-hz",
+        visible_alias = "bandwidth",
+        value_name = "HZ",
+        default_value_t = 0.5
+    )]
+    pub grid_hz: f64,
+    /// An actuator gain, N/kg per volt: `--gain q1=0.35` (repeatable). With gains the plan's
+    /// drive levels are volts.
+    #[arg(long, value_name = "MODE=GAIN")]
+    pub gain: Vec<String>,
+    /// Take the actuator gains from an identification result (each mode's |G|: its common
+    /// gain, else the median over measurements; a --gain wins).
+    #[arg(long, value_name = "RESULT.json")]
+    pub gains_from: Option<PathBuf>,
+    /// Largest drive level per tone, V (needs a gain for every driven mode).
+    #[arg(long, value_name = "V")]
+    pub max_voltage: Option<f64>,
     /// Largest drive force per tone, N/kg.
     #[arg(long)]
     pub max_force: Option<f64>,
@@ -207,8 +224,10 @@ pub fn run(args: Args) -> miette::Result<()> {
             shots: args.shots,
             max_frequencies: args.max_frequencies,
             max_measurements: args.max_measurements,
-            grid_hz: args.bandwidth,
+            grid_hz: args.grid_hz,
             max_force: args.max_force.unwrap_or(f64::INFINITY),
+            gains: gains(&args)?,
+            max_voltage: args.max_voltage,
             points,
             time_budget_s: (args.time_budget > 0.0).then_some(args.time_budget),
             range,
@@ -227,10 +246,14 @@ pub fn run(args: Args) -> miette::Result<()> {
         }
         if let Some(out) = &args.out {
             write_output(out, plan.to_toml().as_bytes(), &inputs)?;
+            let shots = plan.measurements.len() * args.shots;
             eprintln!(
-                "wrote {} ({} measurements)",
+                "wrote {} ({} measurements; on a {} Hz grid each shot integrates at least {} s, the plan's {shots} shots at least {} s)",
                 out.display(),
-                plan.measurements.len()
+                plan.measurements.len(),
+                args.grid_hz,
+                1.0 / args.grid_hz,
+                shots as f64 / args.grid_hz
             );
         }
         (plan, ev)
@@ -246,6 +269,50 @@ pub fn run(args: Args) -> miette::Result<()> {
         eprintln!("wrote {}", path.display());
     }
     Ok(())
+}
+
+/// The actuator gains (N/kg per V) of `--gain` and `--gains-from`.
+fn gains(args: &Args) -> miette::Result<std::collections::BTreeMap<String, f64>> {
+    let mut out = std::collections::BTreeMap::new();
+    if let Some(path) = &args.gains_from {
+        let r = read_result(path)?;
+        // Each mode's |G| over the measurements (the common gain alone when there is one).
+        let mut per_mode: std::collections::BTreeMap<String, Vec<f64>> = Default::default();
+        let common = r.gains.get("all");
+        for (meas, modes) in &r.gains {
+            if common.is_some() && meas != "all" {
+                continue;
+            }
+            for (mode, g) in modes {
+                if g.amplitude.is_finite() && g.amplitude > 0.0 {
+                    per_mode.entry(mode.clone()).or_default().push(g.amplitude);
+                }
+            }
+        }
+        for (mode, mut list) in per_mode {
+            list.sort_by(f64::total_cmp);
+            out.insert(mode, list[list.len() / 2]);
+        }
+        if out.is_empty() {
+            return Err(miette!(
+                "--gains-from {}: the result has no actuator gains (identify with drive levels in the dataset gives them)",
+                path.display()
+            ));
+        }
+    }
+    for g in &args.gain {
+        let parsed = g
+            .split_once('=')
+            .and_then(|(m, v)| Some((m.trim().to_string(), v.trim().parse::<f64>().ok()?)))
+            .filter(|(_, v)| v.is_finite() && *v > 0.0);
+        let Some((mode, v)) = parsed else {
+            return Err(miette!(
+                "--gain {g}: expected MODE=GAIN with a positive gain in N/kg per volt, e.g. q1=0.35"
+            ));
+        };
+        out.insert(mode, v);
+    }
+    Ok(out)
 }
 
 /// The guess with every parameter: a `truth.toml` or a result of a per-equation model gives

@@ -39,6 +39,12 @@ pub struct DesignSettings {
     pub grid_hz: f64,
     /// Largest force per tone, N/kg.
     pub max_force: f64,
+    /// Actuator gains, N/kg per volt, by mode (empty: levels are forces). With gains, every
+    /// driven mode needs one; drive levels are written in volts (`force = gain × level`).
+    pub gains: BTreeMap<String, f64>,
+    /// Largest drive level per tone, V (needs [`Self::gains`]): caps mode `n`'s force at
+    /// `max_voltage × gain_n`.
+    pub max_voltage: Option<f64>,
     /// Measurement points (mode shapes); empty: modal amplitudes.
     pub points: Vec<Point>,
     /// Wall-clock budget of the search, s (`None`: none). Once spent, each measurement still to
@@ -62,6 +68,8 @@ impl Default for DesignSettings {
             max_measurements: None,
             grid_hz: 0.5,
             max_force: f64::INFINITY,
+            gains: BTreeMap::new(),
+            max_voltage: None,
             points: Vec::new(),
             time_budget_s: None,
             range: None,
@@ -111,14 +119,27 @@ fn round3(x: f64) -> f64 {
     format!("{x:.2e}").parse().unwrap_or(x)
 }
 
-/// A measurement with `tones` (`(Hz, mode, force N/kg)`), drive levels = forces (gain 1 N/kg
-/// per level unit, phase 0).
-fn measurement(name: &str, tones: &[(f64, usize, f64)], names: &[String]) -> PlanMeasurement {
+/// A measurement with `tones` (`(Hz, mode, force N/kg)`), phase 0, drive levels through the
+/// actuator gains `gains` (N/kg per level unit, per mode): each level rounded to 3 significant
+/// digits, the force the level times the gain (with gains 1, levels = forces).
+fn measurement(
+    name: &str,
+    tones: &[(f64, usize, f64)],
+    names: &[String],
+    gains: &[f64],
+) -> PlanMeasurement {
     let mut force: BTreeMap<String, Vec<f64>> = BTreeMap::new();
+    let mut levels = Vec::with_capacity(tones.len());
     for (d, &(_, n, f)) in tones.iter().enumerate() {
+        let level = if gains[n] == 1.0 {
+            f
+        } else {
+            round3(f / gains[n])
+        };
+        levels.push(level);
         force
             .entry(names[n].clone())
-            .or_insert_with(|| vec![0.0; tones.len()])[d] = f;
+            .or_insert_with(|| vec![0.0; tones.len()])[d] = level * gains[n];
     }
     PlanMeasurement {
         name: name.to_string(),
@@ -126,7 +147,7 @@ fn measurement(name: &str, tones: &[(f64, usize, f64)], names: &[String]) -> Pla
         force,
         phase_rad: BTreeMap::new(),
         measure_hz: None,
-        drive_levels_v: Some(tones.iter().map(|t| t.2).collect()),
+        drive_levels_v: Some(levels),
         drive_phases_rad: Some(vec![0.0; tones.len()]),
         pumps_hz: Vec::new(),
         pump_levels: None,
@@ -243,6 +264,7 @@ pub fn design_with_progress(
     };
     let stages = Stages::new(model, &names, s.max_measurements)?;
     let needed = stages.needed();
+    let instrument = Instrument::new(&num, s, &stages.single)?;
     let target = Target {
         model,
         num: &num,
@@ -258,14 +280,19 @@ pub fn design_with_progress(
         s,
         names: &names,
         limits: format!(
-            "forces ≤ {} N/kg per tone, {} lines per measurement, grid {} Hz, no jump while driving up, stable",
-            s.max_force, s.max_frequencies, s.grid_hz
+            "forces ≤ {} N/kg per tone{}, {} lines per measurement, grid {} Hz, no jump while driving up, stable",
+            s.max_force,
+            s.max_voltage.map_or(String::new(), |v| format!(", drive levels ≤ {v} V")),
+            s.max_frequencies,
+            s.grid_hz
         ),
         notes: RefCell::new(Vec::new()),
         deadline: s
             .time_budget_s
             .map(|t| std::time::Instant::now() + std::time::Duration::from_secs_f64(t.max(0.0))),
         corners: RefCell::new(BTreeMap::new()),
+        gains: instrument.gains,
+        caps: instrument.caps,
     };
     // Stage 1: a tone pair per mode.
     let mut pairs: Vec<Option<Pair>> = vec![None; names.len()];
@@ -376,6 +403,82 @@ fn check_settings(s: &DesignSettings) -> Result<(), PlanError> {
         return Err(setting("the lines per measurement", found, "at least 2"));
     }
     Ok(())
+}
+
+/// The coarsest grid, in linewidths of a driven mode, a plan is designed on.
+const MAX_GRID_LINEWIDTHS: f64 = 2.0;
+
+/// The instrument's reach per mode: actuator gains and force caps, checked against the modes
+/// the plan drives.
+struct Instrument {
+    gains: Vec<f64>,
+    caps: Vec<f64>,
+}
+
+impl Instrument {
+    /// Errors: gains or a voltage limit without a gain for a driven mode, a gain that is not
+    /// positive, a grid coarser than two linewidths of a driven mode (no tone pair fits it).
+    fn new(num: &NumericModel, s: &DesignSettings, driven: &[usize]) -> Result<Self, PlanError> {
+        let names = &num.mode_names;
+        let err = |message: String| PlanError::Instrument { message };
+        if let Some(k) = s.gains.keys().find(|k| !names.contains(k)) {
+            return Err(err(format!(
+                "a gain for {k}, which the model does not have (modes: {})",
+                names.join(", ")
+            )));
+        }
+        if let Some((k, g)) = s.gains.iter().find(|(_, g)| !(g.is_finite() && **g > 0.0)) {
+            return Err(err(format!(
+                "the gain of {k} is {g} N/kg per V: it must be positive"
+            )));
+        }
+        if let Some(v) = s.max_voltage {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(err(format!(
+                    "the largest drive level is {v} V: it must be positive"
+                )));
+            }
+        }
+        if !s.gains.is_empty() || s.max_voltage.is_some() {
+            let missing: Vec<&str> = driven
+                .iter()
+                .map(|&n| names[n].as_str())
+                .filter(|n| !s.gains.contains_key(*n))
+                .collect();
+            if !missing.is_empty() {
+                return Err(err(format!(
+                    "drive levels in volts need the actuator gain of every driven mode; none for {} (give --gain {}=N_PER_KG_PER_V, or --gains-from a result)",
+                    missing.join(", "),
+                    missing[0]
+                )));
+            }
+        }
+        // A pair is at least two grid steps wide and its centre up to half a step off the
+        // resonance: beyond two linewidths a step leaves no tone on the resonance.
+        for &n in driven {
+            let linewidth = num.f_hz[n] / num.q_factor[n];
+            if s.grid_hz > MAX_GRID_LINEWIDTHS * linewidth {
+                return Err(err(format!(
+                    "the grid of {} Hz is coarser than {MAX_GRID_LINEWIDTHS} linewidths of {} ({linewidth:.3} Hz each): no tone pair fits its resonance; use a finer grid (--grid-hz {:.3} or less)",
+                    s.grid_hz,
+                    names[n],
+                    MAX_GRID_LINEWIDTHS * linewidth
+                )));
+            }
+        }
+        let gains: Vec<f64> = names
+            .iter()
+            .map(|k| s.gains.get(k).copied().unwrap_or(1.0))
+            .collect();
+        let caps = gains
+            .iter()
+            .map(|g| {
+                s.max_force
+                    .min(s.max_voltage.map_or(f64::INFINITY, |v| v * g))
+            })
+            .collect();
+        Ok(Self { gains, caps })
+    }
 }
 
 /// A mode's designed tone pair: centre (Hz), spacing (Hz), force per tone (N/kg).
@@ -523,6 +626,10 @@ struct Designer<'a> {
     notes: RefCell<Vec<String>>,
     /// When the search's time budget runs out.
     deadline: Option<std::time::Instant>,
+    /// Per mode: its actuator gain (N/kg per level unit; 1 without gains) and largest force
+    /// per tone (N/kg).
+    gains: Vec<f64>,
+    caps: Vec<f64>,
     /// The devices of the range checked per set of tones (frequency bits, mode), built when
     /// first needed, with the one that failed last (tried first: a drive too strong for one
     /// device is usually too strong for the same one at the next level).
@@ -533,6 +640,11 @@ struct Designer<'a> {
 type CornerSet = (Rc<Vec<(String, NumericModel)>>, Rc<Cell<usize>>);
 
 impl Designer<'_> {
+    /// [`measurement`] with the instrument's gains.
+    fn measurement(&self, name: &str, tones: &[(f64, usize, f64)]) -> PlanMeasurement {
+        measurement(name, tones, self.names, &self.gains)
+    }
+
     /// A candidate measurement simulated once at search fidelity, its lines chosen, its
     /// information computed on those lines; `None` for an infeasible drive (at the guess or on
     /// a corner of the range).
@@ -680,12 +792,13 @@ impl Designer<'_> {
         let centre = on_grid(f, s.grid_hz);
         let wanted = quantity_names(self.model, own);
         // The weakest useful drive: a linear peak response of 100 σ.
-        let f_lin = (100.0 * s.sigma_m * w2 / num.q_factor[n]).min(s.max_force);
+        let cap = self.caps[n];
+        let f_lin = (100.0 * s.sigma_m * w2 / num.q_factor[n]).min(cap);
         // A mode its own velocity terms damp may have no fold to stop the search for the
         // strongest drive: cap it where they add DAMPING_CAP linewidths of damping.
         let hi = match velocity_damping_amplitude(num, n, DAMPING_CAP * num.gamma(n)) {
-            Some(a) => s.max_force.min(a * w2 / num.q_factor[n]).max(f_lin),
-            None => s.max_force,
+            Some(a) => cap.min(a * w2 / num.q_factor[n]).max(f_lin),
+            None => cap,
         };
         let mut best: Option<Candidate> = None;
         for mult in SPACINGS {
@@ -695,7 +808,7 @@ impl Designer<'_> {
             let half = (on_grid(0.5 * mult * kappa, s.grid_hz)).max(s.grid_hz);
             let tones = |force: f64| [(centre - half, n, force), (centre + half, n, force)];
             let ok = |force: f64| -> Result<bool, PlanError> {
-                let pm = measurement(name, &tones(force), names);
+                let pm = self.measurement(name, &tones(force));
                 Ok(self.bounded(&pm)?.is_some())
             };
             let start = pair_fold_estimate(num, n, 2.0 * half / kappa).unwrap_or(f_lin);
@@ -710,7 +823,7 @@ impl Designer<'_> {
             if !(ok(0.25 * force)? && ok(0.5 * force)?) {
                 continue;
             }
-            let Some((pm, info)) = self.candidate(measurement(name, &tones(force), names))? else {
+            let Some((pm, info)) = self.candidate(self.measurement(name, &tones(force)))? else {
                 continue;
             };
             let ev = joint_bounds(self.model, &[&info], s.shots)?;
@@ -766,7 +879,7 @@ impl Designer<'_> {
                     }
                 }
                 tones.sort_by(|a, b| a.0.total_cmp(&b.0));
-                let pm = measurement(&name, &tones, self.names);
+                let pm = self.measurement(&name, &tones);
                 if let Some((pm, info)) = self.candidate_at_guess(pm)? {
                     let mut all: Vec<&MeasInfo> = infos.iter().collect();
                     all.push(&info);

@@ -114,6 +114,16 @@ pub enum PlanError {
         /// What it must be.
         expected: &'static str,
     },
+    /// An instrument setting that cannot be used (gains, voltage, grid).
+    #[error("{message}")]
+    #[diagnostic(
+        code(harmonid::plan::instrument),
+        help("the instrument's limits: --grid-hz (every tone a multiple), --gain MODE=N/kg per V with --max-voltage, --max-frequencies")
+    )]
+    Instrument {
+        /// What is wrong, the limit and what to relax.
+        message: String,
+    },
     /// An uncertainty of the guess that cannot be used.
     #[error("{quantity}: {message}")]
     #[diagnostic(
