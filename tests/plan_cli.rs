@@ -1,5 +1,7 @@
 //! `harmonid plan --plot`: the figure of a scored plan (the two-mode example's) and its checks.
 
+mod guess_support;
+
 use std::path::PathBuf;
 use std::process::Command;
 
@@ -246,12 +248,7 @@ fn plan_after_a_result_narrows_the_range_and_drives_harder() {
     let tmp = tempfile::tempdir().expect("tmp");
     let ex = root().join("examples/nanostring_2mode");
     let guess = tmp.path().join("guess.toml");
-    std::fs::write(
-        &guess,
-        "[modes.q1]\nf_hz = 207582.3\nQ = 8.5e4\n[modes.q2]\nf_hz = 415841.7\nQ = 4.5e5\n\
-         [parameters]\nbeta1 = 2.0e22\nbeta2 = 3.0e23\ng12 = 8.57e22\n",
-    )
-    .expect("write");
+    std::fs::write(&guess, guess_support::TWO_MODE_GUESS).expect("write");
     let harmonid = |args: &[&std::ffi::OsStr]| -> String {
         let st = Command::new(env!("CARGO_BIN_EXE_harmonid"))
             .args(args)

@@ -6,6 +6,9 @@
 //!
 //!     cargo test --release --test plan_closed_loop -- --nocapture
 
+mod guess_support;
+
+use guess_support::{two_mode_settings, TWO_MODE_GUESS};
 use harmonid_experiment::{guess_from_reports, values_from_toml, Guess, Settings};
 use harmonid_ident::identify;
 use harmonid_plan::{design, evaluate, DesignSettings, Evaluation, GuessRange};
@@ -41,25 +44,13 @@ fn plan_after_rounds_reach_the_bounds_of_a_plan_designed_from_the_truth() {
     // Off the device: Q 25 % low, β 20–25 % low, frequencies 0.3 Hz off; no uncertainties
     // given, so the defaults (f ± 2 linewidths, Q ± 30 %, ×/÷ 2).
     let first = Guess {
-        values: values_from_toml(
-            "[modes.q1]\nf_hz = 207582.3\nQ = 8.5e4\n[modes.q2]\nf_hz = 415841.7\nQ = 4.5e5\n\
-             [parameters]\nbeta1 = 2.0e22\nbeta2 = 3.0e23\ng12 = 8.57e22\n",
-            "guess.toml",
-        )
-        .expect("guess"),
+        values: values_from_toml(TWO_MODE_GUESS, "guess.toml").expect("guess"),
         spread: Default::default(),
     };
     let mut results = Vec::new();
     let settings = DesignSettings {
-        sigma_m: 5e-11,
-        shots: 20,
-        max_measurements: Some(3),
-        points: vec![harmonid_data::Point {
-            name: "p0".into(),
-            shape: [("q1".to_string(), 0.309), ("q2".to_string(), 0.588)].into(),
-        }],
         draws: 0,
-        ..DesignSettings::default()
+        ..two_mode_settings()
     };
     let (_, reference) = design(&model, &truth, &settings).expect("the plan from the truth");
     // The paper's recipe (the example's plan), scored on the device.
