@@ -281,7 +281,9 @@ fn example_case(example: &str, shape: &[f64], sigma_m: f64, shots: usize) -> (us
 }
 
 /// The examples planned from guesses off their values, each run on 20 devices of its range
-/// (minutes; the numbers of docs/planning.md):
+/// (minutes; the numbers of docs/planning.md). Issue 23's acceptance check, and it fails
+/// today: `cubic_3mode` (14 of 20: coupled states unstable between the checked devices) and
+/// `three_wave` (5 of 20: its coupled measurement fails simulate's truncation check).
 ///
 ///     cargo test --release --test plan_robust_mc -- --ignored --nocapture
 #[test]
