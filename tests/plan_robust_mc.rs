@@ -140,7 +140,7 @@ fn designed_and_run(label: &str, s: &DesignSettings) -> Plan {
     let (model, guess, range) = two_mode_guess();
     let (plan, ev) = design(&model, &guess, s).expect("design");
     println!("{label}\n{}", ev.table());
-    let devices = range.draws(&model, 20, 1);
+    let devices = range.draws(20, 1);
     let outcome = run(&model, &plan, &range, &devices);
     let bad: Vec<&Vec<String>> = outcome
         .iter()
@@ -257,7 +257,7 @@ fn example_case(example: &str, shape: &[f64], sigma_m: f64, shots: usize) -> (us
     let (plan, ev) = design(&model, range.guess(), &s).expect("design");
     let seconds = t0.elapsed().as_secs_f64();
     println!("{example}\n{}", ev.table());
-    let outcome = run(&model, &plan, &range, &range.draws(&model, 20, 1));
+    let outcome = run(&model, &plan, &range, &range.draws(20, 1));
     let good = outcome.iter().filter(|o| o.0.is_empty()).count();
     let determined = outcome
         .iter()

@@ -8,6 +8,7 @@
 //!
 //!     cargo test --release --test plan_roundtrip_mc -- --ignored --nocapture --test-threads 1
 
+mod guess_support;
 mod plan_mc_support;
 
 use plan_mc_support::{

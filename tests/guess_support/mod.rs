@@ -1,5 +1,6 @@
 //! The two-mode nanostring's guess off the device, shared by the tests of planning from an
-//! uncertain guess (`plan_robust_mc`, `plan_closed_loop`, `plan_cli`).
+//! uncertain guess (`plan_robust_mc`, `plan_closed_loop`, `plan_cli`), and the measurement
+//! point of the planner's Monte Carlo (`plan_mc_support`).
 
 // Each test file uses part of it.
 #![allow(dead_code)]
@@ -13,7 +14,8 @@ pub const TWO_MODE_GUESS: &str = "[modes.q1]\nf_hz = 207582.3\nQ = 8.5e4\n\
     [modes.q2]\nf_hz = 415841.7\nQ = 4.5e5\n\
     [parameters]\nbeta1 = 2.0e22\nbeta2 = 3.0e23\ng12 = 8.57e22\n";
 
-/// One point named `p0` with the given shape values of modes `q1`, `q2`, ...
+/// One point named `p0` with the given shape values of modes `q1`, `q2`, ... (none for an
+/// empty shape: modal amplitudes). `plan_mc_support` uses it too.
 pub fn point(shape: &[f64]) -> Vec<Point> {
     if shape.is_empty() {
         return Vec::new();

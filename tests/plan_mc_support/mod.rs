@@ -71,17 +71,7 @@ fn example(dir: &str, file: &str) -> PathBuf {
         .join(file)
 }
 
-/// One point named `p0` with the given shape values of modes `q1`, `q2`, ...
-pub fn point(shape: &[f64]) -> Vec<Point> {
-    vec![Point {
-        name: "p0".into(),
-        shape: shape
-            .iter()
-            .enumerate()
-            .map(|(n, &s)| (format!("q{}", n + 1), s))
-            .collect(),
-    }]
-}
+pub use crate::guess_support::point;
 
 /// Designs (or reads) the plan, scores it and simulates it without noise.
 pub fn prepare(case: &Case) -> Prepared {

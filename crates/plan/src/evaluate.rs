@@ -277,7 +277,7 @@ pub fn robustness(
     let plan = with_levels(plan, &NumericModel::from_model(model, range.guess())?)?;
     let mut per_quantity: BTreeMap<String, Vec<f64>> = BTreeMap::new();
     let mut failures = Vec::new();
-    for (k, values) in range.draws(model, draws, 0).iter().enumerate() {
+    for (k, values) in range.draws(draws, 0).iter().enumerate() {
         let num = NumericModel::from_model(model, values)?;
         let target = Target {
             model,

@@ -59,6 +59,11 @@ pub struct GuessRange {
     /// The guess every device of the range modifies (its `[eom]` coefficients dropped: the
     /// parameters act).
     base: ModelValues,
+    /// The model's mode names, in order.
+    names: Vec<String>,
+    /// Each mode's Q at the guess (a fixed Q, or the guessed one: the half-width of the
+    /// frequency steps when Q has no range).
+    q_guess: Vec<f64>,
 }
 
 impl GuessRange {
@@ -130,7 +135,12 @@ impl GuessRange {
             .collect();
         let mut base = values.clone();
         base.eom.clear();
-        let range = Self { entries, base };
+        let range = Self {
+            entries,
+            base,
+            names: num.mode_names.clone(),
+            q_guess: num.q_factor.clone(),
+        };
         range.check_positive()?;
         Ok(range)
     }
@@ -207,8 +217,7 @@ impl GuessRange {
                 None => e.guess = v,
             }
         }
-        let names: Vec<String> = model.modes.iter().map(|m| m.name.clone()).collect();
-        out.base = out.device(|e| e.guess, &names);
+        out.base = out.device(|e| e.guess);
         out.check_positive()?;
         Ok(out)
     }
@@ -307,7 +316,8 @@ impl GuessRange {
     }
 
     /// The values of one device of the range: each quantity at `pick(entry)`.
-    fn device(&self, mut pick: impl FnMut(&RangeEntry) -> f64, names: &[String]) -> ModelValues {
+    fn device(&self, mut pick: impl FnMut(&RangeEntry) -> f64) -> ModelValues {
+        let names = &self.names;
         let mut v = self.base.clone();
         for e in &self.entries {
             let x = pick(e);
@@ -342,7 +352,6 @@ impl GuessRange {
         model: &Model,
         tones: &[(f64, usize)],
     ) -> Result<Vec<(String, NumericModel)>, PlanError> {
-        let names: Vec<String> = model.modes.iter().map(|m| m.name.clone()).collect();
         let f_entries: Vec<(usize, &RangeEntry)> = self
             .entries
             .iter()
@@ -355,13 +364,7 @@ impl GuessRange {
             self.entries
                 .iter()
                 .find(|e| e.kind == Kind::Quality(n))
-                .map_or_else(
-                    || {
-                        NumericModel::from_model(model, &self.base)
-                            .map_or(f64::NAN, |m| m.q_factor[n])
-                    },
-                    |e| e.ends().1,
-                )
+                .map_or(self.q_guess[n], |e| e.ends().1)
         };
         // (label, frequency per uncertain driven mode, parameters at the larger end)
         let mut devices: Vec<(String, Vec<f64>, bool)> = Vec::new();
@@ -410,31 +413,28 @@ impl GuessRange {
         devices.push(("frequencies at the guess".into(), guesses, false));
         let mut out = Vec::with_capacity(devices.len());
         for (label, fs, large) in devices {
-            let values = self.device(
-                |e| {
-                    let (lo, hi) = e.ends();
-                    match e.kind {
-                        Kind::Frequency(n) => f_entries
-                            .iter()
-                            .position(|(m, _)| *m == n)
-                            .map_or(e.guess, |k| fs[k]),
-                        Kind::Quality(_) => hi,
-                        Kind::Parameter => {
-                            let (small, big) = if lo.abs() <= hi.abs() {
-                                (lo, hi)
-                            } else {
-                                (hi, lo)
-                            };
-                            if large {
-                                big
-                            } else {
-                                small
-                            }
+            let values = self.device(|e| {
+                let (lo, hi) = e.ends();
+                match e.kind {
+                    Kind::Frequency(n) => f_entries
+                        .iter()
+                        .position(|(m, _)| *m == n)
+                        .map_or(e.guess, |k| fs[k]),
+                    Kind::Quality(_) => hi,
+                    Kind::Parameter => {
+                        let (small, big) = if lo.abs() <= hi.abs() {
+                            (lo, hi)
+                        } else {
+                            (hi, lo)
+                        };
+                        if large {
+                            big
+                        } else {
+                            small
                         }
                     }
-                },
-                &names,
-            );
+                }
+            });
             let label = format!(
                 "{label}, every Q high, parameters at their {} magnitude",
                 if large { "larger" } else { "smaller" }
@@ -446,24 +446,20 @@ impl GuessRange {
 
     /// `n` devices drawn from the range with seed `seed`: each quantity uniform between its
     /// ends (log-uniform for a factor spread).
-    pub fn draws(&self, model: &Model, n: usize, seed: u64) -> Vec<ModelValues> {
-        let names: Vec<String> = model.modes.iter().map(|m| m.name.clone()).collect();
+    pub fn draws(&self, n: usize, seed: u64) -> Vec<ModelValues> {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
         (0..n)
             .map(|_| {
-                self.device(
-                    |e| {
-                        let u: f64 = rng.random();
-                        match e.spread {
-                            Spread::Factor(k) => e.guess * k.powf(2.0 * u - 1.0),
-                            _ => {
-                                let (lo, hi) = e.ends();
-                                lo + u * (hi - lo)
-                            }
+                self.device(|e| {
+                    let u: f64 = rng.random();
+                    match e.spread {
+                        Spread::Factor(k) => e.guess * k.powf(2.0 * u - 1.0),
+                        _ => {
+                            let (lo, hi) = e.ends();
+                            lo + u * (hi - lo)
                         }
-                    },
-                    &names,
-                )
+                    }
+                })
             })
             .collect()
     }
@@ -555,8 +551,8 @@ mod tests {
     fn draws_stay_inside_the_range() {
         let m = model();
         let r = GuessRange::new(&m, &values(), &BTreeMap::new()).expect("range");
-        let d = r.draws(&m, 200, 1);
-        assert_eq!(d, r.draws(&m, 200, 1), "deterministic");
+        let d = r.draws(200, 1);
+        assert_eq!(d, r.draws(200, 1), "deterministic");
         let (mut below, mut above) = (0, 0);
         for v in &d {
             let b = v.parameters["beta1"];
