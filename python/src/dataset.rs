@@ -194,10 +194,13 @@ fn sweep_from_dict(
         Some("up") => Direction::Up,
         Some("down") => Direction::Down,
         Some("unordered") => Direction::Unordered,
+        Some("level") => Direction::Level,
         Some(other) => {
             return Err(measurement_error(
                 &name,
-                format!("direction \"{other}\": expected \"up\", \"down\" or \"unordered\""),
+                format!(
+                    "direction \"{other}\": expected \"up\", \"down\", \"unordered\" or \"level\""
+                ),
             ))
         }
         None if firsts.windows(2).all(|w| w[1] > w[0]) => Direction::Up,

@@ -179,6 +179,12 @@ pub fn run(args: Args) -> miette::Result<()> {
             eprintln!("warning: {}: {n}", r.name);
         }
     }
+    for l in &sim.lost_levels {
+        eprintln!(
+            "warning: {}: level {} of its ladder ({:.3} of the forces) is left out of the dataset: it has no stable steady state on this device ({})",
+            l.measurement, l.level, l.fraction, l.why
+        );
+    }
     let mut ds = sim.dataset;
     ds.dir = args.out.clone();
     ds.write_with(&args.out, opts)

@@ -153,3 +153,17 @@ pub enum ExperimentError {
         why: String,
     },
 }
+
+impl ExperimentError {
+    /// Whether this is the device's own answer at a drive level (the ramp stopped at a fold
+    /// with nothing to land on, or the state is unstable) rather than a broken input or a
+    /// numerical limit: a drive ladder loses that level and records the others.
+    pub fn is_lost_level(&self) -> bool {
+        matches!(
+            self,
+            ExperimentError::NotConverged { .. }
+                | ExperimentError::Unstable { .. }
+                | ExperimentError::ParametricInstability { .. }
+        )
+    }
+}

@@ -52,10 +52,10 @@ mod values;
 pub use error::{ExperimentError, PlanError};
 pub use noise::{sigma_from_asd, sigma_from_time_rms, NoiseLevel};
 pub use params_from_eom::{parameters_from_eom, DerivedParameters};
-pub use plan::{Plan, PlanMeasurement, PlanNoise, MAX_MEASURED, MAX_SHOTS, MAX_TONES};
+pub use plan::{Plan, PlanMeasurement, PlanNoise, MAX_LEVELS, MAX_MEASURED, MAX_SHOTS, MAX_TONES};
 pub use run::{
-    add_noise, Engine, MeasurementReport, Settings, Simulation, TimeDomain, Truncation, MAX_ORDER,
-    MAX_TD_RUNS,
+    add_noise, Engine, LostLevel, MeasurementReport, Settings, Simulation, TimeDomain, Truncation,
+    MAX_ORDER, MAX_TD_RUNS,
 };
 pub use values::{
     guess_from_report, guess_from_reports, guess_from_toml, read_guess, read_result, read_values,

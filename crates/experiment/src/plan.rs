@@ -19,6 +19,8 @@ pub const MAX_SHOTS: usize = 100_000;
 pub const MAX_MEASUREMENTS: usize = 1000;
 /// Most measurement points.
 pub const MAX_POINTS: usize = 256;
+/// Most levels of one measurement's drive ladder.
+pub const MAX_LEVELS: usize = 16;
 
 /// A measurement plan (`harmonid simulate --plan`). Fields are public so planners can build
 /// one in code; [`Plan::check`] states the rules, and [`Plan::from_toml`] and
@@ -116,6 +118,12 @@ pub struct PlanMeasurement {
     /// Lock-in bandwidth, Hz (metadata), copied into `dataset.toml`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bandwidth_hz: Option<f64>,
+    /// A drive ladder: the measurement is recorded at each of these fractions of its forces
+    /// (and of its `drive_levels_v`), rising, each in (0, 1], as a drive turned up step by step
+    /// (the method paper's ramp of drive voltages). A level whose state jumps then costs that
+    /// level, not the measurement. Empty: once, at the forces given.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub levels: Vec<f64>,
 }
 
 /// One step of a key path in the plan (`measurement`, `[2]`, `drives_hz`, `[1]`).
@@ -416,6 +424,35 @@ impl PlanMeasurement {
                 None => {}
             }
         }
+        if self.levels.len() > MAX_LEVELS {
+            return Err(issue(
+                at("levels"),
+                format!(
+                    "{} levels; a drive ladder has at most {MAX_LEVELS}",
+                    self.levels.len()
+                ),
+            ));
+        }
+        finite_list(
+            at("levels"),
+            &self.levels,
+            "a fraction of the forces in (0, 1]",
+            |x| x > 0.0 && x <= 1.0,
+        )?;
+        if let Some(k) = (1..self.levels.len()).find(|&k| self.levels[k] <= self.levels[k - 1]) {
+            let mut p = at("levels");
+            p.push(Seg::Index(k));
+            return Err(Issue {
+                path: p,
+                message: format!(
+                    "level {k} ({}) does not rise above level {} ({}); a drive ladder's levels rise",
+                    self.levels[k],
+                    k - 1,
+                    self.levels[k - 1]
+                ),
+                help: Some("list the levels in the order the drive is turned up, each once".into()),
+            });
+        }
         if let Some(b) = self.bandwidth_hz {
             finite_list(
                 at("bandwidth_hz"),
@@ -429,6 +466,35 @@ impl PlanMeasurement {
             })?;
         }
         Ok(())
+    }
+}
+
+impl PlanMeasurement {
+    /// The measurements the drive ladder records: one per level, named `name[k]`, with the
+    /// forces and drive levels scaled (none of them a ladder); the measurement itself without
+    /// a ladder.
+    pub fn rungs(&self) -> Vec<PlanMeasurement> {
+        if self.levels.is_empty() {
+            return vec![self.clone()];
+        }
+        self.levels
+            .iter()
+            .enumerate()
+            .map(|(k, &s)| {
+                let scale = |v: &Vec<f64>| v.iter().map(|x| s * x).collect::<Vec<f64>>();
+                PlanMeasurement {
+                    name: format!("{}[{k}]", self.name),
+                    force: self
+                        .force
+                        .iter()
+                        .map(|(m, v)| (m.clone(), scale(v)))
+                        .collect(),
+                    drive_levels_v: self.drive_levels_v.as_ref().map(scale),
+                    levels: Vec::new(),
+                    ..self.clone()
+                }
+            })
+            .collect()
     }
 }
 

@@ -3,7 +3,8 @@
 
 use crate::{ExperimentError, Plan, PlanError, PlanMeasurement};
 use harmonid_data::dataset::{
-    Dataset, Manifest, Measurement, MeasurementSpec, Truth, TruthForce, TruthMode, TruthNoise,
+    Dataset, Direction, Manifest, Measurement, MeasurementSpec, PerStep, SweepSpec, SweepStep,
+    Truth, TruthForce, TruthMode, TruthNoise,
 };
 use harmonid_sim::{
     self as sim, Excitation, HbSettings, HbStatus, ModelValues, NoiseGen, NumericModel, Stability,
@@ -242,8 +243,25 @@ pub struct MeasurementReport {
 pub struct Simulation {
     /// The dataset (amplitudes in metres, the plan's unit in its manifest, with `truth.toml`).
     pub dataset: Dataset,
-    /// One report per measurement, in plan order.
+    /// One report per measurement recorded (a drive ladder's kept levels each), in plan order.
     pub reports: Vec<MeasurementReport>,
+    /// The levels of drive ladders that had no stable steady state, left out of the dataset.
+    pub lost_levels: Vec<LostLevel>,
+}
+
+/// A level of a drive ladder with no stable steady state on the device: the ramp stopped, or
+/// the state it reached is unstable, so the lab sees the response jump or drift there. The
+/// ladder's other levels are recorded without it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LostLevel {
+    /// The laddered measurement.
+    pub measurement: String,
+    /// The level's index in the plan's `levels`.
+    pub level: usize,
+    /// Its fraction of the measurement's forces.
+    pub fraction: f64,
+    /// What happened there.
+    pub why: String,
 }
 
 impl PlanMeasurement {
@@ -539,109 +557,37 @@ impl Plan {
         }
         let shots = self.noise.shots;
         let sigma_m = if settings.noise { self.sigma_m() } else { 0.0 };
-        let runs = td_runs(settings, self);
-        let mut noise = NoiseGen::new(settings.seed);
+        let mut run = Run {
+            model,
+            settings,
+            shapes: &shapes,
+            shots,
+            sigma_m,
+            runs: td_runs(settings, self),
+            points: self.points.len(),
+            noise: NoiseGen::new(settings.seed),
+            index: 0,
+        };
         let mut measurements = Vec::with_capacity(self.measurements.len());
         let mut reports = Vec::with_capacity(self.measurements.len());
         let mut forces = BTreeMap::new();
-        for (mi, pm) in self.measurements.iter().enumerate() {
-            let drive = pm.excitation(model)?;
-            let (st, order, change) = pm.steady_state(
-                model,
-                &drive,
-                settings.order,
-                &settings.truncation,
-                settings.stop_at_fold,
-            )?;
-            let mut notes = Vec::new();
-            if let Some(c) = change {
-                if c.is_nan() || c >= settings.truncation.tol {
-                    notes.push(format!("widening the lattice beyond order {order} still changes the measured lines by {c:.2e} of the largest (written on request)"));
-                }
+        let mut sweeps = Vec::new();
+        let mut lost_levels = Vec::new();
+        for pm in &self.measurements {
+            if pm.levels.is_empty() {
+                let (meas, force, report) = run.measurement(pm)?;
+                forces.insert(pm.name.clone(), force);
+                measurements.push(meas);
+                reports.push(report);
+                continue;
             }
-            if st.pump_sustained {
-                notes.push("above the parametric threshold: the pump sustains an oscillation (the state the drive alone would hold is unstable), and this is the state the resonator settles on".to_string());
+            let (kept, sweep) = run.ladder(pm, &mut lost_levels)?;
+            for (meas, force, report) in kept {
+                forces.insert(meas.spec.name.clone(), force);
+                measurements.push(meas);
+                reports.push(report);
             }
-            let stability = pm.stability(model, &drive, &st, settings, &mut notes)?;
-            let mut freqs =
-                pm.measured_hz(model, &drive, &st, HbSettings::default().lattice.window_rel);
-            if pm.measure_hz.is_none() && settings.min_line_rel > 0.0 {
-                keep_visible_lines(&mut freqs, &shapes, &st, &drive, settings.min_line_rel);
-            }
-            let mut td_info = None;
-            let per_run: Vec<Vec<Vec<Complex64>>> = match &settings.engine {
-                Engine::HarmonicBalance => vec![shapes
-                    .iter()
-                    .map(|s| freqs.iter().map(|&f| st.at_point(s, f)).collect())
-                    .collect()],
-                Engine::TimeDomain(td) => {
-                    let start = if td.from_rest {
-                        Start::Rest
-                    } else {
-                        let (q, v) = st.state_at(0.0);
-                        Start::State { q, v }
-                    };
-                    let mut out = Vec::with_capacity(runs);
-                    for r in 0..runs {
-                        let ts = TdSettings {
-                            steps_per_period: td.steps_per_period,
-                            rtol: td.rtol,
-                            noise_rms: if settings.noise { td.noise_rms_m } else { 0.0 },
-                            seed: settings
-                                .seed
-                                .wrapping_add(1 + r as u64)
-                                .wrapping_add((mi as u64) << 32),
-                            ..TdSettings::default()
-                        };
-                        let res = sim::simulate_lockin(model, &drive, &freqs, &shapes, &start, &ts)
-                            .map_err(|source| ExperimentError::Sim {
-                                context: format!("measurement {}", pm.name),
-                                source,
-                            })?;
-                        td_info = Some((res.steps, res.samples, res.settle_change));
-                        out.push(res.points);
-                    }
-                    out
-                }
-            };
-            let mut meas = Measurement::zeros(
-                pm.spec(),
-                freqs.clone(),
-                (0..self.points.len()).collect(),
-                shots,
-            );
-            for s in 0..shots {
-                let values = &per_run[s.min(per_run.len() - 1)];
-                for (f, _) in freqs.iter().enumerate() {
-                    for (p, row) in values.iter().enumerate() {
-                        *meas.amplitude_mut(s, f, p) = row[f];
-                    }
-                }
-            }
-            add_noise(&mut meas, sigma_m, &mut noise);
-            if meas
-                .data
-                .iter()
-                .any(|z| !(z.re.is_finite() && z.im.is_finite()))
-            {
-                return Err(ExperimentError::NonFinite {
-                    measurement: pm.name.clone(),
-                });
-            }
-            measurements.push(meas);
-            forces.insert(pm.name.clone(), truth_forces(model, &drive));
-            reports.push(MeasurementReport {
-                name: pm.name.clone(),
-                order,
-                lattice_lines: st.lattice_hz.len(),
-                residual: st.residual,
-                truncation_change: change,
-                stability,
-                drive_jumps: st.drive_jumps.clone(),
-                measured: freqs.len(),
-                time_domain: td_info,
-                notes,
-            });
+            sweeps.push(sweep);
         }
         let sigma = if settings.noise {
             self.noise.sigma_per_quadrature
@@ -649,16 +595,229 @@ impl Plan {
             0.0
         };
         let truth = truth(model, forces, sigma, shots);
+        let mut manifest = self.manifest(model);
+        manifest.measurements = measurements
+            .iter()
+            .filter(|m| m.spec.sweep.is_none())
+            .map(|m| m.spec.clone())
+            .collect();
+        manifest.sweeps = sweeps;
         Ok(Simulation {
             dataset: Dataset {
                 dir: std::path::PathBuf::from("simulated"),
-                manifest: self.manifest(model),
+                manifest,
                 measurements,
                 truth: Some(truth),
                 notes: Vec::new(),
             },
             reports,
+            lost_levels,
         })
+    }
+}
+
+/// One simulated measurement: its data, its true forces per mode, and what happened.
+type Simulated = (Measurement, BTreeMap<String, TruthForce>, MeasurementReport);
+
+/// One simulation's fixed inputs and running state (noise generator, measurement index).
+struct Run<'a> {
+    model: &'a NumericModel,
+    settings: &'a Settings,
+    shapes: &'a [Vec<f64>],
+    shots: usize,
+    sigma_m: f64,
+    runs: usize,
+    points: usize,
+    noise: NoiseGen,
+    /// Measurements simulated so far (seeds the time-domain runs).
+    index: usize,
+}
+
+impl Run<'_> {
+    /// A drive ladder's levels, each simulated as a measurement: a level without a stable
+    /// steady state costs that level (the lab sees its response jump or drift there and
+    /// records the others) and is pushed onto `lost`; the kept levels become the steps of a
+    /// `direction = "level"` sweep, numbered in order as the dataset reads them back. Every
+    /// level lost: the first loss's error.
+    fn ladder(
+        &mut self,
+        pm: &PlanMeasurement,
+        lost_levels: &mut Vec<LostLevel>,
+    ) -> Result<(Vec<Simulated>, SweepSpec), ExperimentError> {
+        let mut kept = Vec::new();
+        let mut first_loss = None;
+        for (k, rung) in pm.rungs().iter().enumerate() {
+            match self.measurement(rung) {
+                Ok(done) => kept.push(done),
+                Err(e) if e.is_lost_level() => {
+                    lost_levels.push(LostLevel {
+                        measurement: pm.name.clone(),
+                        level: k,
+                        fraction: pm.levels[k],
+                        why: e.to_string(),
+                    });
+                    first_loss.get_or_insert(e);
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        if let Some(e) = first_loss.filter(|_| kept.is_empty()) {
+            return Err(e);
+        }
+        let mut sweep = SweepSpec::new(
+            pm.name.clone(),
+            Direction::Level,
+            vec![pm.drives_hz.clone(); kept.len()],
+        );
+        sweep.pumps_hz = pm.pumps_hz.clone();
+        sweep.pump_levels = pm.pump_levels.clone();
+        sweep.pump_phases_rad = pm.pump_phases_rad.clone();
+        sweep.bandwidth_hz = pm.bandwidth_hz;
+        let per_step = |f: fn(&MeasurementSpec) -> &Option<Vec<f64>>| {
+            kept.iter()
+                .map(|(m, _, _)| f(&m.spec).clone())
+                .collect::<Option<Vec<_>>>()
+                .map(PerStep::Each)
+        };
+        sweep.drive_levels_v = per_step(|s| &s.drive_levels_v);
+        sweep.drive_phases_rad = per_step(|s| &s.drive_phases_rad);
+        let mut steps = Vec::with_capacity(kept.len());
+        for (j, (mut meas, force, mut report)) in kept.into_iter().enumerate() {
+            // Steps are numbered as the dataset reads them back: the kept levels in order.
+            meas.spec.name = sweep.step_name(j);
+            meas.spec.file = Some(sweep.file_name());
+            meas.spec.sweep = Some(SweepStep {
+                sweep: pm.name.clone(),
+                step: j,
+            });
+            report.name = meas.spec.name.clone();
+            steps.push((meas, force, report));
+        }
+        Ok((steps, sweep))
+    }
+
+    /// Simulates one measurement (no ladder): its data with noise, its true forces and what
+    /// happened.
+    fn measurement(
+        &mut self,
+        pm: &PlanMeasurement,
+    ) -> Result<(Measurement, BTreeMap<String, TruthForce>, MeasurementReport), ExperimentError>
+    {
+        let drive = pm.excitation(self.model)?;
+        let (st, order, change) = pm.steady_state(
+            self.model,
+            &drive,
+            self.settings.order,
+            &self.settings.truncation,
+            self.settings.stop_at_fold,
+        )?;
+        let mut notes = Vec::new();
+        if let Some(c) = change {
+            if c.is_nan() || c >= self.settings.truncation.tol {
+                notes.push(format!("widening the lattice beyond order {order} still changes the measured lines by {c:.2e} of the largest (written on request)"));
+            }
+        }
+        if st.pump_sustained {
+            notes.push("above the parametric threshold: the pump sustains an oscillation (the state the drive alone would hold is unstable), and this is the state the resonator settles on".to_string());
+        }
+        let stability = pm.stability(self.model, &drive, &st, self.settings, &mut notes)?;
+        let mut freqs = pm.measured_hz(
+            self.model,
+            &drive,
+            &st,
+            HbSettings::default().lattice.window_rel,
+        );
+        if pm.measure_hz.is_none() && self.settings.min_line_rel > 0.0 {
+            keep_visible_lines(
+                &mut freqs,
+                self.shapes,
+                &st,
+                &drive,
+                self.settings.min_line_rel,
+            );
+        }
+        let mut td_info = None;
+        let per_run: Vec<Vec<Vec<Complex64>>> = match &self.settings.engine {
+            Engine::HarmonicBalance => vec![self
+                .shapes
+                .iter()
+                .map(|s| freqs.iter().map(|&f| st.at_point(s, f)).collect())
+                .collect()],
+            Engine::TimeDomain(td) => {
+                let start = if td.from_rest {
+                    Start::Rest
+                } else {
+                    let (q, v) = st.state_at(0.0);
+                    Start::State { q, v }
+                };
+                let mut out = Vec::with_capacity(self.runs);
+                for r in 0..self.runs {
+                    let ts = TdSettings {
+                        steps_per_period: td.steps_per_period,
+                        rtol: td.rtol,
+                        noise_rms: if self.settings.noise {
+                            td.noise_rms_m
+                        } else {
+                            0.0
+                        },
+                        seed: self
+                            .settings
+                            .seed
+                            .wrapping_add(1 + r as u64)
+                            .wrapping_add((self.index as u64) << 32),
+                        ..TdSettings::default()
+                    };
+                    let res =
+                        sim::simulate_lockin(self.model, &drive, &freqs, self.shapes, &start, &ts)
+                            .map_err(|source| ExperimentError::Sim {
+                                context: format!("measurement {}", pm.name),
+                                source,
+                            })?;
+                    td_info = Some((res.steps, res.samples, res.settle_change));
+                    out.push(res.points);
+                }
+                out
+            }
+        };
+        let mut meas = Measurement::zeros(
+            pm.spec(),
+            freqs.clone(),
+            (0..self.points).collect(),
+            self.shots,
+        );
+        for s in 0..self.shots {
+            let values = &per_run[s.min(per_run.len() - 1)];
+            for (f, _) in freqs.iter().enumerate() {
+                for (p, row) in values.iter().enumerate() {
+                    *meas.amplitude_mut(s, f, p) = row[f];
+                }
+            }
+        }
+        add_noise(&mut meas, self.sigma_m, &mut self.noise);
+        if meas
+            .data
+            .iter()
+            .any(|z| !(z.re.is_finite() && z.im.is_finite()))
+        {
+            return Err(ExperimentError::NonFinite {
+                measurement: pm.name.clone(),
+            });
+        }
+        self.index += 1;
+        let force = truth_forces(self.model, &drive);
+        let report = MeasurementReport {
+            name: pm.name.clone(),
+            order,
+            lattice_lines: st.lattice_hz.len(),
+            residual: st.residual,
+            truncation_change: change,
+            stability,
+            drive_jumps: st.drive_jumps.clone(),
+            measured: freqs.len(),
+            time_domain: td_info,
+            notes,
+        };
+        Ok((meas, force, report))
     }
 }
 

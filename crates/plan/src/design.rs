@@ -153,6 +153,7 @@ fn measurement(
         pump_levels: None,
         pump_phases_rad: None,
         bandwidth_hz: None,
+        levels: Vec::new(),
     }
 }
 

@@ -273,6 +273,7 @@ mod tests {
             pump_levels: None,
             pump_phases_rad: None,
             bandwidth_hz: None,
+            levels: Vec::new(),
         };
         let (all, lines) = simulate(&num, &base, &pm, Fidelity::Search).expect("simulates");
         let m = &all.measurements[0];

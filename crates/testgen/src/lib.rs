@@ -176,6 +176,7 @@ pub fn simulate_clean(
                     pump_levels: None,
                     pump_phases_rad: None,
                     bandwidth_hz: None,
+                    levels: Vec::new(),
                 }
             })
             .collect(),

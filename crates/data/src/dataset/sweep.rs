@@ -20,6 +20,9 @@ pub enum Direction {
     Down,
     /// Any order (points measured out of order, or both branches).
     Unordered,
+    /// A drive ladder: the same tones at every step, the drive turned up step by step (each
+    /// step's levels at least the previous step's, when levels are given).
+    Level,
 }
 
 impl Direction {
@@ -29,6 +32,7 @@ impl Direction {
             Direction::Up => "up",
             Direction::Down => "down",
             Direction::Unordered => "unordered",
+            Direction::Level => "level",
         }
     }
 }
@@ -197,20 +201,55 @@ pub(super) fn check_sweep(sw: &SweepSpec) -> Result<(), String> {
             ));
         }
     }
+    if sw.direction == Direction::Level {
+        return check_ladder(sw);
+    }
     let first = |k: usize| sw.drives_hz[k].first().copied().unwrap_or(f64::NAN);
     for k in 1..sw.drives_hz.len() {
         let (a, b) = (first(k - 1), first(k));
         let wrong = match sw.direction {
             Direction::Up => b <= a,
             Direction::Down => b >= a,
-            Direction::Unordered => false,
+            Direction::Unordered | Direction::Level => false,
         };
         if wrong {
             return Err(format!(
-                "sweep \"{name}\" is declared direction = \"{}\", but step {k} is at {b} Hz after step {} at {a} Hz; correct the direction (\"up\", \"down\" or \"unordered\") or the steps' order",
+                "sweep \"{name}\" is declared direction = \"{}\", but step {k} is at {b} Hz after step {} at {a} Hz; correct the direction (\"up\", \"down\", \"unordered\" or \"level\") or the steps' order",
                 sw.direction.name(),
                 k - 1
             ));
+        }
+    }
+    Ok(())
+}
+
+/// A drive ladder's steps: the same tones as step 0 (to the dataset's frequency tolerance), and
+/// each step's drive levels, when given per step, at least the previous step's.
+fn check_ladder(sw: &SweepSpec) -> Result<(), String> {
+    let name = &sw.name;
+    let first = &sw.drives_hz[0];
+    for (k, tones) in sw.drives_hz.iter().enumerate().skip(1) {
+        let same = tones.len() == first.len()
+            && tones
+                .iter()
+                .zip(first)
+                .all(|(a, b)| (a - b).abs() <= FREQ_REL_TOL * b.abs());
+        if !same {
+            return Err(format!(
+                "sweep \"{name}\" is declared direction = \"level\" (a drive ladder: the same tones at every step), but step {k}'s tones {tones:?} Hz differ from step 0's {first:?} Hz; give the same tones at every step, or declare the sweep \"unordered\""
+            ));
+        }
+    }
+    if let Some(PerStep::Each(levels)) = &sw.drive_levels_v {
+        for k in 1..levels.len() {
+            if levels[k].iter().zip(&levels[k - 1]).any(|(b, a)| b < a) {
+                return Err(format!(
+                    "sweep \"{name}\" is declared direction = \"level\" (a drive turned up step by step), but step {k}'s drive levels {:?} are below step {}'s {:?}; give the steps in the order they were measured, or declare the sweep \"unordered\"",
+                    levels[k],
+                    k - 1,
+                    levels[k - 1]
+                ));
+            }
         }
     }
     Ok(())

@@ -186,3 +186,50 @@ fn broken_sweeps_are_refused_with_what_to_do() {
         assert!(e.contains(says), "{says}: {e}");
     }
 }
+
+/// A drive ladder: three steps at the same tone, the level rising.
+fn ladder(levels: &str) -> String {
+    format!(
+        "format = \"harmonid-dataset/1\"\n[[sweep]]\nname = \"ramp\"\ndirection = \"level\"\ndrives_hz = [[100.0], [100.0], [100.0]]\ndrive_levels_v = {levels}\ndrive_phases_rad = [0.0]\n"
+    )
+}
+
+fn ladder_csv() -> String {
+    let mut s = String::from("step,shot,freq_hz,re,im\n");
+    for k in 0..3 {
+        s.push_str(&format!("{k},0,100.0,{k},1\n"));
+    }
+    s
+}
+
+#[test]
+fn a_drive_ladder_reads_as_steps_and_writes_back_as_a_ladder() {
+    let ds = load(&ladder("[[0.1], [0.2], [0.4]]"), &ladder_csv()).expect("ladder");
+    assert_eq!(ds.measurements.len(), 3);
+    assert_eq!(ds.measurements[2].spec.name, "ramp[2]");
+    assert_eq!(ds.measurements[2].spec.drive_levels_v, Some(vec![0.4]));
+    let out = tempfile::tempdir().expect("tempdir");
+    ds.write(out.path().join("copy")).expect("write");
+    let back = Dataset::load(out.path().join("copy")).expect("read back");
+    assert_eq!(back.manifest.sweeps[0].direction, Direction::Level);
+    assert_eq!(back.measurements, ds.measurements);
+}
+
+#[test]
+fn a_drive_ladder_with_other_tones_or_a_falling_level_is_refused() {
+    let moved =
+        ladder("[0.1]").replace("[[100.0], [100.0], [100.0]]", "[[100.0], [100.5], [100.0]]");
+    let e = load(&moved, &ladder_csv()).expect_err("moved").to_string();
+    assert!(
+        e.contains("step 1's tones [100.5] Hz differ from step 0's [100.0] Hz"),
+        "{e}"
+    );
+    let falling = ladder("[[0.1], [0.3], [0.2]]");
+    let e = load(&falling, &ladder_csv())
+        .expect_err("falling")
+        .to_string();
+    assert!(
+        e.contains("step 2's drive levels [0.2] are below step 1's [0.3]"),
+        "{e}"
+    );
+}
