@@ -185,12 +185,28 @@ fn a_guess_with_uncertainties_is_planned_over_its_range() {
                 .expect("median")
     );
     assert!(worst.is_finite() && at_guess.is_finite());
+    // Over the range every measurement is a drive ladder, and the plan's time counts its levels.
+    let written = || std::fs::read_to_string(tmp.path().join("plan.toml")).expect("plan");
+    let plan = harmonid::experiment::Plan::from_toml(&written(), "plan.toml").expect("plan");
+    assert!(plan
+        .measurements
+        .iter()
+        .all(|m| m.levels == [0.5, 0.75, 1.0]));
+    assert!(
+        stderr.contains("(3 measurements, 9 with their ladders' levels;"),
+        "{stderr}"
+    );
     let (stdout, stderr, json) = run(&["--nominal"]);
     assert!(
         !stdout.contains("worst") && !stderr.contains("range"),
         "{stdout}{stderr}"
     );
     assert!(json.get("over_range").is_none());
+    let plan = harmonid::experiment::Plan::from_toml(&written(), "plan.toml").expect("plan");
+    assert!(
+        plan.measurements.iter().all(|m| m.levels.is_empty()),
+        "no ladder at the guess alone"
+    );
 }
 
 /// A malformed uncertainty: the file, the line and what to write; nothing written.
@@ -357,6 +373,11 @@ fn instrument_settings_that_cannot_be_used_are_refused() {
             "a gain for q7",
         ),
         (&["--grid-hz", "2"][..], "coarser than 2 linewidths of q2"),
+        (
+            &["--ladder", "0.5,0.4,1"][..],
+            "the drive ladder must be rising fractions of the forces, each in (0, 1], at most 16 (got [0.5, 0.4, 1.0])",
+        ),
+        (&["--ladder", "0.5,2"][..], "(got [0.5, 2.0])"),
     ] {
         let mut all = args.to_vec();
         all.extend(["--out", out.to_str().expect("utf8")]);

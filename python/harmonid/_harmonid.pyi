@@ -178,6 +178,7 @@ def plan(
     points: Optional[Sequence[Mapping[str, float]]] = None,
     nominal: bool = False,
     draws: int = 10,
+    ladder: Optional[Sequence[float]] = None,
 ) -> PlanResult: ...
 def evaluate_plan(
     model: Model,

@@ -99,6 +99,8 @@ fn check_noise(noise_m: f64, shots: usize) -> PyResult<()> {
 /// The design is checked over the guess's range, as the command line's: the uncertainties a
 /// values file or result gives, defaults for the rest (a dict gives none); `nominal=True`
 /// designs at the guess alone (`--nominal`), `draws` devices of the range score it (`--draws`).
+/// `ladder`: each measurement's drive ladder, fractions of its forces (`--ladder`; default
+/// `[0.5, 0.75, 1.0]` over a range, none with `nominal=True`; `[1.0]` for none).
 ///
 /// Returns a `PlanResult` (`.toml`, `.plan`, `.bounds`, ...). Raises `PlanError` when an
 /// unknown cannot be identified within the limits, the budget is too small or a drive passes a
@@ -106,7 +108,7 @@ fn check_noise(noise_m: f64, shots: usize) -> PyResult<()> {
 /// GIL: a design simulates every candidate (0.2 s for one mode, minutes for the two-mode
 /// nanostring).
 #[pyfunction]
-#[pyo3(signature = (model, values, noise_m, shots = 1, *, max_frequencies = 32, max_measurements = None, bandwidth_hz = 0.5, max_force = None, points = None, nominal = false, draws = harmonid_plan::DEFAULT_DRAWS))]
+#[pyo3(signature = (model, values, noise_m, shots = 1, *, max_frequencies = 32, max_measurements = None, bandwidth_hz = 0.5, max_force = None, points = None, nominal = false, draws = harmonid_plan::DEFAULT_DRAWS, ladder = None))]
 #[allow(clippy::too_many_arguments)] // the Python signature, keyword arguments included
 pub fn plan(
     py: Python<'_>,
@@ -121,9 +123,11 @@ pub fn plan(
     points: Option<Vec<BTreeMap<String, f64>>>,
     nominal: bool,
     draws: usize,
+    ladder: Option<Vec<f64>>,
 ) -> PyResult<PlanResult> {
     let (values, range) = guess_range(py, model, values, nominal)?;
     check_noise(noise_m, shots)?;
+    let ladder = ladder.unwrap_or_else(|| harmonid_plan::default_ladder(range.is_some()));
     let settings = DesignSettings {
         sigma_m: noise_m,
         shots,
@@ -146,6 +150,7 @@ pub fn plan(
             .collect(),
         range,
         draws,
+        ladder,
     };
     let m = std::sync::Arc::clone(&model.inner);
     let (plan, ev) = py

@@ -59,8 +59,12 @@ def test_design_equals_cli(cli, tmp_path, points, flags):
     designed = r.bounds
     assert "stepped across its range" in designed["over_range"].pop("checked")
     assert_close(scored, designed)
+    # Over a range the measurement is a drive ladder: half, three quarters and all of it.
+    assert r.plan["measurement"][0]["levels"] == [0.5, 0.75, 1.0]
     data = harmonid.simulate(model, DUFFING_VALUES, r, noise=False)
-    assert data.measurements == ["single_q1"]
+    assert data.measurements == ["single_q1[0]", "single_q1[1]", "single_q1[2]"]
+    single = harmonid.plan(model, DUFFING_VALUES, 5e-11, 20, points=points, ladder=[1.0])
+    assert "levels" not in single.plan["measurement"][0]
 
 
 def test_design_two_mode_equals_cli(cli, tmp_path):

@@ -30,6 +30,12 @@ pub struct Args {
     /// Design and score at the guess only, as if it were the device (no range, no corners).
     #[arg(long)]
     pub nominal: bool,
+    /// Each measurement's drive ladder: fractions of its designed forces, rising, each in
+    /// (0, 1] (`--ladder 0.5,0.75,1`; `--ladder 1` for none). A level with no stable state
+    /// on the device costs that level, not the measurement. Default: 0.5,0.75,1 over the
+    /// guess's range, none with --nominal.
+    #[arg(long, value_delimiter = ',', value_name = "FRACTIONS")]
+    pub ladder: Option<Vec<f64>>,
     /// Devices drawn from the guess's range for the plan's median and worst bounds.
     #[arg(long, value_name = "N", default_value_t = harmonid_plan::DEFAULT_DRAWS)]
     pub draws: usize,
@@ -230,6 +236,10 @@ pub fn run(args: Args) -> miette::Result<()> {
             max_voltage: args.max_voltage,
             points,
             time_budget_s: (args.time_budget > 0.0).then_some(args.time_budget),
+            ladder: args
+                .ladder
+                .clone()
+                .unwrap_or_else(|| harmonid_plan::default_ladder(range.is_some())),
             range,
             draws: args.draws,
         };
@@ -246,9 +256,14 @@ pub fn run(args: Args) -> miette::Result<()> {
         }
         if let Some(out) = &args.out {
             write_output(out, plan.to_toml().as_bytes(), &inputs)?;
-            let shots = plan.measurements.len() * args.shots;
+            let recorded: usize = plan
+                .measurements
+                .iter()
+                .map(|m| m.levels.len().max(1))
+                .sum();
+            let shots = recorded * args.shots;
             eprintln!(
-                "wrote {} ({} measurements; on a {} Hz grid each shot integrates at least {} s, the plan's {shots} shots at least {} s)",
+                "wrote {} ({} measurements, {recorded} with their ladders' levels; on a {} Hz grid each shot integrates at least {} s, the plan's {shots} shots at least {} s)",
                 out.display(),
                 plan.measurements.len(),
                 args.grid_hz,

@@ -9,8 +9,8 @@
 use crate::coupled::{cheapest_comparable, coupled_variants, Tones, Variant, COMPARABLE};
 use crate::evaluate::{joint_bounds, param_modes, robustness, Evaluation};
 use crate::info::{
-    info_of, is_infeasible, measurement_info, restrict_lines, simulate, too_large,
-    truncation_unchecked, Fidelity, MeasInfo, Target,
+    info_of, is_infeasible, ladder_info, restrict_lines, simulate, too_large, truncation_unchecked,
+    Fidelity, MeasInfo, Target,
 };
 use crate::level::{pair_fold_estimate, strongest};
 use crate::range::GuessRange;
@@ -57,6 +57,11 @@ pub struct DesignSettings {
     pub range: Option<GuessRange>,
     /// Devices drawn from the range for the plan's worst-case bounds.
     pub draws: usize,
+    /// A drive ladder for every measurement: fractions of its designed forces, rising, each
+    /// in (0, 1] (the plan's `levels`; empty: each measurement once, at its forces). A level
+    /// that has no stable state on the device then costs that level, not the measurement,
+    /// and the bounds count every level kept.
+    pub ladder: Vec<f64>,
 }
 
 impl Default for DesignSettings {
@@ -74,6 +79,7 @@ impl Default for DesignSettings {
             time_budget_s: None,
             range: None,
             draws: DEFAULT_DRAWS,
+            ladder: Vec::new(),
         }
     }
 }
@@ -81,12 +87,37 @@ impl Default for DesignSettings {
 /// Devices drawn from the guess's range for a plan's worst-case bounds, by default.
 pub const DEFAULT_DRAWS: usize = 10;
 
+/// The drive ladder `harmonid plan` gives every measurement of a design over a guess's range,
+/// by default: half, three quarters and all of the designed forces.
+pub const DEFAULT_LADDER: [f64; 3] = [0.5, 0.75, 1.0];
+
+/// The drive ladder a design gets unless one is asked for: [`DEFAULT_LADDER`] over a guess's
+/// range (a device off the guess may lose a level), none at the guess alone.
+pub fn default_ladder(over_range: bool) -> Vec<f64> {
+    if over_range {
+        DEFAULT_LADDER.to_vec()
+    } else {
+        Vec::new()
+    }
+}
+
 /// A scored candidate measurement: worst bound, the measurement, its information, and its tone
 /// spacing, level and centre.
 type Candidate = (f64, PlanMeasurement, MeasInfo, Pair);
 
 /// The fraction of the strongest feasible level a single-mode pair is planned at.
 const LEVEL_MARGIN: f64 = 0.8;
+
+/// The fraction of the strongest feasible level a single-mode pair is planned at under
+/// settings `s`: [`LEVEL_MARGIN`], or all of it as the top of a drive ladder (whose lower
+/// levels keep the margin; losing the top costs one level).
+fn level_margin(s: &DesignSettings) -> f64 {
+    if s.ladder.len() > 1 {
+        1.0
+    } else {
+        LEVEL_MARGIN
+    }
+}
 
 /// Tone-pair spacings tried per mode, in linewidths, narrowest first.
 const SPACINGS: [f64; 3] = [3.0, 6.0, 12.0];
@@ -332,18 +363,25 @@ pub fn design_with_progress(
     // beyond a size bound keeps the search's lattice, with a note: the check is not possible,
     // which is not evidence of truncation.
     let mut infos = Vec::with_capacity(plan_ms.len());
-    for pm in &plan_ms {
-        let info = match measurement_info(&target, &base, pm, Fidelity::User) {
+    for pm in &mut plan_ms {
+        // A ladder of one level at the full forces is the measurement itself.
+        if s.ladder != [1.0] {
+            pm.levels = s.ladder.clone();
+        }
+        let (info, lost) = match ladder_info(&target, &base, pm, Fidelity::User) {
             Err(e) if truncation_unchecked(&e) => {
                 designer.note(format!(
                     "{}: its harmonic balance's truncation is not checked at a wider lattice ({e})",
                     pm.name
                 ));
-                measurement_info(&target, &base, pm, Fidelity::Search)?
+                ladder_info(&target, &base, pm, Fidelity::Search)?
             }
             r => r?,
         };
-        infos.push(info);
+        infos.extend(info);
+        for k in lost {
+            designer.note(crate::evaluate::lost_note(pm, k));
+        }
     }
     progress(DesignStep {
         done: needed,
@@ -370,8 +408,19 @@ pub fn design_with_progress(
              devices of the range with every Q at its upper end: each driven mode's frequency at \
              either end and stepped across its range by a half-width, parameters at their larger \
              magnitude; and the guess's frequencies with parameters at their smaller magnitude. \
-             Single-mode pairs are then planned {:.0} % below the strongest such level",
-            100.0 * (1.0 - LEVEL_MARGIN)
+             {}",
+            if s.ladder.len() > 1 {
+                format!(
+                    "Single-mode pairs are then planned at the strongest such level, the top of \
+                     their drive ladder {:?}",
+                    s.ladder
+                )
+            } else {
+                format!(
+                    "Single-mode pairs are then planned {:.0} % below the strongest such level",
+                    100.0 * (1.0 - LEVEL_MARGIN)
+                )
+            }
         ));
         ev.robustness = Some(r);
     }
@@ -402,6 +451,17 @@ fn check_settings(s: &DesignSettings) -> Result<(), PlanError> {
     if s.max_frequencies < 2 {
         let found = s.max_frequencies.to_string();
         return Err(setting("the lines per measurement", found, "at least 2"));
+    }
+    let rising = s.ladder.windows(2).all(|w| w[1] > w[0]);
+    if !(rising
+        && s.ladder.len() <= harmonid_experiment::MAX_LEVELS
+        && s.ladder.iter().all(|&x| x > 0.0 && x <= 1.0))
+    {
+        return Err(setting(
+            "the drive ladder",
+            format!("{:?}", s.ladder),
+            "rising fractions of the forces, each in (0, 1], at most 16",
+        ));
     }
     Ok(())
 }
@@ -817,7 +877,7 @@ impl Designer<'_> {
                 continue;
             };
             // A margin below the fold: the guess is a guess.
-            let force = round3(if folds { LEVEL_MARGIN * good } else { good });
+            let force = round3(if folds { level_margin(s) * good } else { good });
             // The search probed upwards from its first guess: a level reached only past a
             // region where the ramp fails (a fold the ramp's steps happened to hop over, the
             // state then on another branch) is not a drive a lab can ramp up to.

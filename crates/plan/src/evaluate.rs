@@ -1,8 +1,6 @@
 //! Scores a plan: structural identifiability and the Cramér–Rao bound of every unknown.
 
-use crate::info::{
-    is_infeasible, measurement_info, n_shared, too_large, Fidelity, MeasInfo, Target,
-};
+use crate::info::{is_infeasible, ladder_info, n_shared, too_large, Fidelity, MeasInfo, Target};
 use crate::range::GuessRange;
 use crate::PlanError;
 use harmonid_experiment::Plan;
@@ -60,6 +58,9 @@ pub struct Robustness {
     /// The draws where a measurement failed (a jump, an unstable or unfound state), one line
     /// each: which draw, which measurement, why, and the draw's values of its modes.
     pub failures: Vec<String>,
+    /// Levels of drive ladders lost on a draw whose measurements all kept some level (`draw
+    /// 3: couple_q1_q2 level 2`): the draw's bounds are those of the levels kept.
+    pub lost_levels: Vec<String>,
 }
 
 impl Evaluation {
@@ -119,6 +120,7 @@ impl Evaluation {
                 "worst": split(&r.worst),
                 "median": split(&r.median),
                 "failures": r.failures,
+                "lost_levels": r.lost_levels,
             });
         }
         out
@@ -162,6 +164,13 @@ impl Evaluation {
             }
             for f in &r.failures {
                 s += &format!("FAILS ON A DEVICE OF THE RANGE: {f}\n");
+            }
+            if !r.lost_levels.is_empty() {
+                s += &format!(
+                    "(drive ladders lost {} level(s) on the devices drawn, the bounds there use the levels kept: {})\n",
+                    r.lost_levels.len(),
+                    r.lost_levels.join("; ")
+                );
             }
         }
         for f in &self.findings {
@@ -277,6 +286,7 @@ pub fn robustness(
     let plan = with_levels(plan, &NumericModel::from_model(model, range.guess())?)?;
     let mut per_quantity: BTreeMap<String, Vec<f64>> = BTreeMap::new();
     let mut failures = Vec::new();
+    let mut lost_levels = Vec::new();
     for (k, values) in range.draws(draws, 0).iter().enumerate() {
         let num = NumericModel::from_model(model, values)?;
         let target = Target {
@@ -288,9 +298,13 @@ pub fn robustness(
         };
         let mut infos = Vec::with_capacity(plan.measurements.len());
         let mut failed = None;
+        let mut lost = Vec::new();
         for pm in &plan.measurements {
-            match measurement_info(&target, &plan, pm, Fidelity::Search) {
-                Ok(i) => infos.push(i),
+            match ladder_info(&target, &plan, pm, Fidelity::Search) {
+                Ok((i, l)) => {
+                    infos.extend(i);
+                    lost.extend(l.iter().map(|j| format!("draw {k}: {} level {j}", pm.name)));
+                }
                 Err(e) if is_infeasible(&e) || too_large(&e).is_some() => {
                     failed = Some(format!(
                         "draw {k} ({}): {}: {e}",
@@ -306,6 +320,7 @@ pub fn robustness(
             failures.push(f);
             continue;
         }
+        lost_levels.extend(lost);
         let refs: Vec<&MeasInfo> = infos.iter().collect();
         let ev = joint_bounds(model, &refs, shots)?;
         for b in &ev.bounds.quantities {
@@ -326,6 +341,7 @@ pub fn robustness(
         worst,
         median,
         failures,
+        lost_levels,
     })
 }
 
@@ -375,11 +391,23 @@ pub fn evaluate(
         sigma_m,
         shots,
     };
-    let infos = plan
-        .measurements
-        .iter()
-        .map(|pm| measurement_info(&target, &plan, pm, Fidelity::User))
-        .collect::<Result<Vec<_>, _>>()?;
+    let mut infos = Vec::new();
+    let mut notes = Vec::new();
+    for pm in &plan.measurements {
+        let (i, lost) = ladder_info(&target, &plan, pm, Fidelity::User)?;
+        infos.extend(i);
+        notes.extend(lost.iter().map(|&k| lost_note(pm, k)));
+    }
     let refs: Vec<&MeasInfo> = infos.iter().collect();
-    joint_bounds(model, &refs, shots)
+    let mut ev = joint_bounds(model, &refs, shots)?;
+    ev.notes = notes;
+    Ok(ev)
+}
+
+/// The note on level `k` of `pm`'s ladder, lost at the guess.
+pub(crate) fn lost_note(pm: &harmonid_experiment::PlanMeasurement, k: usize) -> String {
+    format!(
+        "{}: level {k} of its ladder ({} of the forces) has no stable steady state at the guess (the drive passes a fold, or the state is unstable); scored without it",
+        pm.name, pm.levels[k]
+    )
 }

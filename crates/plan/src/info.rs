@@ -164,6 +164,36 @@ pub(crate) fn measurement_info(
     info_of(t, pm, &dataset, lattice_lines)
 }
 
+/// The information of `pm`'s drive ladder, one entry per level (`pm` alone without a ladder),
+/// and the levels lost: a level whose drive passes a fold, or whose state is unstable or not
+/// found, contributes nothing, as `harmonid simulate` leaves it out. Every level lost: the
+/// first loss's error.
+pub(crate) fn ladder_info(
+    t: &Target<'_>,
+    base: &Plan,
+    pm: &PlanMeasurement,
+    fidelity: Fidelity,
+) -> Result<(Vec<MeasInfo>, Vec<usize>), PlanError> {
+    if pm.levels.is_empty() {
+        return Ok((vec![measurement_info(t, base, pm, fidelity)?], Vec::new()));
+    }
+    let (mut infos, mut lost, mut first_loss) = (Vec::new(), Vec::new(), None);
+    for (k, rung) in pm.rungs().iter().enumerate() {
+        match measurement_info(t, base, rung, fidelity) {
+            Ok(i) => infos.push(i),
+            Err(e) if is_infeasible(&e) => {
+                lost.push(k);
+                first_loss.get_or_insert(e);
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    match first_loss.filter(|_| infos.is_empty()) {
+        Some(e) => Err(e),
+        None => Ok((infos, lost)),
+    }
+}
+
 /// The information of measurement `pm` whose noise-free data is `dataset` (its lattice of
 /// `lattice_lines` lines): see [`measurement_info`].
 pub(crate) fn info_of(

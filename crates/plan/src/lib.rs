@@ -19,7 +19,10 @@ mod info;
 mod level;
 mod range;
 
-pub use design::{design, design_with_progress, DesignSettings, DesignStep, DEFAULT_DRAWS};
+pub use design::{
+    default_ladder, design, design_with_progress, DesignSettings, DesignStep, DEFAULT_DRAWS,
+    DEFAULT_LADDER,
+};
 pub use evaluate::{evaluate, robustness, Evaluation, Finding, Robustness};
 pub use range::{
     GuessRange, RangeEntry, DEFAULT_F_LINEWIDTHS, DEFAULT_PARAM_FACTOR, DEFAULT_Q_REL,
