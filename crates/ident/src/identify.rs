@@ -8,8 +8,10 @@ use crate::output_error::{self, OutputErrorFailure, POOR_STAGE};
 use crate::problem::{IdentError, Problem};
 use crate::settings::Settings;
 use crate::shots::pool;
-use harmonid_data::Dataset;
+use harmonid_data::result::ExcludedLevel;
+use harmonid_data::{Dataset, Direction, Measurement};
 use harmonid_model::Model;
+use std::collections::BTreeMap;
 
 /// Shots fitted one by one for the per-shot spread (`std`, outlier shots, the `linear`
 /// estimator's median): every shot up to this many. A longer record (a lock-in stream of 10⁵
@@ -48,9 +50,147 @@ fn shot_sample(ds: &Dataset) -> Option<(Dataset, Vec<usize>)> {
 
 /// Identifies `model`'s unknowns from `ds`: the output-error maximum-likelihood estimate
 /// (or the pooled equation-error one, [`Settings::estimator`]) with its standard errors, the
-/// per-shot spread, the tables of the result file and its warnings. See
+/// per-shot spread, the tables of the result file and its warnings. A level of a drive
+/// ladder (a `direction = "level"` sweep of three levels or more) that does not fit the
+/// branch the ladder's other levels define is left out: when a level's fit is rejected at
+/// [`LADDER_ALPHA`] (Bonferroni over every ladder level), each level of that ladder is left
+/// out in turn, and the one after which all the others fit (the best fit if several) is
+/// excluded, repeatedly ([`Report::excluded_levels`], and a warning each). See
 /// `docs/identification.md`.
 pub fn identify(model: &Model, ds: &Dataset, settings: &Settings) -> Result<Report, IdentError> {
+    let mut report = identify_every_level(model, ds, settings)?;
+    let levels: usize = ladders(ds).iter().map(|l| l.1.len()).sum();
+    if levels == 0 {
+        return Ok(report);
+    }
+    let cut = LADDER_ALPHA / levels as f64;
+    let mut current: Option<Dataset> = None;
+    let mut excluded = Vec::new();
+    // Greedy: while a ladder has a rejected level, leave out the level of such a ladder after
+    // which the ladder's other levels all fit (the best fit if several do).
+    loop {
+        let now = current.as_ref().unwrap_or(ds);
+        let fits = level_fits(now, &report);
+        let suspect: Vec<(String, Vec<String>)> = ladders(now)
+            .into_iter()
+            .filter(|(_, steps)| {
+                steps.len() >= 3 && steps.iter().any(|m| fits.get(m).is_some_and(|f| f.2 < cut))
+            })
+            .collect();
+        let mut best: Option<(f64, Report, Dataset, ExcludedLevel)> = None;
+        for (ladder, steps) in &suspect {
+            for step in steps {
+                let Some(without) = without_measurement(now, step) else {
+                    continue;
+                };
+                let Ok(r) = identify_every_level(model, &without, settings) else {
+                    continue;
+                };
+                let after = level_fits(&without, &r);
+                let rest_fit = steps
+                    .iter()
+                    .filter(|m| *m != step)
+                    .all(|m| after.get(m).is_some_and(|f| f.2 >= cut));
+                let score = r
+                    .goodness_of_fit
+                    .as_ref()
+                    .map_or(f64::INFINITY, |g| g.chi2_per_dof);
+                if rest_fit && best.as_ref().is_none_or(|b| score < b.0) {
+                    let (chi2_per_dof, expected_chi2_per_dof, p_value) = fits
+                        .get(step)
+                        .copied()
+                        .unwrap_or((f64::NAN, f64::NAN, f64::NAN));
+                    let level = ExcludedLevel {
+                        measurement: step.clone(),
+                        ladder: ladder.clone(),
+                        chi2_per_dof,
+                        expected_chi2_per_dof,
+                        p_value,
+                    };
+                    best = Some((score, r, without, level));
+                }
+            }
+        }
+        let Some((_, r, without, level)) = best else {
+            break;
+        };
+        report = r;
+        current = Some(without);
+        excluded.push(level);
+    }
+    for o in &excluded {
+        report.warnings.push(format!(
+            "{}: left out of the fit: it does not fit the branch the other levels of its drive ladder {} define (χ²/dof {:.3} where a correct model gives {:.3}, p = {:.1e}; without it the ladder's other levels fit); the response may have jumped or drifted at this level",
+            o.measurement, o.ladder, o.chi2_per_dof, o.expected_chi2_per_dof, o.p_value
+        ));
+    }
+    report.excluded_levels = excluded;
+    Ok(report)
+}
+
+/// Family-wise probability that the ladder check leaves out a level of data a correct model
+/// fits (Bonferroni over every ladder level of the dataset).
+pub const LADDER_ALPHA: f64 = 0.01;
+
+/// `ds`'s drive ladders (sweeps of `direction = "level"`): each one's name and its levels'
+/// measurement names, in order.
+fn ladders(ds: &Dataset) -> Vec<(String, Vec<String>)> {
+    ds.manifest
+        .sweeps
+        .iter()
+        .filter(|s| s.direction == Direction::Level)
+        .map(|s| {
+            let steps = ds
+                .measurements
+                .iter()
+                .filter(|m| m.spec.sweep.as_ref().is_some_and(|st| st.sweep == s.name))
+                .map(|m| m.spec.name.clone())
+                .collect();
+            (s.name.clone(), steps)
+        })
+        .collect()
+}
+
+/// Per measurement of `report`'s output-error fit: `χ²/dof`, its expectation and `p`; empty
+/// without a `p` (no shot noise, an error floor, the linear estimator) or a converged fit.
+fn level_fits(ds: &Dataset, report: &Report) -> BTreeMap<String, (f64, f64, f64)> {
+    let Some(g) = report
+        .goodness_of_fit
+        .as_ref()
+        .filter(|g| g.converged && g.error_floor.is_none())
+    else {
+        return BTreeMap::new();
+    };
+    debug_assert_eq!(g.measurements.len(), ds.measurements.len());
+    g.measurements
+        .iter()
+        .filter_map(|m| {
+            let p = m.p_value?;
+            Some((m.name.clone(), (m.chi2_per_dof, m.expected_chi2_per_dof, p)))
+        })
+        .collect()
+}
+
+/// `ds` without the measurement `name` (`None` when the rest is not a dataset).
+fn without_measurement(ds: &Dataset, name: &str) -> Option<Dataset> {
+    let kept: Vec<Measurement> = ds
+        .measurements
+        .iter()
+        .filter(|m| m.spec.name != name)
+        .cloned()
+        .collect();
+    let mut out =
+        Dataset::from_parts(ds.dir.clone(), ds.manifest.clone(), kept, ds.truth.clone()).ok()?;
+    out.notes = ds.notes.clone();
+    Some(out)
+}
+
+/// [`identify`] with every measurement of `ds`.
+fn identify_every_level(
+    model: &Model,
+    ds: &Dataset,
+    settings: &Settings,
+) -> Result<Report, IdentError> {
     let prob = Problem::new(model, ds, settings)?;
     let sample = shot_sample(ds);
     let per_shot = prob.fit(sample.as_ref().map_or(ds, |s| &s.0))?;

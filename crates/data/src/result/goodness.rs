@@ -76,6 +76,11 @@ pub struct MeasurementFit {
     pub chi2_per_dof: f64,
     /// The expectation of `chi2_per_dof` for a correct model (its shots' `ν/(ν − 2)`).
     pub expected_chi2_per_dof: f64,
+    /// Probability that a correct model gives this measurement a `chi2` at least this large
+    /// (as the whole fit's `p_value`, on its share of the degrees of freedom); `None`/absent
+    /// without shot noise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub p_value: Option<f64>,
 }
 
 /// One measured line's residual in noise units.

@@ -174,6 +174,11 @@ pub struct Report {
     /// noise study's per-shot report).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub goodness_of_fit: Option<GoodnessOfFit>,
+    /// Levels of drive ladders left out of the fit because they do not fit the branch the
+    /// ladder's other levels define (a level the response jumped or drifted at); absent when
+    /// none was.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub excluded_levels: Vec<ExcludedLevel>,
     /// How well the estimate predicts the measurements held out of the fit (`identify
     /// --holdout`), in the order given; absent without a holdout.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -239,6 +244,21 @@ impl Report {
         }
         Ok(r)
     }
+}
+
+/// A level of a drive ladder the identification left out: its fit with the others.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ExcludedLevel {
+    /// The level's measurement (`couple_q1_q2[2]`).
+    pub measurement: String,
+    /// Its ladder (the `direction = "level"` sweep).
+    pub ladder: String,
+    /// Its `χ²` per degree of freedom in the fit with every level.
+    pub chi2_per_dof: f64,
+    /// What a correct model gives.
+    pub expected_chi2_per_dof: f64,
+    /// The probability of a `χ²` at least this large for a correct model.
+    pub p_value: f64,
 }
 
 /// How well the fit predicts one held-out measurement.
@@ -339,6 +359,7 @@ mod tests {
             rejected_shots: [("m".to_string(), vec![1])].into(),
             notes: vec!["a note".into()],
             goodness_of_fit: None,
+            excluded_levels: Vec::new(),
             holdout: Vec::new(),
             shots: 3,
             shots_fitted: None,

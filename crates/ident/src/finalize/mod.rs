@@ -181,6 +181,7 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
         rejected_shots,
         notes: all_notes,
         goodness_of_fit,
+        excluded_levels: Vec::new(),
         holdout: Vec::new(),
         shots: ds.measurements.iter().map(|m| m.n_shots).max().unwrap_or(1),
         shots_fitted: (!shot_index.is_empty()).then_some(per_shot.values.len()),

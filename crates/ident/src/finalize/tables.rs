@@ -373,6 +373,7 @@ pub fn report_from_shots(model_path: &str, ds: &Dataset, prob: &Problem, fit: &F
         notes: Vec::new(),
         force_model: prob.table.force_model().description().to_string(),
         goodness_of_fit: None,
+        excluded_levels: Vec::new(),
         holdout: Vec::new(),
         shots: fit.values.len(),
         shots_fitted: None,

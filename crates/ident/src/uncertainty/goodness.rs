@@ -73,6 +73,10 @@ pub(crate) fn goodness_of_fit(
             *sum += per as f64 * x;
         }
         let share = 2.0 * per as f64 * dof_share;
+        let p_value = (from_shots && per > 0).then(|| {
+            let [k1, k2, k3] = k.map(|x| x * per as f64 * dof_share);
+            survival(c, [k1, k2, k3])
+        });
         measurements.push(MeasurementFit {
             name: m.spec.name.clone(),
             lines: per,
@@ -82,6 +86,7 @@ pub(crate) fn goodness_of_fit(
             rms_residual_sigma: (c / (2 * per).max(1) as f64).sqrt(),
             chi2_per_dof: if share > 0.0 { c / share } else { f64::NAN },
             expected_chi2_per_dof: if from_shots { k[0] / 2.0 } else { 1.0 },
+            p_value,
         });
     }
     let dof_f = dof.max(1) as f64;
