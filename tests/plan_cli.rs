@@ -196,6 +196,16 @@ fn a_guess_with_uncertainties_is_planned_over_its_range() {
         stderr.contains("(3 measurements, 9 with their ladders' levels;"),
         "{stderr}"
     );
+    // No draws: no median or worst column (nothing to take them over), and it says so.
+    let (stdout, _, _) = run(&["--draws", "0"]);
+    assert!(
+        !stdout.contains("worst") && !stdout.contains("NaN"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("no device drawn from the range: --draws 0"),
+        "{stdout}"
+    );
     let (stdout, stderr, json) = run(&["--nominal"]);
     assert!(
         !stdout.contains("worst") && !stderr.contains("range"),

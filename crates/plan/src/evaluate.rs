@@ -130,11 +130,13 @@ impl Evaluation {
     /// median and worst relative bound of the draws).
     pub fn table(&self) -> String {
         let r = self.robustness.as_ref();
+        // Without a feasible draw there is no median or worst to show.
+        let columns = r.filter(|r| !r.median.is_empty());
         let mut s = format!(
             "{:<12} {:>14} {:>12} {:>10}",
             "quantity", "value", "bound", "relative"
         );
-        if r.is_some() {
+        if columns.is_some() {
             s += &format!(" {:>10} {:>10}", "median", "worst");
         }
         s += "\n";
@@ -143,7 +145,7 @@ impl Evaluation {
                 "{:<12} {:>14.6e} {:>12.3e} {:>10.3e}",
                 b.name, b.value, b.std, b.rel
             );
-            if let Some(r) = r {
+            if let Some(r) = columns {
                 let get = |m: &BTreeMap<String, f64>| m.get(&b.name).copied().unwrap_or(f64::NAN);
                 s += &format!(" {:>10.3e} {:>10.3e}", get(&r.median), get(&r.worst));
             }
@@ -154,11 +156,15 @@ impl Evaluation {
             self.bounds.shots, self.bounds.condition
         );
         if let Some(r) = r {
-            s += &format!(
-                "(relative: at the guess; median and worst: over {} devices drawn from the range, {} of them with every measurement feasible)\n",
-                r.draws,
-                r.draws - r.failures.len()
-            );
+            s += &if r.draws == 0 {
+                "(relative: at the guess; no device drawn from the range: --draws 0)\n".to_string()
+            } else {
+                format!(
+                    "(relative: at the guess; median and worst: over {} devices drawn from the range, {} of them with every measurement feasible)\n",
+                    r.draws,
+                    r.draws - r.failures.len()
+                )
+            };
             if let Some(c) = &r.corners {
                 s += &format!("(designed so that {c})\n");
             }
