@@ -206,6 +206,30 @@ fn a_level_off_its_ladders_branch_is_left_out_and_said() {
         "{:?}",
         rep.warnings
     );
+    // Every level off (each at another multiple of its drive): no single level explains it,
+    // and nothing is left out.
+    let mut all_off = ds.clone();
+    for (k, scale) in [(0, 1.3), (1, 0.8)] {
+        let other = laddered_single(scale)
+            .simulate(&model, &values, &settings(1))
+            .expect("other")
+            .dataset;
+        let j = i - 2 + k;
+        all_off.measurements[j].data = other.measurements[j].data.clone();
+    }
+    let none = harmonid::ident::identify(&model, &all_off, &ident).expect("identify");
+    assert!(
+        none.excluded_levels.is_empty(),
+        "{:?}",
+        none.excluded_levels
+    );
+    assert!(
+        none.notes
+            .iter()
+            .any(|n| n.contains("drive ladder single_q1: its levels do not fit, and leaving out any one of them does not make the others fit")),
+        "{:?}",
+        none.notes
+    );
     let fit = rep.goodness_of_fit.as_ref().expect("goodness");
     assert!(fit.measurements.iter().all(|m| m.name != "single_q1[2]"));
     for (name, truth) in [("beta1", 2.68e22), ("beta2", 3.7e23), ("g12", 8.57e22)] {

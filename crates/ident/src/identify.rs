@@ -55,7 +55,8 @@ fn shot_sample(ds: &Dataset) -> Option<(Dataset, Vec<usize>)> {
 /// branch the ladder's other levels define is left out: when a level's fit is rejected at
 /// [`LADDER_ALPHA`] (Bonferroni over every ladder level), each level of that ladder is left
 /// out in turn, and the one after which all the others fit (the best fit if several) is
-/// excluded, repeatedly ([`Report::excluded_levels`], and a warning each). See
+/// excluded, repeatedly ([`Report::excluded_levels`], and a warning each); not when more than
+/// a quarter of the ladders (at least one) miss (then the model does, and a note says so). See
 /// `docs/identification.md`.
 pub fn identify(model: &Model, ds: &Dataset, settings: &Settings) -> Result<Report, IdentError> {
     let mut report = identify_every_level(model, ds, settings)?;
@@ -77,6 +78,16 @@ pub fn identify(model: &Model, ds: &Dataset, settings: &Settings) -> Result<Repo
                 steps.len() >= 3 && steps.iter().any(|m| fits.get(m).is_some_and(|f| f.2 < cut))
             })
             .collect();
+        // A jumped level is the exception: when many ladders miss, the model misses something
+        // that no level left out would explain (and trying each would cost a fit per level).
+        let n_ladders = ladders(now).len();
+        if suspect.len() > (n_ladders / 4).max(1) {
+            report.notes.push(format!(
+                "drive ladders: {} of {n_ladders} have levels that do not fit; no level was left out (so many misses are the model's, not jumps)",
+                suspect.len()
+            ));
+            break;
+        }
         let mut best: Option<(f64, Report, Dataset, ExcludedLevel)> = None;
         for (ladder, steps) in &suspect {
             for step in steps {
@@ -112,6 +123,11 @@ pub fn identify(model: &Model, ds: &Dataset, settings: &Settings) -> Result<Repo
             }
         }
         let Some((_, r, without, level)) = best else {
+            for (ladder, _) in &suspect {
+                report.notes.push(format!(
+                    "drive ladder {ladder}: its levels do not fit, and leaving out any one of them does not make the others fit (the model or the recorded drive misses something, not one level); no level was left out"
+                ));
+            }
             break;
         };
         report = r;

@@ -82,20 +82,23 @@ pub(crate) fn coupled_variants(num: &NumericModel, modes: &[usize]) -> Vec<Drive
         .collect()
 }
 
-/// Of scored variants `(worst bound, lattice lines, payload)`: the payload of the one with the
-/// smallest lattice among those whose worst bound is within [`COMPARABLE`] of the best (a
-/// smaller lattice is cheaper to simulate and identify, for bounds about as good; ties: the
-/// smaller bound); `None` when there are none or none has a finite bound.
-pub(crate) fn cheapest_comparable<T>(scored: Vec<(f64, usize, T)>) -> Option<T> {
+/// Scored variants `(worst bound, lattice lines, payload)` in the order a design prefers them:
+/// first those whose worst bound is within [`COMPARABLE`] of the best, smallest lattice first
+/// (cheaper to simulate and identify, for bounds about as good; ties: the smaller bound), then
+/// the others by bound (a weaker measurement the lab can use beats one it cannot); none with
+/// an infinite bound.
+pub(crate) fn preference_order<T>(scored: Vec<(f64, usize, T)>) -> Vec<T> {
     let best = scored.iter().map(|v| v.0).fold(f64::INFINITY, f64::min);
     if !best.is_finite() {
-        return None;
+        return Vec::new();
     }
-    scored
+    let (mut near, mut far): (Vec<_>, Vec<_>) = scored
         .into_iter()
-        .filter(|v| v.0 <= COMPARABLE * best)
-        .min_by(|a, b| a.1.cmp(&b.1).then(a.0.total_cmp(&b.0)))
-        .map(|v| v.2)
+        .filter(|v| v.0.is_finite())
+        .partition(|v| v.0 <= COMPARABLE * best);
+    near.sort_by(|a, b| a.1.cmp(&b.1).then(a.0.total_cmp(&b.0)));
+    far.sort_by(|a, b| a.0.total_cmp(&b.0));
+    near.into_iter().chain(far).map(|v| v.2).collect()
 }
 
 #[cfg(test)]
@@ -146,20 +149,42 @@ mod tests {
     fn the_cheapest_of_comparable_bounds_wins() {
         // 4-tone 0.020 on 576 lines, 3-tone 0.023 on 116: the 3-tone one.
         assert_eq!(
-            cheapest_comparable(vec![(0.020, 576, "4"), (0.023, 116, "3")]),
+            preference_order(vec![(0.020, 576, "4"), (0.023, 116, "3")])
+                .first()
+                .copied(),
             Some("3")
         );
         // The 3-tone one twice as bad: the 4-tone one.
         assert_eq!(
-            cheapest_comparable(vec![(0.020, 576, "4"), (0.040, 116, "3")]),
+            preference_order(vec![(0.020, 576, "4"), (0.040, 116, "3")])
+                .first()
+                .copied(),
             Some("4")
         );
         // Equal lattices: the smaller bound.
         assert_eq!(
-            cheapest_comparable(vec![(0.022, 116, "a"), (0.020, 116, "b")]),
+            preference_order(vec![(0.022, 116, "a"), (0.020, 116, "b")])
+                .first()
+                .copied(),
             Some("b")
         );
-        assert_eq!(cheapest_comparable(vec![(f64::INFINITY, 10, "x")]), None);
-        assert_eq!(cheapest_comparable::<&str>(Vec::new()), None);
+        assert_eq!(
+            preference_order(vec![(f64::INFINITY, 10, "x")])
+                .first()
+                .copied(),
+            None
+        );
+        assert_eq!(preference_order::<&str>(Vec::new()).first().copied(), None);
+        // The comparable ones by lattice, then the rest by bound.
+        assert_eq!(
+            preference_order(vec![
+                (0.09, 10, "far"),
+                (0.020, 576, "4"),
+                (0.023, 116, "3"),
+                (0.05, 20, "nearer"),
+                (f64::INFINITY, 5, "x")
+            ]),
+            ["3", "4", "nearer", "far"]
+        );
     }
 }

@@ -6,7 +6,7 @@
 //! with the smaller bounds. Lines: the drive tones and the largest predicted lines near any
 //! resonance, at most `max_frequencies`; every tone on the instrument grid, so every line is.
 
-use crate::coupled::{cheapest_comparable, coupled_variants, Tones, Variant, COMPARABLE};
+use crate::coupled::{coupled_variants, preference_order, Tones, Variant, COMPARABLE};
 use crate::evaluate::{joint_bounds, param_modes, robustness, Evaluation};
 use crate::info::{
     info_of, is_infeasible, ladder_info, restrict_lines, simulate, too_large, truncation_unchecked,
@@ -104,6 +104,15 @@ pub fn default_ladder(over_range: bool) -> Vec<f64> {
 /// A scored candidate measurement: worst bound, the measurement, its information, and its tone
 /// spacing, level and centre.
 type Candidate = (f64, PlanMeasurement, MeasInfo, Pair);
+
+/// Most candidates of a coupled measurement whose truncation is checked before the design
+/// keeps the preferred one unchecked.
+const MAX_TRUNCATION_TRIES: usize = 4;
+
+/// Whether `e` is `harmonid simulate`'s refusal of a state whose lattice never settles.
+fn is_truncated(e: &PlanError) -> bool {
+    matches!(e, PlanError::Experiment(x) if matches!(**x, harmonid_experiment::ExperimentError::Truncated { .. }))
+}
 
 /// The fraction of the strongest feasible level a single-mode pair is planned at.
 const LEVEL_MARGIN: f64 = 0.8;
@@ -719,6 +728,19 @@ impl Designer<'_> {
         Ok(self.survives_range(&c.0)?.then_some(c))
     }
 
+    /// `None` when `harmonid simulate` can check `pm`'s truncation at the guess (the lattice
+    /// widened until the measured lines settle), else why not.
+    fn truncation_checks(&self, pm: &PlanMeasurement) -> Result<Option<String>, PlanError> {
+        match simulate(self.num, self.base, pm, Fidelity::User) {
+            Ok(_) => Ok(None),
+            Err(e) if truncation_unchecked(&e) || is_truncated(&e) => Ok(Some(e.to_string())),
+            // Feasibility was checked at the search's order; a wider lattice that finds no
+            // state says the same as a truncation that cannot be checked.
+            Err(e) if is_infeasible(&e) => Ok(Some(e.to_string())),
+            Err(e) => Err(e),
+        }
+    }
+
     /// [`Self::candidate`] at the guess only.
     fn candidate_at_guess(
         &self,
@@ -980,7 +1002,22 @@ impl Designer<'_> {
                 tried |= try_variant(&set.pairs)?.is_finite();
             }
         }
-        cheapest_comparable(scored).ok_or_else(|| {
+        // The preferred candidate whose truncation `harmonid simulate` can check at the guess
+        // (a plan it refuses costs the lab the measurement); the first, with a note, if none.
+        let mut first = None;
+        for (k, (pm, info)) in preference_order(scored).into_iter().enumerate() {
+            if k < MAX_TRUNCATION_TRIES {
+                match self.truncation_checks(&pm)? {
+                    None => return Ok((pm, info)),
+                    Some(why) => self.note(format!(
+                        "preferred another drive of {name} over tones {:?} Hz: {why}",
+                        pm.drives_hz
+                    )),
+                }
+            }
+            first.get_or_insert((pm, info));
+        }
+        first.ok_or_else(|| {
             let skipped: Vec<String> = self
                 .notes
                 .borrow()
@@ -1006,7 +1043,7 @@ impl Designer<'_> {
 }
 
 /// Whether a candidate of worst bound `score` and `lattice` lines could still be chosen by
-/// [`cheapest_comparable`] among `scored` and the candidates to come: not when its bound is
+/// [`preference_order`]'s first among `scored` and the candidates to come: not when its bound is
 /// beyond [`COMPARABLE`] of the best so far (the best only improves), nor when a candidate
 /// already has as small a lattice and as good a bound.
 fn could_win<T>(scored: &[(f64, usize, T)], score: f64, lattice: usize) -> bool {
