@@ -231,9 +231,16 @@ const NANOSTRING_SHAPE: [f64; 5] = [0.309, 0.588, 0.809, 0.951, 1.0];
 /// range: the share of devices with every unknown within 4 stderr, the undetermined counts and
 /// the design's CPU time.
 fn example_case(example: &str, shape: &[f64], sigma_m: f64, shots: usize) -> (usize, usize) {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("examples")
-        .join(example);
+    // The examples, and the models written for this check (tests/fixtures/plan_models).
+    let repo = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let root = [
+        repo.join("examples"),
+        repo.join("tests/fixtures/plan_models"),
+    ]
+    .into_iter()
+    .map(|d| d.join(example))
+    .find(|d| d.is_dir())
+    .unwrap_or_else(|| panic!("no example or plan model {example}"));
     let model = harmonid_model::load(&root.join("model.hb")).expect("model");
     let truth = harmonid_experiment::read_values(&root.join("values.toml")).expect("values");
     let mut guess = truth.clone();
@@ -260,6 +267,9 @@ fn example_case(example: &str, shape: &[f64], sigma_m: f64, shots: usize) -> (us
     let (plan, ev) = design(&model, range.guess(), &s).expect("design");
     let seconds = t0.elapsed().as_secs_f64();
     println!("{example}\n{}", ev.table());
+    for n in &ev.notes {
+        println!("note: {n}");
+    }
     let outcome = run(&model, &plan, &range, &range.draws(20, 1));
     let good = outcome.iter().filter(|o| o.0.is_empty()).count();
     let determined = outcome
@@ -292,8 +302,10 @@ fn example_case(example: &str, shape: &[f64], sigma_m: f64, shots: usize) -> (us
 #[test]
 #[ignore = "minutes: the examples over their guesses' ranges"]
 fn the_examples_planned_from_guesses_off_their_values() {
-    let cases: [(&str, &[f64], f64, usize); 6] = [
+    let cases: [(&str, &[f64], f64, usize); 8] = [
         ("nanostring_2mode", &NANOSTRING_SHAPE[..2], 5e-11, 20),
+        ("internal_1to2", &[], 5e-11, 20),
+        ("internal_1to3", &[], 5e-11, 20),
         ("three_wave", &[0.5, 0.5, 0.5], 5e-11, 20),
         ("cubic_3mode", &[0.5, 0.5, 0.5], 5e-11, 20),
         ("damped_2mode", &[], 2e-12, 20),

@@ -13,6 +13,10 @@ use harmonid_sim::{
 use num_complex::Complex64;
 use std::collections::BTreeMap;
 
+/// The share of the noise of the mean over a plan's shots below which a truncation change
+/// passes ([`Truncation::noise_floor_m`]).
+pub const TRUNCATION_NOISE_SHARE: f64 = 0.1;
+
 /// Highest intermodulation order asked for or reached by the truncation check.
 pub const MAX_ORDER: usize = 31;
 /// Most time-domain runs of one simulation (one per shot with per-sample noise).
@@ -30,6 +34,11 @@ pub struct Truncation {
     pub max_order: usize,
     /// A state that misses `tol` at `max_order` is an error (else a note in the report).
     pub required: bool,
+    /// A change of the measured lines below this size (m, modal amplitude) passes whatever
+    /// `tol`: [`Plan::simulate_numeric`] sets a tenth of the noise of the mean over the plan's
+    /// shots, `0.1 σ/√shots`, below which the truncation cannot move the fit (identification
+    /// widens its own lattice by the same rule); 0 (the default): `tol` alone.
+    pub noise_floor_m: f64,
 }
 
 impl Default for Truncation {
@@ -39,6 +48,7 @@ impl Default for Truncation {
             tol: 1e-6,
             max_order: 17,
             required: true,
+            noise_floor_m: 0.0,
         }
     }
 }
@@ -346,8 +356,9 @@ impl PlanMeasurement {
     }
 
     /// The harmonic-balance steady state under `drive`, with the truncation check of
-    /// `settings` (the order raised until the measured lines change by less than its tolerance);
-    /// also returns the order used and the change found. Non-convergence is an error.
+    /// `settings` (the order raised until the measured lines change by less than its tolerance,
+    /// or by less than its noise floor); also returns the order used, the change found relative
+    /// to the largest measured line, and whether it passed. Non-convergence is an error.
     pub fn steady_state(
         &self,
         model: &NumericModel,
@@ -355,7 +366,7 @@ impl PlanMeasurement {
         order: usize,
         truncation: &Truncation,
         stop_at_fold: bool,
-    ) -> Result<(SteadyState, usize, Option<f64>), ExperimentError> {
+    ) -> Result<Settled, ExperimentError> {
         let mut hs = HbSettings {
             stop_at_fold,
             ..HbSettings::default()
@@ -385,6 +396,11 @@ impl PlanMeasurement {
             return Ok((st, order, None));
         }
         let at = self.measured_hz(model, drive, &st, window0);
+        // The tolerance relative to the largest measured line, with the noise floor.
+        let big = largest(&st, &at);
+        let tol = truncation
+            .tol
+            .max(truncation.noise_floor_m / big.max(f64::MIN_POSITIVE));
         loop {
             let mut wide = hs.clone();
             wide.lattice.order += 2;
@@ -397,7 +413,7 @@ impl PlanMeasurement {
                 wider_order: wide.lattice.order,
                 wider_lines: wider,
                 change,
-                tol: truncation.tol,
+                tol,
                 why,
             };
             let st2 = match solve(&wide) {
@@ -409,17 +425,17 @@ impl PlanMeasurement {
                         format!("; the widened lattice could not be solved: {e}"),
                     ))
                 }
-                Err(_) => return Ok((st, hs.lattice.order, Some(f64::NAN))),
+                Err(_) => return Ok((st, hs.lattice.order, Some((f64::NAN, false)))),
             };
             let change = lines_change(&st, &st2, &at);
-            if change < truncation.tol {
-                return Ok((st, hs.lattice.order, Some(change)));
+            if change < tol {
+                return Ok((st, hs.lattice.order, Some((change, true))));
             }
             if wide.lattice.order > truncation.max_order.min(MAX_ORDER) {
                 if truncation.required {
                     return Err(fail(change, st2.lattice_hz.len(), String::new()));
                 }
-                return Ok((st2, wide.lattice.order, Some(change)));
+                return Ok((st2, wide.lattice.order, Some((change, false))));
             }
             hs = wide;
             st = st2;
@@ -444,6 +460,13 @@ fn not_a_mode(path: String, mode: &str, model: &NumericModel) -> ExperimentError
 }
 
 /// `max |X − X'| / max |X|` over every mode at the frequencies `at_hz`.
+/// The largest modal amplitude of `st` at `at_hz`, m.
+fn largest(st: &SteadyState, at_hz: &[f64]) -> f64 {
+    (0..st.amplitudes.len())
+        .flat_map(|n| at_hz.iter().map(move |&f| st.amplitude(n, f).norm()))
+        .fold(0.0, f64::max)
+}
+
 fn lines_change(a: &SteadyState, b: &SteadyState, at_hz: &[f64]) -> f64 {
     let (mut big, mut diff) = (0.0f64, 0.0f64);
     for n in 0..a.amplitudes.len() {
@@ -567,6 +590,7 @@ impl Plan {
             points: self.points.len(),
             noise: NoiseGen::new(settings.seed),
             index: 0,
+            truncation_floor_m: TRUNCATION_NOISE_SHARE * self.sigma_m() / (shots as f64).sqrt(),
         };
         let mut measurements = Vec::with_capacity(self.measurements.len());
         let mut reports = Vec::with_capacity(self.measurements.len());
@@ -616,6 +640,10 @@ impl Plan {
     }
 }
 
+/// A checked steady state: the state, its lattice order, and the truncation check's change
+/// relative to the largest measured line with whether it passed (`None`: not checked).
+type Settled = (SteadyState, usize, Option<(f64, bool)>);
+
 /// One simulated measurement: its data, its true forces per mode, and what happened.
 type Simulated = (Measurement, BTreeMap<String, TruthForce>, MeasurementReport);
 
@@ -631,6 +659,9 @@ struct Run<'a> {
     noise: NoiseGen,
     /// Measurements simulated so far (seeds the time-domain runs).
     index: usize,
+    /// The truncation check's noise floor ([`Truncation::noise_floor_m`]), from the plan's
+    /// noise whether or not it is added.
+    truncation_floor_m: f64,
 }
 
 impl Run<'_> {
@@ -698,22 +729,23 @@ impl Run<'_> {
 
     /// Simulates one measurement (no ladder): its data with noise, its true forces and what
     /// happened.
-    fn measurement(
-        &mut self,
-        pm: &PlanMeasurement,
-    ) -> Result<(Measurement, BTreeMap<String, TruthForce>, MeasurementReport), ExperimentError>
-    {
+    fn measurement(&mut self, pm: &PlanMeasurement) -> Result<Simulated, ExperimentError> {
         let drive = pm.excitation(self.model)?;
-        let (st, order, change) = pm.steady_state(
+        let truncation = Truncation {
+            noise_floor_m: self.truncation_floor_m,
+            ..self.settings.truncation.clone()
+        };
+        let (st, order, checked) = pm.steady_state(
             self.model,
             &drive,
             self.settings.order,
-            &self.settings.truncation,
+            &truncation,
             self.settings.stop_at_fold,
         )?;
+        let change = checked.map(|c| c.0);
         let mut notes = Vec::new();
-        if let Some(c) = change {
-            if c.is_nan() || c >= self.settings.truncation.tol {
+        if let Some((c, passed)) = checked {
+            if !passed {
                 notes.push(format!("widening the lattice beyond order {order} still changes the measured lines by {c:.2e} of the largest (written on request)"));
             }
         }

@@ -73,3 +73,44 @@ fn a_state_that_does_not_settle_is_refused_unless_asked_for() {
         sim.reports[0].notes
     );
 }
+
+/// The plan's noise sets a floor: a change of the lines below a tenth of the noise of the mean
+/// over its shots (`0.1 σ/√shots`) cannot move the fit, so the order-3 state that the strict
+/// tolerance refuses passes under a large noise, and is refused under a small one; the
+/// refusal's tolerance is the floor's when it is the larger.
+#[test]
+fn the_plans_noise_sets_the_truncation_floor() {
+    let at_order_3 = Truncation {
+        max_order: 3,
+        ..Truncation::default()
+    };
+    let with_noise = |sigma: &str| -> Result<harmonid_experiment::Simulation, String> {
+        let model = harmonid_model::parse_str(MODEL, "model.hb").expect("model");
+        let values = values_from_toml(VALUES, "values.toml").expect("values");
+        let plan = Plan::from_toml(
+            &format!("[noise]\nsigma_per_quadrature = {sigma}\nshots = 4\n{PLAN}"),
+            "plan.toml",
+        )
+        .expect("plan");
+        let settings = Settings {
+            order: 3,
+            truncation: at_order_3.clone(),
+            ..Settings::noise_free()
+        };
+        plan.simulate(&model, &values, &settings)
+            .map_err(|e| e.to_string())
+    };
+    // The change at order 3, relative to the largest line (about 1e-8 m).
+    let lenient = Truncation {
+        required: false,
+        ..at_order_3.clone()
+    };
+    let change = run(3, lenient).expect("written on request").reports[0]
+        .truncation_change
+        .expect("checked");
+    assert!(change > 1e-6, "order 3 already settles: {change:e}");
+    let sim = with_noise("1e-6").expect("far below the noise: passes");
+    assert_eq!(sim.reports[0].order, 3);
+    let e = with_noise("1e-14").expect_err("above a tiny noise: refused");
+    assert!(e.contains("tolerance 1e-6"), "{e}");
+}
