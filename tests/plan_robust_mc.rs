@@ -293,10 +293,9 @@ fn example_case(example: &str, shape: &[f64], sigma_m: f64, shots: usize) -> (us
     (good, determined)
 }
 
-/// The examples planned from guesses off their values, each run on 20 devices of its range
-/// (minutes; the numbers of docs/planning.md). Issue 23's acceptance check, and it fails
-/// today: `cubic_3mode` (14 of 20: coupled states unstable between the checked devices) and
-/// `three_wave` (5 of 20: its coupled measurement fails simulate's truncation check).
+/// The examples and the two models of `tests/fixtures/plan_models` planned from guesses off
+/// their values, each run on 20 devices of its range (minutes; the numbers of
+/// docs/planning.md). Issue 23's acceptance check: at least 19 of 20 each.
 ///
 ///     cargo test --release --test plan_robust_mc -- --ignored --nocapture
 #[test]
