@@ -1010,7 +1010,7 @@ impl Designer<'_> {
                 match self.truncation_checks(&pm)? {
                     None => return Ok((pm, info)),
                     Some(why) => self.note(format!(
-                        "preferred another drive of {name} over tones {:?} Hz: {why}",
+                        "{name}: tones {:?} Hz not taken first, simulate cannot check their truncation at the guess: {why}",
                         pm.drives_hz
                     )),
                 }
