@@ -72,7 +72,9 @@ pub fn identify(model: &Model, ds: &Dataset, settings: &Settings) -> Result<Repo
     loop {
         let now = current.as_ref().unwrap_or(ds);
         let fits = level_fits(now, &report);
-        let suspect: Vec<(String, Vec<String>)> = ladders(now)
+        let all = ladders(now);
+        let n_ladders = all.len();
+        let suspect: Vec<(String, Vec<String>)> = all
             .into_iter()
             .filter(|(_, steps)| {
                 steps.len() >= 3 && steps.iter().any(|m| fits.get(m).is_some_and(|f| f.2 < cut))
@@ -80,7 +82,6 @@ pub fn identify(model: &Model, ds: &Dataset, settings: &Settings) -> Result<Repo
             .collect();
         // A jumped level is the exception: when many ladders miss, the model misses something
         // that no level left out would explain (and trying each would cost a fit per level).
-        let n_ladders = ladders(now).len();
         if suspect.len() > (n_ladders / 4).max(1) {
             report.notes.push(format!(
                 "drive ladders: {} of {n_ladders} have levels that do not fit; no level was left out (so many misses are the model's, not jumps)",
