@@ -44,7 +44,7 @@ pub use steady::{
     backbone, check_stability, convergence_report, limit_cycle, steady_state, stepped_sweep, sweep,
     sweep_two_tone, ConvergenceReport, Fold, HbSettings, HbSolver, HbStatus, LimitCycle, ModeLine,
     Stability, SteadyState, SweepPoint, SweepResult, SweepSettings, TwoToneCurve, TwoToneJump,
-    TwoTonePoint, TwoToneSettings, TwoToneStatus, TwoToneSweep, MAX_MODES, MAX_SWEEP_HARMONICS,
-    MAX_SWEEP_HZ, MAX_SWEEP_POINTS,
+    TwoTonePoint, TwoToneSettings, TwoToneStatus, TwoToneSweep, CONDENSE_SEPARATION, MAX_MODES,
+    MAX_SWEEP_HARMONICS, MAX_SWEEP_HZ, MAX_SWEEP_POINTS,
 };
 pub use time_domain::{simulate_lockin, LockinResult, Start, TdSettings};

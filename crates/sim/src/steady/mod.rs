@@ -56,7 +56,7 @@ pub use convergence::{convergence_report, ConvergenceReport};
 pub use limit_cycle::{limit_cycle, LimitCycle};
 pub use solver::{steady_state, HbSolver, MAX_MODES};
 pub(crate) use solver::{term_monomial, variable_spectra};
-pub use stability::check_stability;
+pub use stability::{check_stability, CONDENSE_SEPARATION};
 pub use state::{HbSettings, HbStatus, Stability, SteadyState};
 pub use step::stepped_sweep;
 pub use sweep::{

@@ -154,7 +154,8 @@ pub struct Stability {
     /// No perturbation grows: the largest growth rate is below `1e-6 ·` the slowest linear
     /// decay rate.
     pub stable: bool,
-    /// Largest real part of the eigenvalues of the linearised slow flow, 1/s (negative: small
+    /// Largest real part of the eigenvalues of the linearised slow flow on the lines near the
+    /// resonances (the far ones condensed; see [`crate::HbSolver::stability`]), 1/s (negative: small
     /// perturbations decay at this rate; positive: they grow as `e^{growth_rate · t}`).
     pub growth_rate: f64,
     /// Slowest amplitude decay rate of the linear resonators, `min_n ω_n/(2 Q_n)`, 1/s (the

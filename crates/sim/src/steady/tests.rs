@@ -277,3 +277,96 @@ fn convergence_report_sees_the_far_harmonics() {
     assert!(rep.lattice_sizes.1 > rep.lattice_sizes.0);
     assert!(rep.change > 3e-8 && rep.change < 1e-5, "{:e}", rep.change);
 }
+
+/// A degenerate parametric pair: q1 at 1 kHz and q2 at 2 kHz (Q = 100 each) coupled by
+/// `α q1² q2` (forces `2α q1 q2` on q1, `α q1²` on q2).
+fn parametric_pair(alpha: f64) -> NumericModel {
+    let t = |eq, coef, factors: Vec<(usize, u32)>| Term { eq, coef, factors };
+    NumericModel::new(
+        vec!["q1".into(), "q2".into()],
+        vec![1000.0, 2000.0],
+        vec![100.0, 100.0],
+        vec![
+            t(0, 2.0 * alpha, vec![(0, 1), (1, 1)]),
+            t(1, alpha, vec![(0, 2)]),
+        ],
+    )
+    .expect("model")
+}
+
+#[test]
+fn condensed_stability_finds_the_parametric_threshold_of_the_closed_form() {
+    // q2 driven at 2 f1 pumps q1 parametrically: averaging gives the slow flow
+    // Ẋ1 = −γ/2 X1 + iα X2/(2ω1) X1*, whose growth rate is −γ/2 + α|X2|/(2ω1) (threshold at
+    // |X2| = γω1/α). A weak probe 3 Hz above f1 puts q1's lines near its resonance (1003 Hz
+    // and the idler at 997 Hz) on the lattice.
+    let alpha = 1e10;
+    let m = parametric_pair(alpha);
+    let (w1, g1) = (m.omega(0), m.gamma(0));
+    let (w2, g2) = (m.omega(1), m.gamma(1));
+    let threshold_force = g1 * w1 / alpha * g2 * w2;
+    let settings = HbSettings::default();
+    for ratio in [0.8, 0.95, 1.05, 1.3] {
+        let drive = Excitation {
+            pumps: Vec::new(),
+            tones_hz: vec![1003.0, 2000.0],
+            force: vec![
+                vec![Complex64::new(1e-3, 0.0), Complex64::new(0.0, 0.0)],
+                vec![
+                    Complex64::new(0.0, 0.0),
+                    Complex64::new(ratio * threshold_force, 0.0),
+                ],
+            ],
+        };
+        let mut solver = HbSolver::new(&m, &drive, &settings.lattice).expect("solver");
+        let st = solver.solve_from(&vec![vec![Z; solver.lattice.len()]; 2], &settings);
+        assert!(st.converged(), "{:?}", st.status);
+        let want = -0.5 * g1 + alpha * st.amplitude(1, 2000.0).norm() / (2.0 * w1);
+        let condensed = solver.slow_flow_stability(&st, true).expect("verdict");
+        let whole = solver.slow_flow_stability(&st, false).expect("verdict");
+        assert!(
+            (condensed.growth_rate - want).abs() < 0.02 * g1,
+            "{ratio}: growth {} against the closed form {want}",
+            condensed.growth_rate
+        );
+        // Here the slowest mode is physical, so the whole flow has it too.
+        assert!(
+            (condensed.growth_rate - whole.growth_rate).abs() < 1e-3 * g1,
+            "{ratio}: condensed {} whole {}",
+            condensed.growth_rate,
+            whole.growth_rate
+        );
+        assert_eq!(condensed.stable, ratio < 1.0, "{ratio}: {condensed:?}");
+    }
+}
+
+#[test]
+fn condensed_stability_leaves_out_the_harmonics_copies_of_the_decay() {
+    // A stable single-tone Duffing state with its harmonics: the averaged flow's eigenvalues
+    // are a complex pair with real part −γ/2 (trace −γ) when the state is far from a fold.
+    // On each harmonic line the slow flow puts a copy decaying at γ(ω² + Ω²)/(4Ω²) (0.28 γ on
+    // the third, 0.26 γ on the fifth), which the whole flow reports as the slowest decay.
+    let m = duffing(4e13, 100.0);
+    let g = m.gamma(0);
+    let drive = Excitation {
+        pumps: Vec::new(),
+        tones_hz: vec![990.0],
+        force: vec![vec![Complex64::new(100.0, 0.0)]],
+    };
+    let settings = HbSettings::default();
+    let mut solver =
+        HbSolver::with_lattice(&m, &drive, vec![990.0, 2970.0, 4950.0]).expect("solver");
+    let st = solver.solve(&settings);
+    assert!(st.converged() && st.amplitude(0, 2970.0).norm() > 0.0);
+    let condensed = solver.slow_flow_stability(&st, true).expect("verdict");
+    let whole = solver.slow_flow_stability(&st, false).expect("verdict");
+    assert!(
+        (condensed.growth_rate + 0.5 * g).abs() < 0.01 * g,
+        "{condensed:?}"
+    );
+    let copy = -g * (1.0 + (1000.0_f64 / 4950.0).powi(2)) / 4.0;
+    assert!(
+        (whole.growth_rate - copy).abs() < 0.01 * g,
+        "{whole:?} against {copy}"
+    );
+}
