@@ -376,22 +376,27 @@ impl PlanMeasurement {
             hs.lattice.extra_hz = f.clone();
         }
         let window0 = hs.lattice.window_rel;
-        let solve = |hs: &HbSettings| -> Result<SteadyState, ExperimentError> {
-            let st =
-                sim::steady_state(model, drive, hs).map_err(|source| ExperimentError::Sim {
+        // From rest by the drive ramp, or (a wider lattice) continued from the state found.
+        let solve =
+            |hs: &HbSettings, from: Option<&SteadyState>| -> Result<SteadyState, ExperimentError> {
+                let st = match from {
+                    None => sim::steady_state(model, drive, hs),
+                    Some(start) => sim::steady_state_from(model, drive, hs, start),
+                }
+                .map_err(|source| ExperimentError::Sim {
                     context: format!("measurement {}", self.name),
                     source,
                 })?;
-            if let HbStatus::NotConverged { drive_fraction } = st.status {
-                return Err(ExperimentError::NotConverged {
-                    measurement: self.name.clone(),
-                    drive_fraction,
-                    residual: st.residual,
-                });
-            }
-            Ok(st)
-        };
-        let mut st = solve(&hs)?;
+                if let HbStatus::NotConverged { drive_fraction } = st.status {
+                    return Err(ExperimentError::NotConverged {
+                        measurement: self.name.clone(),
+                        drive_fraction,
+                        residual: st.residual,
+                    });
+                }
+                Ok(st)
+            };
+        let mut st = solve(&hs, None)?;
         if !truncation.check {
             return Ok((st, order, None));
         }
@@ -416,7 +421,7 @@ impl PlanMeasurement {
                 tol,
                 why,
             };
-            let st2 = match solve(&wide) {
+            let st2 = match solve(&wide, Some(&st)) {
                 Ok(s) => s,
                 Err(e) if truncation.required => {
                     return Err(fail(

@@ -8,6 +8,7 @@ use harmonid_ident::Unknown;
 use harmonid_ident::{bounds_from_information, Bounds};
 use harmonid_model::Model;
 use harmonid_sim::{ModelValues, NumericModel};
+use rayon::prelude::*;
 use std::collections::{BTreeMap, BTreeSet};
 
 /// An unknown the plan cannot determine, and the drive that would fix it.
@@ -290,47 +291,64 @@ pub fn robustness(
     draws: usize,
 ) -> Result<Robustness, PlanError> {
     let plan = with_levels(plan, &NumericModel::from_model(model, range.guess())?)?;
+    // Each device is simulated apart (in parallel: the draws are independent and each costs
+    // the whole plan's simulation), then gathered in draw order.
+    let outcomes: Vec<Result<Draw, PlanError>> = range
+        .draws(draws, 0)
+        .par_iter()
+        .enumerate()
+        .map(|(k, values)| {
+            let num = NumericModel::from_model(model, values)?;
+            let target = Target {
+                model,
+                num: &num,
+                values,
+                sigma_m,
+                shots,
+            };
+            let mut infos = Vec::with_capacity(plan.measurements.len());
+            let mut lost = Vec::new();
+            for pm in &plan.measurements {
+                match ladder_info(&target, &plan, pm, Fidelity::Search) {
+                    Ok((i, l)) => {
+                        infos.extend(i);
+                        lost.extend(l.iter().map(|j| format!("draw {k}: {} level {j}", pm.name)));
+                    }
+                    Err(e) if is_infeasible(&e) || too_large(&e).is_some() => {
+                        return Ok(Draw::Failed(format!(
+                            "draw {k} ({}): {}: {e}",
+                            range.describe_device(model, values, pm),
+                            pm.name
+                        )));
+                    }
+                    Err(e) => return Err(e),
+                }
+            }
+            let refs: Vec<&MeasInfo> = infos.iter().collect();
+            let ev = joint_bounds(model, &refs, shots)?;
+            Ok(Draw::Scored {
+                rel: ev
+                    .bounds
+                    .quantities
+                    .iter()
+                    .map(|b| (b.name.clone(), b.rel))
+                    .collect(),
+                lost,
+            })
+        })
+        .collect();
     let mut per_quantity: BTreeMap<String, Vec<f64>> = BTreeMap::new();
     let mut failures = Vec::new();
     let mut lost_levels = Vec::new();
-    for (k, values) in range.draws(draws, 0).iter().enumerate() {
-        let num = NumericModel::from_model(model, values)?;
-        let target = Target {
-            model,
-            num: &num,
-            values,
-            sigma_m,
-            shots,
-        };
-        let mut infos = Vec::with_capacity(plan.measurements.len());
-        let mut failed = None;
-        let mut lost = Vec::new();
-        for pm in &plan.measurements {
-            match ladder_info(&target, &plan, pm, Fidelity::Search) {
-                Ok((i, l)) => {
-                    infos.extend(i);
-                    lost.extend(l.iter().map(|j| format!("draw {k}: {} level {j}", pm.name)));
+    for outcome in outcomes {
+        match outcome? {
+            Draw::Failed(f) => failures.push(f),
+            Draw::Scored { rel, lost } => {
+                lost_levels.extend(lost);
+                for (name, r) in rel {
+                    per_quantity.entry(name).or_default().push(r);
                 }
-                Err(e) if is_infeasible(&e) || too_large(&e).is_some() => {
-                    failed = Some(format!(
-                        "draw {k} ({}): {}: {e}",
-                        range.describe_device(model, values, pm),
-                        pm.name
-                    ));
-                    break;
-                }
-                Err(e) => return Err(e),
             }
-        }
-        if let Some(f) = failed {
-            failures.push(f);
-            continue;
-        }
-        lost_levels.extend(lost);
-        let refs: Vec<&MeasInfo> = infos.iter().collect();
-        let ev = joint_bounds(model, &refs, shots)?;
-        for b in &ev.bounds.quantities {
-            per_quantity.entry(b.name.clone()).or_default().push(b.rel);
         }
     }
     let mut worst = BTreeMap::new();
@@ -349,6 +367,16 @@ pub fn robustness(
         failures,
         lost_levels,
     })
+}
+
+/// One device of [`robustness`]: a measurement it cannot run, or every quantity's relative
+/// bound with the ladder levels it loses.
+enum Draw {
+    Failed(String),
+    Scored {
+        rel: Vec<(String, f64)>,
+        lost: Vec<String>,
+    },
 }
 
 /// `plan` with drive levels on every measurement: one that gives none gets its forces as

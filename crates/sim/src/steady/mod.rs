@@ -54,7 +54,7 @@ mod two_tone;
 pub use backbone::backbone;
 pub use convergence::{convergence_report, ConvergenceReport};
 pub use limit_cycle::{limit_cycle, LimitCycle};
-pub use solver::{steady_state, HbSolver, MAX_MODES};
+pub use solver::{steady_state, steady_state_from, HbSolver, MAX_MODES};
 pub(crate) use solver::{term_monomial, variable_spectra};
 pub use stability::{check_stability, CONDENSE_SEPARATION};
 pub use state::{HbSettings, HbStatus, Stability, SteadyState};

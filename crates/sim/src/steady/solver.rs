@@ -450,6 +450,39 @@ pub fn steady_state(
     Ok(solver.solve(settings))
 }
 
+/// The steady state on `settings`' lattice continued from `start`, a steady state of the same
+/// drive on another lattice (lines matched by frequency, the others from zero), by Newton at
+/// full drive: the same branch on a wider lattice, as a truncation check needs, at the cost of
+/// a few factorisations instead of a drive ramp. The jumps and ramp steps are `start`'s. Falls
+/// back to [`steady_state`] (the ramp from rest) when Newton does not converge from there, or
+/// when `start` is an oscillation a pump sustains (its lattice settles apart).
+pub fn steady_state_from(
+    model: &NumericModel,
+    drive: &Excitation,
+    settings: &HbSettings,
+    start: &SteadyState,
+) -> Result<SteadyState, SimError> {
+    let mut solver = HbSolver::new(model, drive, &settings.lattice)?;
+    if start.converged() && !start.pump_sustained {
+        let guess: Vec<Vec<Complex64>> = (0..model.n_modes())
+            .map(|n| {
+                solver
+                    .lattice
+                    .iter()
+                    .map(|&f| start.amplitude(n, f))
+                    .collect()
+            })
+            .collect();
+        let mut st = solver.solve_from(&guess, settings);
+        if st.converged() {
+            st.ramp_steps = start.ramp_steps;
+            st.drive_jumps.clone_from(&start.drive_jumps);
+            return Ok(st);
+        }
+    }
+    Ok(solver.solve(settings))
+}
+
 /// The monomial of a term's factors over the model's variables (modes, velocities, pump).
 pub(crate) fn term_monomial(model: &NumericModel, factors: &[(usize, u32)]) -> PowerProduct {
     let mut e = vec![0u32; model.n_vars()];

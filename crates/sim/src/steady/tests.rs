@@ -370,3 +370,35 @@ fn condensed_stability_leaves_out_the_harmonics_copies_of_the_decay() {
         "{whole:?} against {copy}"
     );
 }
+
+#[test]
+fn a_state_continued_onto_a_wider_lattice_is_the_one_the_ramp_finds_there() {
+    // The truncation check's wider lattice: Newton from the narrower state lands on the state
+    // the drive ramp from rest finds on the wider lattice, in a step or two, and keeps the
+    // narrower state's jumps.
+    let c = |x: f64| Complex64::new(x, 0.0);
+    let model = nanostring();
+    let drive = Excitation {
+        pumps: Vec::new(),
+        tones_hz: vec![207572.5, 207592.5, 415841.5],
+        force: vec![vec![c(3.5), c(3.5), c(0.0)], vec![c(0.0), c(0.0), c(1.81)]],
+    };
+    let narrow = HbSettings::default();
+    let mut wide = narrow.clone();
+    wide.lattice.order += 2;
+    wide.lattice.window_rel *= 1.5;
+    wide.lattice.harmonics = true;
+    let st = steady_state(&model, &drive, &narrow).expect("narrow");
+    let from_rest = steady_state(&model, &drive, &wide).expect("wide");
+    let continued = steady_state_from(&model, &drive, &wide, &st).expect("continued");
+    assert!(continued.lattice_hz.len() > st.lattice_hz.len());
+    assert_eq!(continued.lattice_hz, from_rest.lattice_hz);
+    let HbStatus::Converged { iterations } = continued.status else {
+        panic!("{:?}", continued.status);
+    };
+    assert!(iterations <= 2, "{iterations} Newton steps");
+    let d = rel_change(&continued, &from_rest);
+    assert!(d < 1e-9, "continued and ramped states differ by {d:e}");
+    assert_eq!(continued.drive_jumps, st.drive_jumps);
+    assert_eq!(continued.ramp_steps, st.ramp_steps);
+}
