@@ -20,6 +20,7 @@ use harmonid_experiment::{Plan, PlanMeasurement, PlanNoise};
 use harmonid_ident::Unknown;
 use harmonid_model::{Linear, Model};
 use harmonid_sim::{ModelValues, NumericModel};
+use rayon::prelude::*;
 use std::cell::{Cell, RefCell};
 use std::collections::BTreeMap;
 use std::rc::Rc;
@@ -371,22 +372,32 @@ pub fn design_with_progress(
     // check may raise the lattice order the search used). A measurement whose wider lattice is
     // beyond a size bound keeps the search's lattice, with a note: the check is not possible,
     // which is not evidence of truncation.
-    let mut infos = Vec::with_capacity(plan_ms.len());
+    // The measurements are independent: scored in parallel, noted in order.
     for pm in &mut plan_ms {
         // A ladder of one level at the full forces is the measurement itself.
         if s.ladder != [1.0] {
             pm.levels = s.ladder.clone();
         }
-        let (info, lost) = match ladder_info(&target, &base, pm, Fidelity::User) {
-            Err(e) if truncation_unchecked(&e) => {
-                designer.note(format!(
-                    "{}: its harmonic balance's truncation is not checked at a wider lattice ({e})",
-                    pm.name
-                ));
-                ladder_info(&target, &base, pm, Fidelity::Search)?
-            }
-            r => r?,
-        };
+    }
+    let scored: Vec<_> = plan_ms
+        .par_iter()
+        .map(|pm| match ladder_info(&target, &base, pm, Fidelity::User) {
+            Err(e) if truncation_unchecked(&e) => (
+                Some(e.to_string()),
+                ladder_info(&target, &base, pm, Fidelity::Search),
+            ),
+            r => (None, r),
+        })
+        .collect();
+    let mut infos = Vec::with_capacity(plan_ms.len());
+    for (pm, (unchecked, r)) in plan_ms.iter().zip(scored) {
+        if let Some(e) = unchecked {
+            designer.note(format!(
+                "{}: its harmonic balance's truncation is not checked at a wider lattice ({e})",
+                pm.name
+            ));
+        }
+        let (info, lost) = r?;
         infos.extend(info);
         for k in lost {
             designer.note(crate::evaluate::lost_note(pm, k));
@@ -808,19 +819,31 @@ impl Designer<'_> {
                 c
             }
         };
+        // The device that failed last first, then the others a core's worth at a time (in
+        // parallel, stopping at the first batch with a failure, the earliest device in it).
         let first = last_failed.get();
-        let order = std::iter::once(first).chain((0..corners.len()).filter(|&k| k != first));
-        for k in order {
-            let Some((_, num)) = corners.get(k) else {
-                continue;
-            };
-            match simulate(num, self.base, pm, Fidelity::Search) {
-                Ok(_) => {}
-                Err(e) if is_infeasible(&e) || too_large(&e).is_some() => {
-                    last_failed.set(k);
-                    return Ok(false);
+        let order: Vec<usize> = std::iter::once(first)
+            .chain((0..corners.len()).filter(|&k| k != first))
+            .filter(|&k| k < corners.len())
+            .collect();
+        let batch = rayon::current_num_threads().max(1);
+        let (devices, base): (&[(String, NumericModel)], &Plan) = (&corners, self.base);
+        for ks in std::iter::once(&order[..order.len().min(1)])
+            .chain(order[1.min(order.len())..].chunks(batch))
+        {
+            let outcomes: Vec<Result<(), PlanError>> = ks
+                .par_iter()
+                .map(|&k| simulate(&devices[k].1, base, pm, Fidelity::Search).map(|_| ()))
+                .collect();
+            for (&k, outcome) in ks.iter().zip(outcomes) {
+                match outcome {
+                    Ok(()) => {}
+                    Err(e) if is_infeasible(&e) || too_large(&e).is_some() => {
+                        last_failed.set(k);
+                        return Ok(false);
+                    }
+                    Err(e) => return Err(e),
                 }
-                Err(e) => return Err(e),
             }
         }
         Ok(true)

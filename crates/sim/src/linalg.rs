@@ -151,6 +151,19 @@ impl Clone for ColumnScratch {
     }
 }
 
+/// Systems from this many unknowns are factorised on every core: below, the threads' set-up
+/// costs more than they save (and the design runs many small systems side by side).
+const PARALLEL_LU_MIN: usize = 1024;
+
+/// The parallelism of an `n × n` factorisation ([`PARALLEL_LU_MIN`]).
+fn lu_par(n: usize) -> faer::Par {
+    if n >= PARALLEL_LU_MIN {
+        faer::Par::rayon(0)
+    } else {
+        faer::Par::Seq
+    }
+}
+
 /// A dense LU factorisation with partial pivoting by faer (blocked, SIMD), with every buffer
 /// allocated once: [`DenseLu::factor`] and [`DenseLu::solve`] do not allocate.
 ///
@@ -239,7 +252,7 @@ impl DenseLu {
             n.max(1)
         };
         let req =
-            factor::lu_in_place_scratch::<usize, f64>(n, n, faer::Par::Seq, Default::default()).or(
+            factor::lu_in_place_scratch::<usize, f64>(n, n, lu_par(n), Default::default()).or(
                 solve::solve_in_place_scratch::<usize, f64>(n, 1, faer::Par::Seq),
             );
         Self {
@@ -342,7 +355,7 @@ impl DenseLu {
                 self.lu.as_mut().submatrix_mut(off, off, size, size),
                 &mut self.perm[off..off + size],
                 &mut self.perm_inv[off..off + size],
-                faer::Par::Seq,
+                lu_par(size),
                 stack,
                 Default::default(),
             );
