@@ -135,6 +135,10 @@ const SPACINGS: [f64; 3] = [3.0, 6.0, 12.0];
 /// bounds only grow with wider pairs from there.
 const CLEARLY_WORSE: f64 = 1.5;
 
+/// Candidates whose lattice at the guess has more lines than this are screened over the range at
+/// [`Fidelity::Screen`] before the search's order (a few lines' lattice costs little either way).
+const SCREEN_ABOVE_LINES: usize = 200;
+
 /// A worst relative bound of a group's unknowns this small ends the search for drives of that
 /// group with more tones: the three-tone variants are kept when they reach it.
 const GOOD_ENOUGH: f64 = 0.1;
@@ -736,7 +740,8 @@ impl Designer<'_> {
         let Some(c) = self.candidate_at_guess(pm)? else {
             return Ok(None);
         };
-        Ok(self.survives_range(&c.0)?.then_some(c))
+        let lines = c.1.lattice_lines;
+        Ok(self.survives_range(&c.0, lines)?.then_some(c))
     }
 
     /// `None` when `harmonid simulate` can check `pm`'s truncation at the guess (the lattice
@@ -791,7 +796,11 @@ impl Designer<'_> {
     /// Whether `pm` is feasible on every device of the range it is checked at
     /// ([`GuessRange::corners`]; `true` without a range). A device whose harmonic balance is
     /// beyond a size bound counts as failed: the drive is not shown to survive it.
-    fn survives_range(&self, pm: &PlanMeasurement) -> Result<bool, PlanError> {
+    fn survives_range(
+        &self,
+        pm: &PlanMeasurement,
+        lattice_lines: usize,
+    ) -> Result<bool, PlanError> {
         let Some(range) = &self.s.range else {
             return Ok(true);
         };
@@ -821,6 +830,7 @@ impl Designer<'_> {
         };
         // The device that failed last first, then the others a core's worth at a time (in
         // parallel, stopping at the first batch with a failure, the earliest device in it).
+        // A large lattice is screened at a low order first: most drives fail on some device.
         let first = last_failed.get();
         let order: Vec<usize> = std::iter::once(first)
             .chain((0..corners.len()).filter(|&k| k != first))
@@ -828,21 +838,28 @@ impl Designer<'_> {
             .collect();
         let batch = rayon::current_num_threads().max(1);
         let (devices, base): (&[(String, NumericModel)], &Plan) = (&corners, self.base);
-        for ks in std::iter::once(&order[..order.len().min(1)])
-            .chain(order[1.min(order.len())..].chunks(batch))
-        {
-            let outcomes: Vec<Result<(), PlanError>> = ks
-                .par_iter()
-                .map(|&k| simulate(&devices[k].1, base, pm, Fidelity::Search).map(|_| ()))
-                .collect();
-            for (&k, outcome) in ks.iter().zip(outcomes) {
-                match outcome {
-                    Ok(()) => {}
-                    Err(e) if is_infeasible(&e) || too_large(&e).is_some() => {
-                        last_failed.set(k);
-                        return Ok(false);
+        let fidelities: &[Fidelity] = if lattice_lines > SCREEN_ABOVE_LINES {
+            &[Fidelity::Screen, Fidelity::Search]
+        } else {
+            &[Fidelity::Search]
+        };
+        for &fidelity in fidelities {
+            for ks in std::iter::once(&order[..order.len().min(1)])
+                .chain(order[1.min(order.len())..].chunks(batch))
+            {
+                let outcomes: Vec<Result<(), PlanError>> = ks
+                    .par_iter()
+                    .map(|&k| simulate(&devices[k].1, base, pm, fidelity).map(|_| ()))
+                    .collect();
+                for (&k, outcome) in ks.iter().zip(outcomes) {
+                    match outcome {
+                        Ok(()) => {}
+                        Err(e) if is_infeasible(&e) || too_large(&e).is_some() => {
+                            last_failed.set(k);
+                            return Ok(false);
+                        }
+                        Err(e) => return Err(e),
                     }
-                    Err(e) => return Err(e),
                 }
             }
         }
@@ -855,8 +872,10 @@ impl Designer<'_> {
     /// design that candidate, not the plan.
     fn bounded(&self, pm: &PlanMeasurement) -> Result<Option<(Dataset, usize)>, PlanError> {
         let found = self.bounded_at_guess(pm)?;
-        if found.is_some() && !self.survives_range(pm)? {
-            return Ok(None);
+        if let Some((_, lines)) = &found {
+            if !self.survives_range(pm, *lines)? {
+                return Ok(None);
+            }
         }
         Ok(found)
     }
@@ -996,7 +1015,7 @@ impl Designer<'_> {
                     if !could_win(&scored, score, info.lattice_lines) {
                         return Ok(score);
                     }
-                    if self.survives_range(&pm)? {
+                    if self.survives_range(&pm, info.lattice_lines)? {
                         scored.push((score, info.lattice_lines, (pm, info)));
                         return Ok(score);
                     }

@@ -44,10 +44,19 @@ pub(crate) enum Fidelity {
     /// While searching drives: the lattice at its starting order, no truncation check (the
     /// ranking of candidates does not need the last digits, and a search simulates dozens).
     Search,
+    /// A quick look before the range's devices are checked at [`Fidelity::Search`]: the
+    /// lattice at order [`SCREEN_ORDER`], no truncation check. A drive that fails on a device
+    /// here is not checked further (most fail on some device, and a four-tone lattice of 500
+    /// lines costs a second or two per device at the search's order); one that passes still is.
+    Screen,
     /// What `harmonid simulate --plan` does (the truncation check raises the order until the
     /// measured lines settle): the final plan's bounds are computed on this.
     User,
 }
+
+/// The lattice order of [`Fidelity::Screen`]: the drive tones' products up to fifth order, where
+/// folds and instabilities of the main lines show (the drive ramp itself runs on them).
+pub(crate) const SCREEN_ORDER: usize = 5;
 
 /// Simulates `pm` noise-free (harmonic balance, Hill stability) and refuses a jump while the
 /// drive ramps up; returns the dataset and the lattice size.
@@ -62,8 +71,12 @@ pub(crate) fn simulate(
         check_stability: true,
         stop_at_fold: true,
         truncation: match fidelity {
-            Fidelity::Search => Truncation::off(),
+            Fidelity::Screen | Fidelity::Search => Truncation::off(),
             Fidelity::User => Settings::default().truncation,
+        },
+        order: match fidelity {
+            Fidelity::Screen => SCREEN_ORDER,
+            Fidelity::Search | Fidelity::User => Settings::default().order,
         },
         ..Settings::noise_free()
     };
