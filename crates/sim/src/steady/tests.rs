@@ -177,15 +177,21 @@ fn rel_change(a: &SteadyState, b: &SteadyState) -> f64 {
     diff / big
 }
 
+/// The paper's coupled measurement of the nanostring: a pair on q1, one tone on q2.
+fn three_tone_drive() -> Excitation {
+    let c = |x: f64| Complex64::new(x, 0.0);
+    Excitation {
+        pumps: Vec::new(),
+        tones_hz: vec![207572.5, 207592.5, 415841.5],
+        force: vec![vec![c(3.5), c(3.5), c(0.0)], vec![c(0.0), c(0.0), c(1.81)]],
+    }
+}
+
 #[test]
 fn coarse_ramp_lands_where_the_full_ramp_does() {
     let c = |x: f64| Complex64::new(x, 0.0);
     let model = nanostring();
-    let three_tone = Excitation {
-        pumps: Vec::new(),
-        tones_hz: vec![207572.5, 207592.5, 415841.5],
-        force: vec![vec![c(3.5), c(3.5), c(0.0)], vec![c(0.0), c(0.0), c(1.81)]],
-    };
+    let three_tone = three_tone_drive();
     // Two tones above resonance, strong enough for the two-tone response to be bistable:
     // the drive-up branch is the low one, which a direct solve at full drive can miss.
     let bistable = Excitation {
@@ -376,13 +382,8 @@ fn a_state_continued_onto_a_wider_lattice_is_the_one_the_ramp_finds_there() {
     // The truncation check's wider lattice: Newton from the narrower state lands on the state
     // the drive ramp from rest finds on the wider lattice, in a step or two, and keeps the
     // narrower state's jumps.
-    let c = |x: f64| Complex64::new(x, 0.0);
     let model = nanostring();
-    let drive = Excitation {
-        pumps: Vec::new(),
-        tones_hz: vec![207572.5, 207592.5, 415841.5],
-        force: vec![vec![c(3.5), c(3.5), c(0.0)], vec![c(0.0), c(0.0), c(1.81)]],
-    };
+    let drive = three_tone_drive();
     let narrow = HbSettings::default();
     let mut wide = narrow.clone();
     wide.lattice.order += 2;
