@@ -20,12 +20,11 @@ impl HbSolver {
     /// Velocity terms also add `∂f/∂q̇ · Ẋ` to the flow's left side; like the linear damping
     /// beside `2iΩ`, that is a relative correction of the damping rate over `Ω`, neglected.
     ///
-    ///
     /// The spectrum is that of the lines near their modes' resonances, with the far ones (the
     /// harmonics, the lines far below; [`CONDENSE_SEPARATION`]) condensed statically onto them:
     /// the Schur complement `J_NN − J_NF J_FF⁻¹ J_FN`, exact at `λ = 0` (folds) and within
-    /// `~separation⁻²` of each eigenvalue elsewhere. The slow flow describes a line only where its offset
-    /// from the resonance is small beside `Ω`; on the far lines it puts copies of the
+    /// `~separation⁻²` of each eigenvalue elsewhere. The slow flow describes a line only where
+    /// its offset from the resonance is small beside `Ω`; on the far lines it puts copies of the
     /// resonances' decay at rates up to `γ/4` instead of `γ/2`, which the whole spectrum would
     /// report as the slowest decay. And the cost falls from `~10 n³` (15 s for the 4 000
     /// unknowns of a four-tone, four-mode measurement) to one LU of the far block and the
