@@ -3,6 +3,7 @@
 //! message helpers they share. No estimation here: `ident`, `report`, `plan`, `experiment` and
 //! the Python bindings read and write data through this crate.
 
+pub mod conventions;
 pub mod dataset;
 pub mod import;
 pub mod result;

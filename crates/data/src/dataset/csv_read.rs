@@ -193,31 +193,40 @@ pub(super) fn assemble(
     })
 }
 
-/// Every row of a measurement's or sweep's CSV as a [`Cell`], in file order: the header's
-/// columns found (`shot`, `freq_hz`, `re`, `im`, optional `point`; for a sweep `step` and
-/// optional `time_s`), each value parsed and checked (a positive, finite frequency below
-/// [`MAX_FREQ_HZ`], amplitudes times `scale` below [`MAX_AMPLITUDE_M`], a declared point, a
-/// step of the sweep). Also returns how many rows were dropped as earlier than `settle_s`.
-pub(super) fn read_cells<R: std::io::Read>(
-    reader: R,
-    path: &Path,
-    manifest: &Manifest,
-    scale: f64,
-    columns: Columns,
-) -> Result<(Vec<Cell>, usize), DatasetError> {
-    let row_err = |row: usize, message: String| DatasetError::Row {
+/// Where a CSV's columns are, as its header gives them.
+struct Layout {
+    shot: usize,
+    freq: usize,
+    re: usize,
+    im: usize,
+    point: Option<usize>,
+    /// The `std` and `samples` columns, when the CSV gives each row's noise.
+    noise: Option<(usize, usize)>,
+    /// A sweep's `step` column.
+    step: Option<usize>,
+    /// How many steps the sweep has (0 for a measurement).
+    steps: usize,
+    /// The `time_s` column and the settling time its rows are compared to.
+    settle: Option<(usize, f64)>,
+}
+
+/// An error in row `row` of the CSV `path`.
+fn row_error(path: &Path, row: usize, message: String) -> DatasetError {
+    DatasetError::Row {
         path: path.to_path_buf(),
         row,
         message,
-    };
-    let mut rdr = csv::ReaderBuilder::new()
-        .has_headers(true)
-        .trim(csv::Trim::All)
-        .from_reader(reader);
-    let headers = rdr
-        .headers()
-        .map_err(|e| row_err(1, format!("cannot read the header: {e}")))?
-        .clone();
+    }
+}
+
+/// The columns `headers` name, for a CSV read as `columns`: the required ones must be there,
+/// none twice, `std` only with `samples`, `time_s` when a sweep drops settling by time.
+fn layout(
+    headers: &csv::StringRecord,
+    path: &Path,
+    columns: Columns,
+) -> Result<Layout, DatasetError> {
+    let row_err = |row: usize, message: String| row_error(path, row, message);
     let found = shown(&headers.iter().collect::<Vec<_>>().join(","));
     let col = |name: &str| -> Result<Option<usize>, DatasetError> {
         let mut idx = headers.iter().enumerate().filter(|(_, h)| *h == name);
@@ -237,9 +246,9 @@ pub(super) fn read_cells<R: std::io::Read>(
             found: found.clone(),
         })
     };
-    let (c_shot, c_freq, c_re, c_im) = (req("shot")?, req("freq_hz")?, req("re")?, req("im")?);
-    let c_point = col("point")?;
-    let noise_cols = match (col("std")?, col("samples")?) {
+    let (shot, freq, re, im) = (req("shot")?, req("freq_hz")?, req("re")?, req("im")?);
+    let point = col("point")?;
+    let noise = match (col("std")?, col("samples")?) {
         (Some(a), Some(b)) => Some((a, b)),
         (None, None) => None,
         _ => {
@@ -249,7 +258,7 @@ pub(super) fn read_cells<R: std::io::Read>(
             ))
         }
     };
-    let (c_step, steps, settle) = match columns {
+    let (step, steps, settle) = match columns {
         Columns::Measurement => (None, 0, None),
         Columns::Sweep { steps, settle_s } => {
             let c_time = match settle_s {
@@ -267,6 +276,209 @@ pub(super) fn read_cells<R: std::io::Read>(
             (Some(req("step")?), steps, c_time)
         }
     };
+    Ok(Layout {
+        shot,
+        freq,
+        re,
+        im,
+        point,
+        noise,
+        step,
+        steps,
+        settle,
+    })
+}
+
+/// One CSV row being read: its fields, parsed and checked with messages naming the row.
+struct Row<'a> {
+    rec: &'a csv::StringRecord,
+    row: usize,
+    path: &'a Path,
+}
+
+impl Row<'_> {
+    /// An error in this row.
+    fn err(&self, message: String) -> DatasetError {
+        row_error(self.path, self.row, message)
+    }
+
+    /// The text of column `c`, called `name` in messages.
+    fn field(&self, c: usize, name: &str) -> Result<&str, DatasetError> {
+        self.rec
+            .get(c)
+            .ok_or_else(|| self.err(format!("no value in column \"{name}\"")))
+    }
+
+    /// The finite number in column `c`, called `name` in messages.
+    fn num(&self, c: usize, name: &str) -> Result<f64, DatasetError> {
+        let t = self.field(c, name)?;
+        let v: f64 = t.parse().map_err(|_| {
+            self.err(format!(
+                "column \"{name}\": \"{}\" is not a number",
+                shown(t)
+            ))
+        })?;
+        if !v.is_finite() {
+            return Err(self.err(format!("column \"{name}\": {} is not finite", shown(t))));
+        }
+        Ok(v)
+    }
+
+    /// The sweep step in column `c`, one of the sweep's `steps`.
+    fn step(&self, c: usize, steps: usize) -> Result<u32, DatasetError> {
+        let t = self.field(c, "step")?;
+        match t.parse::<u32>() {
+            Ok(k) if (k as usize) < steps => Ok(k),
+            _ => Err(self.err(format!(
+                "column \"step\": \"{}\" is not a step of this sweep (0 to {}, one per drives_hz list)",
+                shown(t),
+                steps.saturating_sub(1)
+            ))),
+        }
+    }
+
+    /// The shot number in column `c`.
+    fn shot(&self, c: usize) -> Result<u32, DatasetError> {
+        let st = self.field(c, "shot")?;
+        st.parse().map_err(|_| {
+            self.err(format!(
+                "column \"shot\": \"{}\" is not a shot number (0, 1, 2, ...)",
+                shown(st)
+            ))
+        })
+    }
+
+    /// The frequency in column `c`: positive and at most [`MAX_FREQ_HZ`].
+    fn frequency(&self, c: usize) -> Result<f64, DatasetError> {
+        let f = self.num(c, "freq_hz")?;
+        if f <= 0.0 {
+            return Err(self.err(format!(
+                "freq_hz = {}: frequencies must be positive",
+                num_text(f)
+            )));
+        }
+        if f > MAX_FREQ_HZ {
+            return Err(self.err(format!(
+                "freq_hz = {}: above the largest frequency accepted, {MAX_FREQ_HZ:e} Hz",
+                num_text(f)
+            )));
+        }
+        Ok(f)
+    }
+
+    /// The amplitude in columns `re` and `im` times `scale`: at most [`MAX_AMPLITUDE_M`] per
+    /// quadrature.
+    fn amplitude(
+        &self,
+        re: usize,
+        im: usize,
+        scale: f64,
+        manifest: &Manifest,
+    ) -> Result<Complex64, DatasetError> {
+        let x = Complex64::new(self.num(re, "re")?, self.num(im, "im")?) * scale;
+        if x.re.abs() > MAX_AMPLITUDE_M || x.im.abs() > MAX_AMPLITUDE_M {
+            return Err(self.err(format!(
+                "amplitude {} {} is more than {MAX_AMPLITUDE_M:e} m: not a resonator's displacement; check the value and displacement_unit = \"{}\"",
+                shown(self.field(re, "re")?),
+                shown(self.field(im, "im")?),
+                manifest.displacement_unit
+            )));
+        }
+        Ok(x)
+    }
+
+    /// The noise in columns `(std, samples)`: a positive standard deviation times `scale`
+    /// and a count of at least 2.
+    fn noise(&self, (cs, cn): (usize, usize), scale: f64) -> Result<(f64, u32), DatasetError> {
+        let sd = self.num(cs, "std")? * scale;
+        if sd <= 0.0 {
+            return Err(self.err(format!(
+                "std = {}: a standard deviation must be positive",
+                num_text(sd)
+            )));
+        }
+        let t = self.field(cn, "samples")?;
+        let n = t.parse::<u32>().ok().filter(|&n| n >= 2).ok_or_else(|| {
+            self.err(format!(
+                "column \"samples\": \"{}\" is not a count of at least 2 averaged samples",
+                shown(t)
+            ))
+        })?;
+        Ok((sd, n))
+    }
+}
+
+/// The row `rec` (numbered `row`) as a cell, or `None` when it is earlier than the sweep's
+/// settling time. Its fields are checked in this order (the first error is reported): step,
+/// time, shot, frequency, amplitude, point, noise.
+fn read_row(
+    rec: &csv::StringRecord,
+    row: usize,
+    path: &Path,
+    layout: &Layout,
+    point_index: &HashMap<&str, usize>,
+    manifest: &Manifest,
+    scale: f64,
+) -> Result<Option<Cell>, DatasetError> {
+    let r = Row { rec, row, path };
+    let row32 =
+        u32::try_from(row).map_err(|_| r.err("more than 4,294,967,295 rows in one file".into()))?;
+    let step = match layout.step {
+        Some(c) => r.step(c, layout.steps)?,
+        None => 0,
+    };
+    if let Some((c, settle_s)) = layout.settle {
+        if r.num(c, "time_s")? < settle_s {
+            return Ok(None);
+        }
+    }
+    let shot = r.shot(layout.shot)?;
+    let f = r.frequency(layout.freq)?;
+    let x = r.amplitude(layout.re, layout.im, scale, manifest)?;
+    let p = match layout.point {
+        Some(c) if !r.field(c, "point")?.is_empty() => {
+            point_of(r.field(c, "point")?, point_index, manifest).map_err(|m| r.err(m))?
+        }
+        _ => 0,
+    };
+    let (std, samples) = match layout.noise {
+        Some(cols) => r.noise(cols, scale)?,
+        None => (0.0, 0),
+    };
+    Ok(Some(Cell {
+        freq_hz: f,
+        x,
+        shot,
+        // Fewer than 2^32 points: the manifest holds them.
+        point: u32::try_from(p).unwrap_or(u32::MAX),
+        row: row32,
+        step,
+        std,
+        samples,
+    }))
+}
+
+/// Every row of a measurement's or sweep's CSV as a [`Cell`], in file order: the header's
+/// columns found (`shot`, `freq_hz`, `re`, `im`, optional `point`; for a sweep `step` and
+/// optional `time_s`), each value parsed and checked (a positive, finite frequency below
+/// [`MAX_FREQ_HZ`], amplitudes times `scale` below [`MAX_AMPLITUDE_M`], a declared point, a
+/// step of the sweep). Also returns how many rows were dropped as earlier than `settle_s`.
+pub(super) fn read_cells<R: std::io::Read>(
+    reader: R,
+    path: &Path,
+    manifest: &Manifest,
+    scale: f64,
+    columns: Columns,
+) -> Result<(Vec<Cell>, usize), DatasetError> {
+    let mut rdr = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .trim(csv::Trim::All)
+        .from_reader(reader);
+    let headers = rdr
+        .headers()
+        .map_err(|e| row_error(path, 1, format!("cannot read the header: {e}")))?
+        .clone();
+    let layout = layout(&headers, path, columns)?;
     let mut early = 0usize;
     let point_index: HashMap<&str, usize> = manifest
         .points
@@ -281,7 +493,8 @@ pub(super) fn read_cells<R: std::io::Read>(
     loop {
         row += 1;
         let more = rdr.read_record(&mut rec).map_err(|e| {
-            row_err(
+            row_error(
+                path,
                 row,
                 match e.kind() {
                     csv::ErrorKind::UnequalLengths {
@@ -296,134 +509,10 @@ pub(super) fn read_cells<R: std::io::Read>(
         if !more {
             break;
         }
-        let row32 = u32::try_from(row)
-            .map_err(|_| row_err(row, "more than 4,294,967,295 rows in one file".into()))?;
-        let field = |c: usize, name: &str| -> Result<&str, DatasetError> {
-            rec.get(c)
-                .ok_or_else(|| row_err(row, format!("no value in column \"{name}\"")))
-        };
-        let num = |c: usize, name: &str| -> Result<f64, DatasetError> {
-            let t = field(c, name)?;
-            let v: f64 = t.parse().map_err(|_| {
-                row_err(
-                    row,
-                    format!("column \"{name}\": \"{}\" is not a number", shown(t)),
-                )
-            })?;
-            if !v.is_finite() {
-                return Err(row_err(
-                    row,
-                    format!("column \"{name}\": {} is not finite", shown(t)),
-                ));
-            }
-            Ok(v)
-        };
-        let step = match c_step {
-            Some(c) => {
-                let t = field(c, "step")?;
-                match t.parse::<u32>() {
-                    Ok(k) if (k as usize) < steps => k,
-                    _ => {
-                        return Err(row_err(
-                            row,
-                            format!(
-                                "column \"step\": \"{}\" is not a step of this sweep (0 to {}, one per drives_hz list)",
-                                shown(t),
-                                steps.saturating_sub(1)
-                            ),
-                        ))
-                    }
-                }
-            }
-            None => 0,
-        };
-        if let Some((c, settle_s)) = settle {
-            if num(c, "time_s")? < settle_s {
-                early += 1;
-                continue;
-            }
+        match read_row(&rec, row, path, &layout, &point_index, manifest, scale)? {
+            Some(cell) => cells.push(cell),
+            None => early += 1,
         }
-        let st = field(c_shot, "shot")?;
-        let shot: u32 = st.parse().map_err(|_| {
-            row_err(
-                row,
-                format!(
-                    "column \"shot\": \"{}\" is not a shot number (0, 1, 2, ...)",
-                    shown(st)
-                ),
-            )
-        })?;
-        let f = num(c_freq, "freq_hz")?;
-        if f <= 0.0 {
-            return Err(row_err(
-                row,
-                format!("freq_hz = {}: frequencies must be positive", num_text(f)),
-            ));
-        }
-        if f > MAX_FREQ_HZ {
-            return Err(row_err(
-                row,
-                format!(
-                    "freq_hz = {}: above the largest frequency accepted, {MAX_FREQ_HZ:e} Hz",
-                    num_text(f)
-                ),
-            ));
-        }
-        let x = Complex64::new(num(c_re, "re")?, num(c_im, "im")?) * scale;
-        if x.re.abs() > MAX_AMPLITUDE_M || x.im.abs() > MAX_AMPLITUDE_M {
-            return Err(row_err(
-                row,
-                format!(
-                    "amplitude {} {} is more than {MAX_AMPLITUDE_M:e} m: not a resonator's displacement; check the value and displacement_unit = \"{}\"",
-                    shown(field(c_re, "re")?),
-                    shown(field(c_im, "im")?),
-                    manifest.displacement_unit
-                ),
-            ));
-        }
-        let p = match c_point {
-            Some(c) if !field(c, "point")?.is_empty() => {
-                point_of(field(c, "point")?, &point_index, manifest).map_err(|m| row_err(row, m))?
-            }
-            _ => 0,
-        };
-        let (std, samples) = match noise_cols {
-            Some((cs, cn)) => {
-                let sd = num(cs, "std")? * scale;
-                if sd <= 0.0 {
-                    return Err(row_err(
-                        row,
-                        format!(
-                            "std = {}: a standard deviation must be positive",
-                            num_text(sd)
-                        ),
-                    ));
-                }
-                let t = field(cn, "samples")?;
-                let n = t.parse::<u32>().ok().filter(|&n| n >= 2).ok_or_else(|| {
-                    row_err(
-                        row,
-                        format!(
-                            "column \"samples\": \"{}\" is not a count of at least 2 averaged samples",
-                            shown(t)
-                        ),
-                    )
-                })?;
-                (sd, n)
-            }
-            None => (0.0, 0),
-        };
-        cells.push(Cell {
-            freq_hz: f,
-            x,
-            shot,
-            // Fewer than 2^32 points: the manifest holds them.
-            point: u32::try_from(p).unwrap_or(u32::MAX),
-            row: row32,
-            step,
-            std,
-            samples,
-        });
     }
     Ok((cells, early))
 }

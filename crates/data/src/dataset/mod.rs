@@ -299,7 +299,7 @@ pub struct Manifest {
     pub sweeps: Vec<SweepSpec>,
     /// How `harmonid import` made this dataset: format, inputs, every convention applied.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub import: Option<crate::import::ImportRecord>,
+    pub import: Option<crate::conventions::ImportRecord>,
 }
 
 impl Manifest {
