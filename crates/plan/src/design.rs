@@ -7,13 +7,14 @@
 //! resonance, at most `max_frequencies`; every tone on the instrument grid, so every line is.
 
 use crate::coupled::{coupled_variants, preference_order, Tones, Variant, COMPARABLE};
-use crate::evaluate::{joint_bounds, param_modes, robustness, Evaluation};
+use crate::evaluate::{joint_bounds, robustness, Evaluation};
 use crate::info::{
     info_of, is_infeasible, ladder_info, restrict_lines, simulate, too_large, truncation_unchecked,
     Fidelity, MeasInfo, Target,
 };
 use crate::level::{pair_fold_estimate, strongest};
 use crate::range::GuessRange;
+use crate::terms::param_modes;
 use crate::PlanError;
 use harmonid_data::{Dataset, Point};
 use harmonid_experiment::{Plan, PlanMeasurement, PlanNoise};
@@ -293,21 +294,7 @@ pub fn design_with_progress(
         });
     }
     let names = num.mode_names.clone();
-    let mut base = Plan {
-        description: format!("designed by harmonid plan for {}", model.source),
-        displacement_unit: "m".into(),
-        points: s.points.clone(),
-        nominal_hz: names
-            .iter()
-            .cloned()
-            .zip(num.f_hz.iter().copied())
-            .collect(),
-        noise: PlanNoise {
-            sigma_per_quadrature: s.sigma_m,
-            shots: s.shots,
-        },
-        measurements: Vec::new(),
-    };
+    let mut base = base_plan(model, &num, s);
     let stages = Stages::new(model, &names, s.max_measurements)?;
     let needed = stages.needed();
     let instrument = Instrument::new(&num, s, &stages.single)?;
@@ -325,13 +312,7 @@ pub fn design_with_progress(
         target: &target,
         s,
         names: &names,
-        limits: format!(
-            "forces ≤ {} N/kg per tone{}, {} lines per measurement, grid {} Hz, no jump while driving up, stable",
-            s.max_force,
-            s.max_voltage.map_or(String::new(), |v| format!(", drive levels ≤ {v} V")),
-            s.max_frequencies,
-            s.grid_hz
-        ),
+        limits: limits_text(s),
         notes: RefCell::new(Vec::new()),
         deadline: s
             .time_budget_s
@@ -340,73 +321,14 @@ pub fn design_with_progress(
         gains: instrument.gains,
         caps: instrument.caps,
     };
-    // Stage 1: a tone pair per mode.
-    let mut pairs: Vec<Option<Pair>> = vec![None; names.len()];
-    let mut infos: Vec<MeasInfo> = Vec::new();
-    let mut plan_ms: Vec<PlanMeasurement> = Vec::new();
-    for (k, &n) in stages.single.iter().enumerate() {
-        let name = format!("single_{}", names[n]);
-        progress(DesignStep {
-            done: k,
-            total: needed,
-            name: &name,
-        });
-        let (pm, info, pair) = designer.single(n, &stages.own[n], &name)?;
-        pairs[n] = Some(pair);
-        infos.push(info);
-        plan_ms.push(pm);
-    }
-    // Stage 2: couplings.
-    for (modes, unknowns) in &stages.groups {
-        let label = modes
-            .iter()
-            .map(|&n| names[n].as_str())
-            .collect::<Vec<_>>()
-            .join("_");
-        progress(DesignStep {
-            done: plan_ms.len(),
-            total: needed,
-            name: &format!("couple_{label}"),
-        });
-        let (pm, info) = designer.coupling(modes, unknowns, &label, &pairs, &infos)?;
-        infos.push(info);
-        plan_ms.push(pm);
-    }
-    // The bounds of the plan as `harmonid simulate --plan` will simulate it (the truncation
-    // check may raise the lattice order the search used). A measurement whose wider lattice is
-    // beyond a size bound keeps the search's lattice, with a note: the check is not possible,
-    // which is not evidence of truncation.
-    // The measurements are independent: scored in parallel, noted in order.
+    let mut plan_ms = designer.measurements_by_stage(&stages, needed, progress)?;
     for pm in &mut plan_ms {
         // A ladder of one level at the full forces is the measurement itself.
         if s.ladder != [1.0] {
             pm.levels = s.ladder.clone();
         }
     }
-    let scored: Vec<_> = plan_ms
-        .par_iter()
-        .map(|pm| match ladder_info(&target, &base, pm, Fidelity::User) {
-            Err(e) if truncation_unchecked(&e) => (
-                Some(e.to_string()),
-                ladder_info(&target, &base, pm, Fidelity::Search),
-            ),
-            r => (None, r),
-        })
-        .collect();
-    let mut infos = Vec::with_capacity(plan_ms.len());
-    for (pm, (unchecked, r)) in plan_ms.iter().zip(scored) {
-        if let Some(e) = unchecked {
-            designer.note(format!(
-                "{}: its harmonic balance's truncation is not checked at a wider lattice ({e})",
-                pm.name
-            ));
-        }
-        let (info, lost) = r?;
-        infos.extend(info);
-        for k in lost {
-            designer.note(crate::evaluate::lost_note(pm, k));
-        }
-    }
+    let infos = designer.final_information(&plan_ms)?;
     progress(DesignStep {
         done: needed,
         total: needed,
@@ -427,28 +349,65 @@ pub fn design_with_progress(
     }
     if let Some(range) = &s.range {
         let mut r = robustness(model, range, &base, s.sigma_m, s.shots, s.draws)?;
-        r.corners = Some(format!(
-            "every measurement reaches its level without a jump and is stable at the guess and on \
-             devices of the range with every Q at its upper end: each driven mode's frequency at \
-             either end and stepped across its range by a half-width, parameters at their larger \
-             magnitude; and the guess's frequencies with parameters at their smaller magnitude. \
-             {}",
-            if s.ladder.len() > 1 {
-                format!(
-                    "Single-mode pairs are then planned at the strongest such level, the top of \
-                     their drive ladder {:?}",
-                    s.ladder
-                )
-            } else {
-                format!(
-                    "Single-mode pairs are then planned {:.0} % below the strongest such level",
-                    100.0 * (1.0 - LEVEL_MARGIN)
-                )
-            }
-        ));
+        r.corners = Some(corners_text(s));
         ev.robustness = Some(r);
     }
     Ok((base, ev))
+}
+
+/// The plan's frame before any measurement: description, points, nominal frequencies and
+/// noise, shared by every candidate the search simulates.
+fn base_plan(model: &Model, num: &NumericModel, s: &DesignSettings) -> Plan {
+    Plan {
+        description: format!("designed by harmonid plan for {}", model.source),
+        displacement_unit: "m".into(),
+        points: s.points.clone(),
+        nominal_hz: num
+            .mode_names
+            .iter()
+            .cloned()
+            .zip(num.f_hz.iter().copied())
+            .collect(),
+        noise: PlanNoise {
+            sigma_per_quadrature: s.sigma_m,
+            shots: s.shots,
+        },
+        measurements: Vec::new(),
+    }
+}
+
+/// The instrument's limits in words, for the message when an unknown cannot be identified.
+fn limits_text(s: &DesignSettings) -> String {
+    format!(
+        "forces ≤ {} N/kg per tone{}, {} lines per measurement, grid {} Hz, no jump while driving up, stable",
+        s.max_force,
+        s.max_voltage.map_or(String::new(), |v| format!(", drive levels ≤ {v} V")),
+        s.max_frequencies,
+        s.grid_hz
+    )
+}
+
+/// What the robustness report says the range checks of the design covered.
+fn corners_text(s: &DesignSettings) -> String {
+    format!(
+        "every measurement reaches its level without a jump and is stable at the guess and on \
+         devices of the range with every Q at its upper end: each driven mode's frequency at \
+         either end and stepped across its range by a half-width, parameters at their larger \
+         magnitude; and the guess's frequencies with parameters at their smaller magnitude. \
+         {}",
+        if s.ladder.len() > 1 {
+            format!(
+                "Single-mode pairs are then planned at the strongest such level, the top of \
+                 their drive ladder {:?}",
+                s.ladder
+            )
+        } else {
+            format!(
+                "Single-mode pairs are then planned {:.0} % below the strongest such level",
+                100.0 * (1.0 - LEVEL_MARGIN)
+            )
+        }
+    )
 }
 
 /// The settings a design cannot start without: a positive noise, shots, grid, and room for
@@ -725,6 +684,82 @@ struct Designer<'a> {
 type CornerSet = (Rc<Vec<(String, NumericModel)>>, Rc<Cell<usize>>);
 
 impl Designer<'_> {
+    /// The plan's measurements in design order: stage 1, a tone pair per mode; stage 2, one
+    /// measurement per set of coupled modes (which builds on stage 1's pairs and information).
+    fn measurements_by_stage(
+        &self,
+        stages: &Stages,
+        needed: usize,
+        progress: &mut dyn FnMut(DesignStep<'_>),
+    ) -> Result<Vec<PlanMeasurement>, PlanError> {
+        let names = self.names;
+        let mut pairs: Vec<Option<Pair>> = vec![None; names.len()];
+        let mut infos: Vec<MeasInfo> = Vec::new();
+        let mut plan_ms: Vec<PlanMeasurement> = Vec::new();
+        for (k, &n) in stages.single.iter().enumerate() {
+            let name = format!("single_{}", names[n]);
+            progress(DesignStep {
+                done: k,
+                total: needed,
+                name: &name,
+            });
+            let (pm, info, pair) = self.single(n, &stages.own[n], &name)?;
+            pairs[n] = Some(pair);
+            infos.push(info);
+            plan_ms.push(pm);
+        }
+        for (modes, unknowns) in &stages.groups {
+            let label = modes
+                .iter()
+                .map(|&n| names[n].as_str())
+                .collect::<Vec<_>>()
+                .join("_");
+            progress(DesignStep {
+                done: plan_ms.len(),
+                total: needed,
+                name: &format!("couple_{label}"),
+            });
+            let (pm, info) = self.coupling(modes, unknowns, &label, &pairs, &infos)?;
+            infos.push(info);
+            plan_ms.push(pm);
+        }
+        Ok(plan_ms)
+    }
+
+    /// The information of the plan's measurements as `harmonid simulate --plan` will simulate
+    /// them (the truncation check may raise the lattice order the search used). A measurement
+    /// whose wider lattice is beyond a size bound keeps the search's lattice, with a note: the
+    /// check is not possible, which is not evidence of truncation. The measurements are
+    /// independent: scored in parallel, noted in order.
+    fn final_information(&self, plan_ms: &[PlanMeasurement]) -> Result<Vec<MeasInfo>, PlanError> {
+        let (target, base) = (self.target, self.base);
+        let scored: Vec<_> = plan_ms
+            .par_iter()
+            .map(|pm| match ladder_info(target, base, pm, Fidelity::User) {
+                Err(e) if truncation_unchecked(&e) => (
+                    Some(e.to_string()),
+                    ladder_info(target, base, pm, Fidelity::Search),
+                ),
+                r => (None, r),
+            })
+            .collect();
+        let mut infos = Vec::with_capacity(plan_ms.len());
+        for (pm, (unchecked, r)) in plan_ms.iter().zip(scored) {
+            if let Some(e) = unchecked {
+                self.note(format!(
+                    "{}: its harmonic balance's truncation is not checked at a wider lattice ({e})",
+                    pm.name
+                ));
+            }
+            let (info, lost) = r?;
+            infos.extend(info);
+            for k in lost {
+                self.note(crate::evaluate::lost_note(pm, k));
+            }
+        }
+        Ok(infos)
+    }
+
     /// [`measurement`] with the instrument's gains.
     fn measurement(&self, name: &str, tones: &[(f64, usize, f64)]) -> PlanMeasurement {
         measurement(name, tones, self.names, &self.gains)

@@ -2,6 +2,7 @@
 
 use crate::info::{is_infeasible, ladder_info, n_shared, too_large, Fidelity, MeasInfo, Target};
 use crate::range::GuessRange;
+use crate::terms::param_modes;
 use crate::PlanError;
 use harmonid_experiment::Plan;
 use harmonid_ident::Unknown;
@@ -9,7 +10,7 @@ use harmonid_ident::{bounds_from_information, Bounds};
 use harmonid_model::Model;
 use harmonid_sim::{ModelValues, NumericModel};
 use rayon::prelude::*;
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeMap;
 
 /// An unknown the plan cannot determine, and the drive that would fix it.
 #[derive(Debug, Clone, PartialEq)]
@@ -188,27 +189,6 @@ impl Evaluation {
         }
         s
     }
-}
-
-/// The modes the terms of parameter `p` involve (their monomials and equations).
-pub(crate) fn param_modes(model: &Model, p: usize) -> BTreeSet<usize> {
-    let mut out = BTreeSet::new();
-    for (n, eq) in model.eom.iter().enumerate() {
-        for (m, c) in eq.terms() {
-            if c.variables().iter().any(|v| v.index() == p) {
-                out.insert(n);
-                // A velocity `d(q)` involves its mode; the pump none.
-                let nm = model.modes.len();
-                out.extend(
-                    m.factors()
-                        .iter()
-                        .filter(|(v, _)| v.index() < 2 * nm)
-                        .map(|(v, _)| v.index() % nm),
-                );
-            }
-        }
-    }
-    out
 }
 
 /// A drive that makes unknown `u` visible.

@@ -18,6 +18,7 @@ mod evaluate;
 mod info;
 mod level;
 mod range;
+mod terms;
 
 pub use design::{
     default_ladder, design, design_with_progress, DesignSettings, DesignStep, DEFAULT_DRAWS,

@@ -261,7 +261,7 @@ impl GuessRange {
                 Kind::Parameter => {
                     let p = model.params.iter().position(|p| p.name == e.name);
                     let touches = p.is_some_and(|p| {
-                        crate::evaluate::param_modes(model, p)
+                        crate::terms::param_modes(model, p)
                             .iter()
                             .any(|n| driven.contains(n))
                     });
