@@ -277,12 +277,25 @@ fn frequencies(path: Vec<Seg>, xs: &[f64], what: &str) -> Result<(), Issue> {
 }
 
 impl PlanMeasurement {
+    /// Checks the measurement at `path` of the plan, one group of keys after the other; the
+    /// first problem found is the issue.
     fn check(&self, path: Vec<Seg>) -> Result<(), Issue> {
         let at = |k: &str| {
             let mut p = path.clone();
             p.push(key(k));
             p
         };
+        self.check_name_and_drives(&at)?;
+        self.check_forces(&at)?;
+        self.check_measured(&at)?;
+        self.check_drive_levels(&at)?;
+        self.check_pumps(&at)?;
+        self.check_ladder(&at)?;
+        self.check_bandwidth(&at)
+    }
+
+    /// A name, and 1 to [`MAX_TONES`] distinct positive drive tones.
+    fn check_name_and_drives(&self, at: &impl Fn(&str) -> Vec<Seg>) -> Result<(), Issue> {
         let nd = self.drives_hz.len();
         if self.name.trim().is_empty() {
             return Err(issue(at("name"), "a measurement needs a name"));
@@ -298,6 +311,13 @@ impl PlanMeasurement {
             });
         }
         frequencies(at("drives_hz"), &self.drives_hz, "tone")?;
+        Ok(())
+    }
+
+    /// A force and a phase per drive tone for each mode listed (forces ≥ 0, at least one
+    /// mode), and every tone pushing some mode.
+    fn check_forces(&self, at: &impl Fn(&str) -> Vec<Seg>) -> Result<(), Issue> {
+        let nd = self.drives_hz.len();
         if self.force.is_empty() {
             return Err(issue(
                 at("force"),
@@ -338,6 +358,12 @@ impl PlanMeasurement {
                 ));
             }
         }
+        Ok(())
+    }
+
+    /// The measured frequencies, when listed: 1 to [`MAX_MEASURED`], distinct, every drive
+    /// tone among them.
+    fn check_measured(&self, at: &impl Fn(&str) -> Vec<Seg>) -> Result<(), Issue> {
         if let Some(m) = &self.measure_hz {
             if m.is_empty() {
                 return Err(issue(at("measure_hz"), "empty: list the measured frequencies, or leave measure_hz out for the default lines"));
@@ -363,6 +389,12 @@ impl PlanMeasurement {
                 ));
             }
         }
+        Ok(())
+    }
+
+    /// Drive levels and phases, when given: both, one per tone, levels non-zero.
+    fn check_drive_levels(&self, at: &impl Fn(&str) -> Vec<Seg>) -> Result<(), Issue> {
+        let nd = self.drives_hz.len();
         if let Some(l) = &self.drive_levels_v {
             if l.len() != nd {
                 return Err(issue(
@@ -396,6 +428,11 @@ impl PlanMeasurement {
                 "drive_levels_v and drive_phases_rad go together; give both or neither",
             ));
         }
+        Ok(())
+    }
+
+    /// Pump tones: distinct positive frequencies, each with a level and a phase.
+    fn check_pumps(&self, at: &impl Fn(&str) -> Vec<Seg>) -> Result<(), Issue> {
         if !self.pumps_hz.is_empty() {
             frequencies(at("pumps_hz"), &self.pumps_hz, "pump frequency")?;
         }
@@ -424,6 +461,11 @@ impl PlanMeasurement {
                 None => {}
             }
         }
+        Ok(())
+    }
+
+    /// The drive ladder: at most [`MAX_LEVELS`] fractions in (0, 1], rising.
+    fn check_ladder(&self, at: &impl Fn(&str) -> Vec<Seg>) -> Result<(), Issue> {
         if self.levels.len() > MAX_LEVELS {
             return Err(issue(
                 at("levels"),
@@ -453,6 +495,11 @@ impl PlanMeasurement {
                 help: Some("list the levels in the order the drive is turned up, each once".into()),
             });
         }
+        Ok(())
+    }
+
+    /// The bandwidth, when given: finite and positive (the issue names the key itself).
+    fn check_bandwidth(&self, at: &impl Fn(&str) -> Vec<Seg>) -> Result<(), Issue> {
         if let Some(b) = self.bandwidth_hz {
             finite_list(
                 at("bandwidth_hz"),
