@@ -176,6 +176,12 @@ fn amplitude_scale(ds: &Dataset, names: &[String], f_hz: &[f64]) -> Vec<f64> {
         .collect()
 }
 
+/// A figure with its file stem and caption, before it is drawn.
+type Captioned = (String, String, AnyFigure);
+
+/// A quantity with per-shot estimates: name, unit, estimate, and the truth when known.
+type Quantity<'a> = (String, String, &'a harmonid_ident::Estimate, Option<f64>);
+
 /// Builds the report of `model` (read from `model_path`) on `ds`.
 pub fn build(
     model_path: &Path,
@@ -183,14 +189,7 @@ pub fn build(
     ds: &Dataset,
     source: Source,
 ) -> Result<Page, ReportError> {
-    let (result, result_from) = match source {
-        Source::Identify(settings) => {
-            let mut rep = harmonid_ident::identify(model, ds, &settings)?;
-            rep.model = model_path.display().to_string();
-            (rep, None)
-        }
-        Source::Result(path, rep) => (*rep, Some(path)),
-    };
+    let (result, result_from) = result_of(model_path, model, ds, source)?;
     let mut warnings = result.warnings.clone();
     let names: Vec<String> = model.mode_names().iter().map(|s| s.to_string()).collect();
     let identified = match NumericModel::from_values(&names, &result::model_values(&result)) {
@@ -202,7 +201,64 @@ pub fn build(
             None
         }
     };
-    let truth_model = ds.truth.as_ref().and_then(|t| {
+    let truth_model = truth_model(ds, &names);
+    let mut figs = spectrum_figures(ds, identified.as_ref(), &result, &mut warnings);
+    let quantities = quantities(&result, ds);
+    let no_shots = histogram_figures(&quantities, &mut figs);
+    if !no_shots.is_empty() && result_from.is_some() {
+        warnings.push(format!(
+            "no histograms for {}: the result file holds no per-shot estimates (run the report without --result to identify and draw them)",
+            no_shots.join(", ")
+        ));
+    }
+    if let Some(idm) = identified.as_ref().filter(|m| potential::has_couplings(m)) {
+        let q_max = amplitude_scale(ds, &names, &idm.f_hz);
+        figs.push((
+            "potential".into(),
+            "The nonlinear potential U_nl over each pair of modal coordinates, the others at rest (the method's Fig. 5c): lower triangle identified, upper triangle the truth when truth.toml is present; the diagonal shows U_nl along one coordinate. Each coordinate spans ± its largest measured modal amplitude.".into(),
+            AnyFigure::Potential(potential::matrix(idm, truth_model.as_ref(), &q_max)),
+        ));
+    }
+    let figures = draw(figs)?;
+    let html = html::page(&html::PageInputs {
+        model_path,
+        model,
+        ds,
+        result: &result,
+        result_from: result_from.as_deref(),
+        truth: ds.truth.as_ref(),
+        figures: &figures,
+        warnings: &warnings,
+    });
+    Ok(Page {
+        html,
+        figures,
+        warnings,
+    })
+}
+
+/// The result the report shows: identified now (named after `model_path`), or read from a
+/// file (its path returned for the page).
+fn result_of(
+    model_path: &Path,
+    model: &Model,
+    ds: &Dataset,
+    source: Source,
+) -> Result<(Report, Option<PathBuf>), ReportError> {
+    Ok(match source {
+        Source::Identify(settings) => {
+            let mut rep = harmonid_ident::identify(model, ds, &settings)?;
+            rep.model = model_path.display().to_string();
+            (rep, None)
+        }
+        Source::Result(path, rep) => (*rep, Some(path)),
+    })
+}
+
+/// The model at the dataset's true values (`truth.toml`), when it has them and they make a
+/// complete model: the potential map's upper triangle.
+fn truth_model(ds: &Dataset, names: &[String]) -> Option<NumericModel> {
+    ds.truth.as_ref().and_then(|t| {
         let mut v = harmonid_sim::ModelValues::default();
         for (n, m) in &t.modes {
             v.modes.insert(
@@ -214,16 +270,24 @@ pub fn build(
             );
         }
         v.eom.clone_from(&t.eom);
-        NumericModel::from_values(&names, &v).ok()
-    });
+        NumericModel::from_values(names, &v).ok()
+    })
+}
 
-    // Spectra: one harmonic-balance solve per measurement, in parallel.
+/// The spectrum figures, one per measurement and point: one harmonic-balance solve per
+/// measurement, in parallel; their warnings are added to `warnings` in measurement order.
+fn spectrum_figures(
+    ds: &Dataset,
+    identified: Option<&NumericModel>,
+    result: &Report,
+    warnings: &mut Vec<String>,
+) -> Vec<Captioned> {
     let per_meas: Vec<(Vec<Spectrum>, Option<String>)> = ds
         .measurements
         .par_iter()
-        .map(|m| spectra::spectra(identified.as_ref(), &result, ds, m))
+        .map(|m| spectra::spectra(identified, result, ds, m))
         .collect();
-    let mut figs: Vec<(String, String, AnyFigure)> = Vec::new();
+    let mut figs: Vec<Captioned> = Vec::new();
     for (m, (specs, warn)) in ds.measurements.iter().zip(per_meas) {
         warnings.extend(warn);
         for (k, s) in specs.into_iter().enumerate() {
@@ -248,9 +312,14 @@ pub fn build(
             ));
         }
     }
-    // Histograms of every quantity with per-shot estimates.
+    figs
+}
+
+/// Every quantity of the result that may have per-shot estimates: each mode's `f` and `Q`,
+/// then the parameters, with the dataset's truth where it has one.
+fn quantities<'a>(result: &'a Report, ds: &Dataset) -> Vec<Quantity<'a>> {
     let truth = ds.truth.as_ref();
-    let mut quantities: Vec<(String, String, &harmonid_ident::Estimate, Option<f64>)> = Vec::new();
+    let mut quantities: Vec<Quantity<'a>> = Vec::new();
     for (n, m) in &result.modes {
         let tm = truth.and_then(|t| t.modes.get(n));
         quantities.push((format!("f_{n}"), "Hz".into(), &m.f_hz, tm.map(|t| t.f_hz)));
@@ -261,11 +330,17 @@ pub fn build(
             p.clone(),
             String::new(),
             e,
-            truth.and_then(|t| result::truth_of_param(&result, p, t)),
+            truth.and_then(|t| result::truth_of_param(result, p, t)),
         ));
     }
+    quantities
+}
+
+/// Adds a histogram to `figs` for every quantity with at least two per-shot estimates;
+/// returns the names of those without.
+fn histogram_figures(quantities: &[Quantity<'_>], figs: &mut Vec<Captioned>) -> Vec<String> {
     let mut no_shots = Vec::new();
-    for (name, unit, e, t) in &quantities {
+    for (name, unit, e, t) in quantities {
         if e.per_shot.len() < 2 {
             no_shots.push(name.clone());
             continue;
@@ -289,22 +364,12 @@ pub fn build(
             }),
         ));
     }
-    if !no_shots.is_empty() && result_from.is_some() {
-        warnings.push(format!(
-            "no histograms for {}: the result file holds no per-shot estimates (run the report without --result to identify and draw them)",
-            no_shots.join(", ")
-        ));
-    }
-    if let Some(idm) = identified.as_ref().filter(|m| potential::has_couplings(m)) {
-        let q_max = amplitude_scale(ds, &names, &idm.f_hz);
-        figs.push((
-            "potential".into(),
-            "The nonlinear potential U_nl over each pair of modal coordinates, the others at rest (the method's Fig. 5c): lower triangle identified, upper triangle the truth when truth.toml is present; the diagonal shows U_nl along one coordinate. Each coordinate spans ± its largest measured modal amplitude.".into(),
-            AnyFigure::Potential(potential::matrix(idm, truth_model.as_ref(), &q_max)),
-        ));
-    }
-    let figures: Vec<PageFigure> = figs
-        .into_par_iter()
+    no_shots
+}
+
+/// Draws every figure as SVG, in parallel, keeping their order.
+fn draw(figs: Vec<Captioned>) -> Result<Vec<PageFigure>, PlotError> {
+    figs.into_par_iter()
         .map(|(stem, caption, figure)| {
             let svg = harmonid_plot::to_svg(&figure)?;
             Ok(PageFigure {
@@ -314,22 +379,7 @@ pub fn build(
                 svg,
             })
         })
-        .collect::<Result<_, PlotError>>()?;
-    let html = html::page(&html::PageInputs {
-        model_path,
-        model,
-        ds,
-        result: &result,
-        result_from: result_from.as_deref(),
-        truth: ds.truth.as_ref(),
-        figures: &figures,
-        warnings: &warnings,
-    });
-    Ok(Page {
-        html,
-        figures,
-        warnings,
-    })
+        .collect()
 }
 
 impl Page {
