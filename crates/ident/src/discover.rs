@@ -209,6 +209,75 @@ pub fn discover(
     settings: &DiscoverSettings,
     mut progress: impl FnMut(usize, usize),
 ) -> Result<Discovery, DiscoverError> {
+    check_settings(settings, library)?;
+    let ident = Settings {
+        estimator: Estimator::Ml,
+        ..settings.identify.clone()
+    };
+    let mut pool = candidates(model, library);
+    if pool.is_empty() {
+        return Err(DiscoverError::NoCandidates {
+            degrees: library.degrees.clone(),
+            form: library.form,
+        });
+    }
+    let current = model.clone();
+    let here = fit(&current, ds, &ident).ok_or_else(|| {
+        DiscoverError::Start(
+            identify(model, ds, &ident)
+                .map(|r| r.warnings.first().cloned().unwrap_or_default())
+                .unwrap_or_else(|e| e.to_string()),
+        )
+    })?;
+    check_room(&pool, &here)?;
+    let total = pool.len();
+    let mut search = Search {
+        ds,
+        ident,
+        current,
+        here,
+        steps: Vec::new(),
+        fits: 1,
+    };
+    // Forward: the candidate that lowers χ² most, while it passes the corrected test.
+    for _ in 0..settings.max_added {
+        if !search.add_best(&mut pool, total, settings.alpha, &mut progress) {
+            break;
+        }
+    }
+    // Backward: the least needed parameter while its removal is not significant.
+    let mut removed = false;
+    while search.remove_weakest(settings.alpha) {
+        removed = true;
+    }
+    let Search {
+        ident,
+        current,
+        here,
+        steps,
+        mut fits,
+        ..
+    } = search;
+    // The selected model's own fit: after a removal, the parameter is gone rather than fixed
+    // at zero, so the result lists it no more; otherwise the last fit is that model's.
+    let result = if removed {
+        fits += 1;
+        fit(&current, ds, &ident).map_or(here.report, |f| f.report)
+    } else {
+        here.report
+    };
+    Ok(Discovery {
+        candidates: total,
+        steps,
+        fits,
+        model: current,
+        result,
+    })
+}
+
+/// The settings a discovery cannot start without: a family-wise error in (0, 1) and
+/// equation-term degrees from 1 to 7.
+fn check_settings(settings: &DiscoverSettings, library: &Library) -> Result<(), DiscoverError> {
     if !(settings.alpha > 0.0 && settings.alpha < 1.0) {
         return Err(DiscoverError::Setting(format!(
             "alpha = {}: give a family-wise error between 0 and 1, e.g. 0.01",
@@ -221,27 +290,12 @@ pub fn discover(
             library.degrees
         )));
     }
-    let ident = Settings {
-        estimator: Estimator::Ml,
-        ..settings.identify.clone()
-    };
-    let mut pool = candidates(model, library);
-    if pool.is_empty() {
-        return Err(DiscoverError::NoCandidates {
-            degrees: library.degrees.clone(),
-            form: library.form,
-        });
-    }
-    let mut fits = 0;
-    let mut current = model.clone();
-    let mut here = fit(&current, ds, &ident).ok_or_else(|| {
-        DiscoverError::Start(
-            identify(model, ds, &ident)
-                .map(|r| r.warnings.first().cloned().unwrap_or_default())
-                .unwrap_or_else(|e| e.to_string()),
-        )
-    })?;
-    fits += 1;
+    Ok(())
+}
+
+/// The pool fits the data and the budget: no more candidates than the data's real residuals
+/// minus the starting model's unknowns (`here` is its fit), nor than [`MAX_CANDIDATES`].
+fn check_room(pool: &[Candidate], here: &Fitted) -> Result<(), DiscoverError> {
     let n_real = here
         .report
         .goodness_of_fit
@@ -267,20 +321,41 @@ pub fn discover(
             });
         }
     }
-    let total = pool.len();
-    let mut steps = Vec::new();
-    // Forward: the candidate that lowers χ² most, while it passes the corrected test.
-    for _ in 0..settings.max_added {
+    Ok(())
+}
+
+/// Where the stepwise search is: the model selected so far and its fit, the steps taken and
+/// the identifications run.
+struct Search<'a> {
+    ds: &'a Dataset,
+    ident: Settings,
+    current: Model,
+    here: Fitted,
+    steps: Vec<DiscoveryStep>,
+    fits: usize,
+}
+
+impl Search<'_> {
+    /// One forward step: adds the determined candidate of `pool` that lowers χ² most, if it
+    /// passes the test at `alpha` corrected for the candidates tried. Returns whether one was
+    /// added.
+    fn add_best(
+        &mut self,
+        pool: &mut Vec<Candidate>,
+        total: usize,
+        alpha: f64,
+        progress: &mut impl FnMut(usize, usize),
+    ) -> bool {
         let among = pool.len();
         let mut best: Option<(usize, f64, Fitted, Model)> = None;
         for (i, c) in pool.iter().enumerate() {
             // A candidate whose terms overflow exact arithmetic cannot be written: skipped.
-            let Some(trial) = with_candidate(&current, c) else {
+            let Some(trial) = with_candidate(&self.current, c) else {
                 continue;
             };
-            let f = fit(&trial, ds, &ident);
-            fits += 1;
-            progress(fits, total * (steps.len() + 1));
+            let f = fit(&trial, self.ds, &self.ident);
+            self.fits += 1;
+            progress(self.fits, total * (self.steps.len() + 1));
             let Some(f) = f else { continue };
             let determined = f.report.parameters.get(&c.name).is_some_and(|e| {
                 e.identifiable && e.stderr.is_finite() && e.stderr < e.value.abs()
@@ -288,20 +363,20 @@ pub fn discover(
             if !determined {
                 continue;
             }
-            let delta = (here.chi2 - f.chi2) / f.scale;
+            let delta = (self.here.chi2 - f.chi2) / f.scale;
             if best.as_ref().is_none_or(|b| delta > b.1) {
                 best = Some((i, delta, f, trial));
             }
         }
         let Some((i, delta, f, trial)) = best else {
-            break;
+            return false;
         };
         let p = chi2_tail(delta, 1.0);
-        if p * among as f64 >= settings.alpha {
-            break;
+        if p * among as f64 >= alpha {
+            return false;
         }
         let c = pool.remove(i);
-        steps.push(DiscoveryStep {
+        self.steps.push(DiscoveryStep {
             action: "added",
             value: f.report.parameters[&c.name].value,
             parameter: c.name,
@@ -310,12 +385,16 @@ pub fn discover(
             p_value: p,
             among,
         });
-        current = trial;
-        here = f;
+        self.current = trial;
+        self.here = f;
+        true
     }
-    // Backward: the least needed parameter while its removal is not significant.
-    let mut removed = false;
-    loop {
+
+    /// One backward step: removes the free parameter whose removal raises χ² least, if that
+    /// rise is not significant at `alpha` corrected for the parameters tried. Returns whether
+    /// one was removed.
+    fn remove_weakest(&mut self, alpha: f64) -> bool {
+        let current = &self.current;
         let free: Vec<usize> = (0..current.params.len())
             .filter(|&p| current.params[p].kind == ParamKind::Unknown)
             .collect();
@@ -325,55 +404,41 @@ pub fn discover(
             let mut trial = current.clone();
             trial.params[p].kind = ParamKind::Fixed(0.0);
             trial.params[p].bounds = Bounds::default();
-            let f = fit(&trial, ds, &ident);
-            fits += 1;
+            let f = fit(&trial, self.ds, &self.ident);
+            self.fits += 1;
             let Some(f) = f else { continue };
-            let delta = (f.chi2 - here.chi2) / here.scale;
+            let delta = (f.chi2 - self.here.chi2) / self.here.scale;
             if weakest.as_ref().is_none_or(|w| delta < w.1) {
                 weakest = Some((p, delta, f, trial));
             }
         }
         let Some((p, delta, f, trial)) = weakest else {
-            break;
+            return false;
         };
         let pv = chi2_tail(delta, 1.0);
-        if pv * (among as f64) < settings.alpha {
-            break;
+        if pv * (among as f64) < alpha {
+            return false;
         }
         let name = current.params[p].name.clone();
-        steps.push(DiscoveryStep {
+        self.steps.push(DiscoveryStep {
             action: "removed",
-            value: here
+            value: self
+                .here
                 .report
                 .parameters
                 .get(&name)
                 .map_or(f64::NAN, |e| e.value),
-            term: terms_of(&current, p),
+            term: terms_of(current, p),
             parameter: name,
             delta_chi2: delta,
             p_value: pv,
             among,
         });
         // Dropped from the model; fixed at zero (the same equations) should that overflow.
-        current = without(&trial, p).unwrap_or(trial);
-        here = f;
-        removed = true;
+        self.current = without(&trial, p).unwrap_or(trial);
+        self.here = f;
+        true
     }
-    // The selected model's own fit: after a removal, the parameter is gone rather than fixed
-    // at zero, so the result lists it no more; otherwise the last fit is that model's.
-    let result = if removed {
-        fits += 1;
-        fit(&current, ds, &ident).map_or(here.report, |f| f.report)
-    } else {
-        here.report
-    };
-    Ok(Discovery {
-        candidates: total,
-        steps,
-        fits,
-        model: current,
-        result,
-    })
 }
 
 /// Every library term the model does not have.

@@ -225,67 +225,11 @@ pub(crate) fn fit(
     }
     let sigma = sigma_used;
     if let Some(s0) = floor {
-        let mut sorted = shot_sigma.to_vec();
-        sorted.sort_by(f64::total_cmp);
-        let median = sorted.get(sorted.len() / 2).copied().unwrap_or(f64::NAN);
-        notes.push(format!(
-            "error floor: {s0:.3e} per quadrature added to every line's noise, {:.3} times the median noise of a line's mean from its shots ({median:.3e}); χ² was fitted with it and no longer tests the model: judge by a held-out prediction (--holdout)",
-            s0 / median
-        ));
+        notes.push(floor_note(shot_sigma, s0));
     }
-    // The lattice chosen at the start may be truncated too coarsely for the data's precision
-    // at the estimate: widened where it shows, and the fit refined on the wider lattice.
-    let mut widenings: Vec<Widened> = Vec::new();
-    for _ in 0..MAX_WIDENINGS {
-        let scale = if from_shots {
-            1.0
-        } else {
-            (fit.chi2 / fit.dof.max(1) as f64).sqrt()
-        };
-        let tol: Vec<f64> = sigma.iter().map(|s| TRUNCATION_SIGMA * s * scale).collect();
-        let widened = fwd
-            .widen_where_truncated(&fit.theta, &tol)
-            .map_err(OutputErrorFailure::Fit)?;
-        if widened.is_empty() {
-            break;
-        }
-        // Each measurement's last widening, and how far its first moved a line.
-        for w in widened {
-            match widenings
-                .iter_mut()
-                .find(|e| e.measurement == w.measurement)
-            {
-                Some(e) => {
-                    e.order = w.order;
-                    e.lines = w.lines;
-                    e.moved = e.moved.max(w.moved);
-                }
-                None => widenings.push(w),
-            }
-        }
-        fit = ml::refine(
-            fwd,
-            &meas,
-            &sigma,
-            &fit.theta,
-            &cols,
-            prob.table.bounds(),
-            &MlSettings::default(),
-        )
-        .map_err(OutputErrorFailure::Fit)?;
-    }
+    let (fit, widenings) = widen_and_refine(fwd, &tries, &sigma, fit, from_shots)?;
     notes.extend(widening_note(&widenings));
-    let dof = fit.dof.max(1) as f64;
-    let (noise, inflation) = if from_shots {
-        let red = fit.chi2 / dof / e0;
-        (Noise::PerObservation(sigma.clone()), red.max(1.0).sqrt())
-    } else {
-        let s = (fit.chi2 / dof).sqrt();
-        (
-            Noise::Uniform(if s > 0.0 { s } else { f64::MIN_POSITIVE }),
-            1.0,
-        )
-    };
+    let (noise, inflation) = noise_at(&fit, &sigma, from_shots, e0);
     let bounds = uncertainty::crlb_from_jacobian(fwd, &fit.theta, &fit.jac, &noise, 1)
         .map_err(OutputErrorFailure::Fisher)?;
     // The delete-one-shot jackknife sees the shots' scatter only, not the floor.
@@ -299,19 +243,7 @@ pub(crate) fn fit(
     } else {
         Vec::new()
     };
-    // Without shot noise the residual is the noise: standardize by its scale.
-    let residual_scale = match &noise {
-        Noise::Uniform(s) => *s,
-        _ => 1.0,
-    };
-    let scaled: Vec<f64> = sigma.iter().map(|s| s * residual_scale).collect();
-    let mut goodness = goodness_of_fit(
-        &pooled.mean,
-        &pooled.used,
-        (&meas, &fit.x, &scaled),
-        fit.dof,
-        from_shots,
-    );
+    let mut goodness = goodness(pooled, &meas, &fit, &sigma, &noise, from_shots);
     goodness.stderr_inflation = inflation;
     goodness.converged = fit.converged;
     if let Some(s0) = floor {
@@ -352,6 +284,111 @@ pub(crate) fn fit(
         at_bound,
         notes,
     })
+}
+
+/// The note on an error floor `s0` added to every line's noise, against the median of the
+/// lines' own noise `shot_sigma`: once fitted with it, χ² no longer tests the model.
+fn floor_note(shot_sigma: &[f64], s0: f64) -> String {
+    let mut sorted = shot_sigma.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted.get(sorted.len() / 2).copied().unwrap_or(f64::NAN);
+    format!(
+        "error floor: {s0:.3e} per quadrature added to every line's noise, {:.3} times the median noise of a line's mean from its shots ({median:.3e}); χ² was fitted with it and no longer tests the model: judge by a held-out prediction (--holdout)",
+        s0 / median
+    )
+}
+
+/// The lattice chosen at the start may be truncated too coarsely for the data's precision
+/// at the estimate: widens it where that shows (at most [`MAX_WIDENINGS`] times) and refines
+/// `fit` on the wider lattice each time. Returns the fit and each measurement's last
+/// widening, with how far its first moved a line.
+fn widen_and_refine(
+    fwd: &mut ForwardModel,
+    tries: &Tries,
+    sigma: &[f64],
+    mut fit: MlFit,
+    from_shots: bool,
+) -> Result<(MlFit, Vec<Widened>), OutputErrorFailure> {
+    let mut widenings: Vec<Widened> = Vec::new();
+    for _ in 0..MAX_WIDENINGS {
+        let scale = if from_shots {
+            1.0
+        } else {
+            (fit.chi2 / fit.dof.max(1) as f64).sqrt()
+        };
+        let tol: Vec<f64> = sigma.iter().map(|s| TRUNCATION_SIGMA * s * scale).collect();
+        let widened = fwd
+            .widen_where_truncated(&fit.theta, &tol)
+            .map_err(OutputErrorFailure::Fit)?;
+        if widened.is_empty() {
+            break;
+        }
+        for w in widened {
+            match widenings
+                .iter_mut()
+                .find(|e| e.measurement == w.measurement)
+            {
+                Some(e) => {
+                    e.order = w.order;
+                    e.lines = w.lines;
+                    e.moved = e.moved.max(w.moved);
+                }
+                None => widenings.push(w),
+            }
+        }
+        fit = ml::refine(
+            fwd,
+            tries.meas,
+            sigma,
+            &fit.theta,
+            tries.cols,
+            tries.bounds,
+            &MlSettings::default(),
+        )
+        .map_err(OutputErrorFailure::Fit)?;
+    }
+    Ok((fit, widenings))
+}
+
+/// The noise the bounds use and the factor their standard errors are inflated by: with shot
+/// noise, `sigma` per observation and inflation by the excess of `χ²/dof` over `e0`; without,
+/// the residual's uniform scale and no inflation.
+fn noise_at(fit: &MlFit, sigma: &[f64], from_shots: bool, e0: f64) -> (Noise, f64) {
+    let dof = fit.dof.max(1) as f64;
+    if from_shots {
+        let red = fit.chi2 / dof / e0;
+        (Noise::PerObservation(sigma.to_vec()), red.max(1.0).sqrt())
+    } else {
+        let s = (fit.chi2 / dof).sqrt();
+        (
+            Noise::Uniform(if s > 0.0 { s } else { f64::MIN_POSITIVE }),
+            1.0,
+        )
+    }
+}
+
+/// The goodness of `fit` against the pooled means, residuals standardized by `sigma` (times
+/// the residual's scale when there is no shot noise: then the residual is the noise).
+fn goodness(
+    pooled: &Pooled,
+    meas: &[Complex64],
+    fit: &MlFit,
+    sigma: &[f64],
+    noise: &Noise,
+    from_shots: bool,
+) -> GoodnessOfFit {
+    let residual_scale = match noise {
+        Noise::Uniform(s) => *s,
+        _ => 1.0,
+    };
+    let scaled: Vec<f64> = sigma.iter().map(|s| s * residual_scale).collect();
+    goodness_of_fit(
+        &pooled.mean,
+        &pooled.used,
+        (meas, &fit.x, &scaled),
+        fit.dof,
+        from_shots,
+    )
 }
 
 /// One note for every widened lattice: the measurement's own words when it is one, else how
