@@ -14,4 +14,5 @@ pub mod progress;
 pub mod report;
 pub mod simulate;
 pub mod sweep;
+pub mod sweep_args;
 pub mod sweep_pumped;

@@ -3,63 +3,16 @@
 //! the stepped sweep of a pumped model (`sweep_pumped`).
 
 use super::simulate::numeric_model;
+pub use super::sweep_args::Args;
 use harmonid_sim::{self as sim, SweepSettings};
 use miette::{miette, IntoDiagnostic};
 use num_complex::Complex64;
 use std::fmt::Write as _;
-use std::path::PathBuf;
 
 /// A curve is accepted when its highest harmonic stays below this fraction of the largest.
 const TRUNCATION_TOL: f64 = 1e-3;
 /// Harmonics are raised automatically (3, 7, 15, 31) up to this order.
 const MAX_AUTO_HARMONICS: usize = 31;
-
-/// Arguments of `harmonid sweep`.
-#[derive(Debug, clap::Args)]
-pub struct Args {
-    /// The model file (`*.hb`).
-    pub model: PathBuf,
-    /// Parameter values (TOML or an identification result JSON), as for `harmonid simulate`.
-    #[arg(long)]
-    pub values: PathBuf,
-    /// Start of the sweep, Hz.
-    #[arg(long)]
-    pub from: f64,
-    /// End of the sweep, Hz (below `--from` for a curve followed downwards).
-    #[arg(long)]
-    pub to: f64,
-    /// Force of the tone on a mode, N/kg (peak), as `mode=amplitude`; repeat for several modes.
-    #[arg(long = "force", value_name = "MODE=N_PER_KG", required = true)]
-    pub force: Vec<String>,
-    /// Approximate number of curve points.
-    #[arg(long, default_value_t = 2000)]
-    pub points: usize,
-    /// Highest harmonic of the tone kept.
-    #[arg(long, default_value_t = 3)]
-    pub harmonics: usize,
-    /// Two-tone mode: sweep the centre of a tone pair `c ± SPACING_HZ/2` from `--from` to `--to`
-    /// (each `--force` then applies to each tone `fa`, `fb`), up and down, with continuation; CSV
-    /// columns `direction, centre_hz`, |X| and phase of each mode at its own lines, `stable`: a
-    /// mode near the pair at `2fa-fb, fa, fb, 2fb-fa`, any other mode at the mixing products
-    /// that reach its resonance (e.g. `2fa`, `fa+fb`, `2fb`).
-    #[arg(long = "two-tone", value_name = "SPACING_HZ")]
-    pub two_tone: Option<f64>,
-    /// A pump tone (parametric pumping: the model's `pump` signal), as
-    /// `HZ:LEVEL[:PHASE_RAD]`, level in the unit the model's pump coefficients are per; repeat
-    /// for several. With a pump the tone is stepped up and then down through the range as a
-    /// stepped-sine experiment does (`--points` steps each way); CSV columns `direction, f_hz`,
-    /// |X| and phase of each mode at the tone `f`, at each pump's idler `f_p − f` and at its
-    /// half `f_p/2` (the oscillation a pump above threshold sustains), `stable`, `converged`.
-    #[arg(long = "pump", value_name = "HZ:LEVEL[:PHASE_RAD]")]
-    pub pump: Vec<String>,
-    /// Output CSV (stdout when absent).
-    #[arg(long)]
-    pub out: Option<PathBuf>,
-    /// Also draw the response curve of the most strongly driven mode (stable solid, unstable
-    /// dashed, jumps, backbone) to this file, `.svg` or `.png`.
-    #[arg(long, value_name = "FILE.svg|png")]
-    pub plot: Option<PathBuf>,
-}
 
 /// Runs the subcommand.
 pub fn run(args: Args) -> miette::Result<()> {
