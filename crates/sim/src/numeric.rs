@@ -152,6 +152,15 @@ pub fn parse_monomial(name: &str, modes: &[String]) -> Result<Vec<(usize, u32)>,
 }
 
 impl NumericModel {
+    /// The monomial of a term's factors over the model's variables (modes, velocities, pump).
+    pub(crate) fn term_monomial(&self, factors: &[(usize, u32)]) -> PowerProduct {
+        let mut e = vec![0u32; self.n_vars()];
+        for &(m, k) in factors {
+            e[m] += k;
+        }
+        PowerProduct::from_exponents(&e)
+    }
+
     /// Builds the numeric model from modal data and terms. `f_hz > 0`, `Q > 1/2` (underdamped),
     /// coefficients finite; zero coefficients are dropped. Checks that no mode is unbounded by
     /// its own terms (see [`SimError::Unbounded`]).
@@ -478,7 +487,7 @@ impl NumericModel {
             .iter()
             .filter(|t| t.factors.iter().any(|&(m, _)| m == pump))
             .map(|t| {
-                let pp = crate::steady::term_monomial(self, &t.factors);
+                let pp = self.term_monomial(&t.factors);
                 format!(
                     "{} in the equation of {}",
                     pp.name(&names),

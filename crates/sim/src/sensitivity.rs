@@ -25,7 +25,7 @@
 
 use crate::lattice::LINE_TOL_HZ;
 use crate::linalg::ColumnScratch;
-use crate::steady::{term_monomial, variable_spectra, HbSolver, SteadyState};
+use crate::steady::{variable_spectra, HbSolver, SteadyState};
 use crate::SimError;
 use harmonid_poly::PowerProduct;
 use harmonid_spectral::{SystemPlan, SystemScratch};
@@ -167,7 +167,7 @@ impl Sensitivity {
         let mut monos: Vec<PowerProduct> = Vec::new();
         let mut mono_of_term = Vec::with_capacity(model.terms().len());
         for t in model.terms() {
-            let pp = term_monomial(model, &t.factors);
+            let pp = model.term_monomial(&t.factors);
             let k = match monos.iter().position(|x| *x == pp) {
                 Some(k) => k,
                 None => {

@@ -5,7 +5,6 @@ use super::{HbSettings, HbStatus, SteadyState, Z};
 use crate::lattice::{choose_lattice, low_order_lines, LatticeSettings, LINE_TOL_HZ};
 use crate::linalg::DenseLu;
 use crate::{Excitation, NumericModel, SimError};
-use harmonid_poly::PowerProduct;
 use harmonid_spectral::{
     velocity_spectrum, velocity_to_amplitude, ProductPlan, SystemPlan, SystemScratch,
 };
@@ -77,7 +76,7 @@ impl Operators {
         let terms: Vec<_> = model
             .terms()
             .iter()
-            .map(|t| (t.eq, term_monomial(model, &t.factors), t.coef))
+            .map(|t| (t.eq, model.term_monomial(&t.factors), t.coef))
             .collect();
         let system = SystemPlan::new(plan, model.n_vars(), nm, &terms)?;
         let mut lin = vec![Z; nm * nr];
@@ -481,15 +480,6 @@ pub fn steady_state_from(
         }
     }
     Ok(solver.solve(settings))
-}
-
-/// The monomial of a term's factors over the model's variables (modes, velocities, pump).
-pub(crate) fn term_monomial(model: &NumericModel, factors: &[(usize, u32)]) -> PowerProduct {
-    let mut e = vec![0u32; model.n_vars()];
-    for &(m, k) in factors {
-        e[m] += k;
-    }
-    PowerProduct::from_exponents(&e)
 }
 
 /// The spectra of the model's variables: each mode's amplitudes in `x`, then each mode's
