@@ -393,17 +393,3 @@ fn figure(
         ),
     ))
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn noise_units() {
-        assert_eq!(parse_sigma("0.05nm").ok(), Some(0.05e-9));
-        assert_eq!(parse_sigma("1e-10").ok(), Some(1e-10));
-        assert_eq!(parse_sigma("50 pm").ok(), Some(50e-12));
-        assert!(parse_sigma("-1nm").is_err());
-        assert!(parse_sigma("1 furlong").is_err());
-    }
-}

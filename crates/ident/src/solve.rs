@@ -342,7 +342,7 @@ mod tests {
 
     #[test]
     fn a_bound_on_a_zero_column_fails_without_a_panic() {
-        // Found by tests/finite_inputs.rs: an all-zero matrix with a bound excluding 0 sent an
+        // Found by tests/it/finite_inputs.rs: an all-zero matrix with a bound excluding 0 sent an
         // empty problem to clarabel, which panicked.
         let a = DMatrix::from_row_slice(1, 1, &[0.0]);
         let b = DVector::from_row_slice(&[0.0]);

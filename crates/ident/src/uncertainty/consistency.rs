@@ -36,7 +36,7 @@
 //! comparisons. A discrepancy is warned about when `|z| > z*(K)` with
 //! `z*(K) = Φ⁻¹(1 − α/(2K))`, `α = 1 %` (Bonferroni): the chance that a consistent dataset
 //! raises any warning stays below 1 %, whatever `K` (2.58 for one comparison, 3.09 for five,
-//! 3.29 for ten, 3.59 for thirty). The Monte Carlo check is in `tests/identify_consistency.rs`.
+//! 3.29 for ten, 3.59 for thirty). The Monte Carlo check is in `tests/it/identify_consistency.rs`.
 
 use super::fisher::{self, Noise};
 use crate::forward::ForwardModel;

@@ -1,0 +1,7 @@
+//! The integration tests of `harmonid-ident`, one test binary (`cargo test --release -p harmonid-ident --test it`):
+//! one module per subject, built and linked once.
+
+mod crlb;
+mod finite_inputs;
+mod ml_fallback;
+mod shared_dataset;

@@ -1,0 +1,10 @@
+//! The integration tests of `harmonid-sim`, one test binary (`cargo test --release -p harmonid-sim --test it`):
+//! one module per subject, built and linked once.
+
+mod decoupled_modes;
+mod finite_inputs;
+mod pumping;
+mod ramp_past_fold;
+mod sensitivity;
+mod stop_at_fold;
+mod velocity_terms;
