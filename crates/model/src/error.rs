@@ -1,8 +1,7 @@
 //! Diagnostics of the model language: every error is located, coded and explained.
 
-use miette::{
-    Diagnostic, GraphicalReportHandler, GraphicalTheme, LabeledSpan, NamedSource, SourceSpan,
-};
+use harmonid_files::{QuotedSource, QUOTE_LINE};
+use miette::{Diagnostic, GraphicalReportHandler, GraphicalTheme, LabeledSpan, SourceSpan};
 use std::fmt;
 
 /// A byte range `start..end` in the model source.
@@ -176,19 +175,35 @@ impl Diagnostic for ModelDiagnostic {
 }
 
 /// All diagnostics of the stage that failed (parse, or the semantic checks), with the source
-/// attached so that miette prints `file:line:col`, the offending line and a caret.
+/// attached so that miette prints `file:line:col`, the offending line and a caret. A long line
+/// (a 200 kB expression) is quoted as a window around the caret, never whole.
 #[derive(Debug, Clone)]
 pub struct ModelErrors {
     origin: String,
-    source: NamedSource<String>,
+    source: QuotedSource,
     diagnostics: Vec<ModelDiagnostic>,
 }
 
 impl ModelErrors {
-    pub(crate) fn new(origin: &str, source: &str, diagnostics: Vec<ModelDiagnostic>) -> Self {
+    pub(crate) fn new(origin: &str, source: &str, mut diagnostics: Vec<ModelDiagnostic>) -> Self {
+        let quoted = QuotedSource::new(origin, source);
+        // A label under a whole 200 kB expression would quote all of it: on a line longer than
+        // QUOTE_LINE, the label covers at most the window QuotedSource shows.
+        for d in &mut diagnostics {
+            if let Some(span) = &mut d.span {
+                let start = span.start.min(source.len());
+                let end = span.end.clamp(start, source.len());
+                let line_start = source[..start].rfind('\n').map_or(0, |i| i + 1);
+                let line_end = source[end..].find('\n').map_or(source.len(), |i| end + i);
+                if line_end - line_start > QUOTE_LINE {
+                    let label = quoted.label(start..end);
+                    *span = Span::new(label.offset(), label.offset() + label.len());
+                }
+            }
+        }
         Self {
             origin: origin.to_string(),
-            source: NamedSource::new(origin, source.to_string()),
+            source: quoted,
             diagnostics,
         }
     }

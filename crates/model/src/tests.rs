@@ -495,3 +495,33 @@ fn misused_pumps_are_located_errors() {
         "{text}"
     );
 }
+
+/// Hostile input 16: a syntax error at the end of a 1 MB line made miette panic ("Formatting
+/// argument out of range"); hostile input 15: a nesting error quoted the whole 200 kB line.
+#[test]
+fn an_error_on_a_huge_line_is_quoted_as_a_window() {
+    let long = format!(
+        "mode q1 at 1 kHz\nparam b\npotential: b*q1^4{} + $\n",
+        " + b*q1^4".repeat(110_000)
+    );
+    let e = parse_str(&long, "long.hb").expect_err("syntax error");
+    assert_eq!(e.diagnostics()[0].code, Code::Syntax);
+    let text = e.render_plain(100);
+    assert!(text.len() < 2_000, "{} bytes", text.len());
+    assert!(
+        text.contains("long.hb:3:990021") && text.contains('$'),
+        "{text}"
+    );
+
+    let n = 100_000;
+    let deep = format!(
+        "mode q1 at 1 kHz\nparam b\npotential: {}b*q1^4{}\n",
+        "(".repeat(n),
+        ")".repeat(n)
+    );
+    let e = parse_str(&deep, "deep.hb").expect_err("too deep");
+    assert_eq!(e.diagnostics()[0].code, Code::TooDeep);
+    let text = e.render_plain(100);
+    assert!(text.len() < 2_000, "{} bytes", text.len());
+    assert!(text.contains("deep.hb:3:76"), "{text}");
+}
