@@ -492,3 +492,38 @@ fn a_message_quotes_a_window_of_a_long_line() {
     );
     assert!(!out.exists());
 }
+
+// ---- Hostile inputs (issue 37; reproducers in ../shared/hostile) ----
+
+#[test]
+fn plan_refuses_a_billion_draws_before_any_work() {
+    // hostile 13: `--draws 1000000000` aborted on a 72 GB allocation after the design.
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("p.toml");
+    let (model, values) = (example("model.hb"), example("values.toml"));
+    let started = std::time::Instant::now();
+    let (ok, text) = run(&[
+        "plan",
+        s(&model),
+        "--values",
+        s(&values),
+        "--noise",
+        "50pm",
+        "--draws",
+        "1000000000",
+        "--out",
+        s(&out),
+    ]);
+    assert!(!ok, "{text}");
+    assert!(
+        text.contains("--draws") && text.contains("at most 10000") && text.contains("1000000000"),
+        "{text}"
+    );
+    assert!(
+        started.elapsed().as_secs() < 20,
+        "refused before the design"
+    );
+    assert!(!out.exists());
+    // The bound itself is accepted as far as the check goes.
+    assert!(harmonid_plan::check_draws(harmonid_plan::MAX_DRAWS).is_ok());
+}

@@ -21,8 +21,8 @@ mod range;
 mod terms;
 
 pub use design::{
-    default_ladder, design, design_with_progress, DesignSettings, DesignStep, DEFAULT_DRAWS,
-    DEFAULT_LADDER,
+    check_draws, default_ladder, design, design_with_progress, DesignSettings, DesignStep,
+    DEFAULT_DRAWS, DEFAULT_LADDER, MAX_DRAWS,
 };
 pub use evaluate::{evaluate, robustness, Evaluation, Finding, Robustness};
 pub use range::{
