@@ -527,3 +527,15 @@ fn plan_refuses_a_billion_draws_before_any_work() {
     // The bound itself is accepted as far as the check goes.
     assert!(harmonid_plan::check_draws(harmonid_plan::MAX_DRAWS).is_ok());
 }
+
+#[test]
+fn sweep_quotes_a_huge_frequency_as_written() {
+    // hostile 14: `--from 1e300` was printed as a 301-digit number filling the message.
+    let (ok, text) = sweep(&["--from", "1e300", "--to", "inf", "--force", "q1=3.5"]);
+    assert!(!ok, "{text}");
+    assert!(
+        text.contains("start frequency (Hz) = 1e300 is not allowed") && text.contains("1e15"),
+        "{text}"
+    );
+    assert!(!text.contains("0000000000"), "{text}");
+}

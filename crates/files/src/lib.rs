@@ -13,7 +13,8 @@
 //! - [`clean_stale`] removes staging files and folders of harmonid's own naming left by killed runs
 //!   (their process is gone); the writers call it on the folder they write in.
 //! - [`QuotedSource`] and [`quote_line`] quote an input file in a message: the lines around the
-//!   point, but of a long line (a plan's 2,000 tones) only a window around it.
+//!   point, but of a long line (a plan's 2,000 tones) only a window around it; [`number`] quotes
+//!   a number (`1e300`, not 301 digits).
 //! - [`resolve_inside`] resolves a path given relative to a folder (symbolic links included) and
 //!   refuses anything that lands outside it.
 //!
@@ -33,12 +34,14 @@
 mod error;
 mod excerpt;
 mod inputs;
+mod number;
 mod output;
 mod stale;
 
 pub use error::FileError;
 pub use excerpt::{quote_line, QuotedSource, QUOTE_CONTEXT, QUOTE_LINE, QUOTE_SPAN};
 pub use inputs::{resolve_inside, same_file};
+pub use number::number;
 pub use output::{
     check_output_dir, check_output_file, is_dataset_dir, replace_dir, write_file, DirWrite,
 };

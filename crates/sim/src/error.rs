@@ -12,7 +12,7 @@ pub enum SimError {
         what: String,
     },
     /// A value is not a finite number in its allowed range.
-    #[error("{what} = {value} is not allowed: {why}")]
+    #[error("{what} = {} is not allowed: {why}", harmonid_files::number(*value))]
     BadValue {
         /// The quantity.
         what: String,
