@@ -42,6 +42,7 @@ mod sim_sweep_two_tone;
 mod sim_td;
 mod sim_td_noise;
 mod stdout_pipe_cli;
+mod stepped_scale;
 mod stepped_sweep_branches;
 mod sweep_plot;
 mod ten_mode_string;

@@ -609,3 +609,41 @@ pub fn simulate_sweeps_clean(
         notes: Vec::new(),
     }
 }
+
+/// A lab's stepped-sine frequency response of [`DAMPED_DUFFING`] softened (`beta1 < 0`): at
+/// each of `levels` drive levels (linear peak response 1 to 20 nm, evenly spaced) one sweep up
+/// and one down through ±6 linewidths around the resonance, `steps` steps each, so that the top
+/// levels are bistable and each direction jumps at its own fold. Names `up_l{level}` and
+/// `dn_l{level}`; `2 · levels · steps` steps in all. For [`simulate_sweeps_clean`].
+pub fn hysteretic_sweeps(levels: usize, steps: usize) -> (Values, Vec<SteppedSweep>) {
+    let mut v = damped_duffing_values(5.0e18);
+    v.params.insert("beta1".into(), -2.6e25);
+    let (f, q) = (v.f_hz[0], v.q[0]);
+    let w = std::f64::consts::TAU * f;
+    let lw = f / q;
+    let mut sweeps = Vec::new();
+    for l in 0..levels {
+        let x = 1e-9 + 19e-9 * l as f64 / (levels.max(2) - 1) as f64;
+        let force = x * w * w / q;
+        let up: Vec<(f64, f64)> = (0..steps)
+            .map(|s| {
+                (
+                    f + lw * (12.0 * s as f64 / (steps.max(2) - 1) as f64 - 6.0),
+                    force,
+                )
+            })
+            .collect();
+        let down = up.iter().rev().copied().collect();
+        sweeps.push(SteppedSweep {
+            name: format!("up_l{l:02}"),
+            direction: harmonid_data::Direction::Up,
+            steps: up,
+        });
+        sweeps.push(SteppedSweep {
+            name: format!("dn_l{l:02}"),
+            direction: harmonid_data::Direction::Down,
+            steps: down,
+        });
+    }
+    (v, sweeps)
+}

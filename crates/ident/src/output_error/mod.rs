@@ -254,6 +254,9 @@ pub(crate) fn fit(
         goodness.error_floor = floor;
     }
     let consistency = compare_measurements(fwd, &fit, &meas, &noise, &cols, &pooled.mean);
+    notes.extend(consistency::too_many_units(&consistency::units(
+        &pooled.mean,
+    )));
     if !fit.converged {
         notes.push(format!(
             "the output-error fit stopped after {} steps before converging (χ² {:.4e} from {:.4e})",
@@ -636,6 +639,7 @@ fn compare_measurements(
         .iter()
         .map(|m| m.spec.name.clone())
         .collect();
+    let units = consistency::units(mean);
     consistency::compare(&consistency::Fitted {
         fwd,
         theta: &fit.theta,
@@ -646,5 +650,6 @@ fn compare_measurements(
         cols: &kept,
         dof: fit.dof,
         names: &names,
+        units: &units,
     })
 }

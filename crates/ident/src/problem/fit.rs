@@ -1,6 +1,6 @@
 //! Per-shot fits of every group, stage by stage.
 
-use super::weighting::shot_mean;
+use super::weighting::{shot_mean, BlockWhitening};
 use super::{FitGroup, IdentError, MeasRows, Problem, Unknown};
 use crate::solve::{solve_ls, FitStatus, LsSolution};
 use harmonid_data::Dataset;
@@ -137,8 +137,8 @@ impl Problem {
                         v.sort_by(f64::total_cmp);
                         *xb = v[v.len() / 2];
                     }
-                    let sigma = self.equation_cov(&mean_ds, g, 0, &xbar, &data_var, &mut scratch);
-                    sigma.cholesky().map(|c| c.l())
+                    let blocks = self.equation_cov(&mean_ds, g, 0, &xbar, &data_var, &mut scratch);
+                    BlockWhitening::factor(blocks)
                 } else {
                     None
                 };
@@ -147,16 +147,19 @@ impl Problem {
                         self.assemble(&rows[s], &g.measurements, &g.unknowns, &values[s], None);
                     let mut whitened = false;
                     let own_l = if gls_now && shared_l.is_none() {
-                        self.equation_cov(ds, g, s, &values[s], &data_var, &mut scratch)
-                            .cholesky()
-                            .map(|c| c.l())
+                        BlockWhitening::factor(self.equation_cov(
+                            ds,
+                            g,
+                            s,
+                            &values[s],
+                            &data_var,
+                            &mut scratch,
+                        ))
                     } else {
                         None
                     };
                     if let Some(l) = shared_l.as_ref().or(own_l.as_ref()) {
-                        if let (Some(wa), Some(wb)) =
-                            (l.solve_lower_triangular(&a), l.solve_lower_triangular(&b))
-                        {
+                        if let Some((wa, wb)) = l.whiten(&a, &b) {
                             a = wa;
                             b = wb;
                             whitened = true;

@@ -52,7 +52,10 @@ impl Problem {
     }
 
     /// Covariance of the group's real equation errors caused by noise on the measured modal
-    /// amplitudes, linearised at the current estimate: `Σ = J D Jᵀ`, where `J` is the derivative
+    /// amplitudes, linearised at the current estimate, one block per measurement of the group
+    /// in its order (measurements are independent acquisitions: `Σ` is block-diagonal, and
+    /// only the blocks are formed, so the cost is linear in the number of measurements):
+    /// `Σ = J D Jᵀ`, where `J` is the derivative
     /// of every equation (real, imaginary rows) with respect to the real and imaginary parts of
     /// every modal amplitude (through the linear term and, via the products ĝ, the nonlinear
     /// terms), and `D` the amplitudes' noise variances. Row order as in `assemble`.
@@ -67,18 +70,12 @@ impl Problem {
         values: &[f64],
         data_var: &[Vec<f64>],
         scratch: &mut [ProductScratch],
-    ) -> DMatrix<f64> {
-        let total: usize = g
-            .measurements
-            .iter()
-            .map(|&m| self.meas[m].mode_of.len())
-            .sum();
-        let mut sigma = DMatrix::<f64>::zeros(2 * total, 2 * total);
+    ) -> Vec<DMatrix<f64>> {
+        let mut blocks = Vec::with_capacity(g.measurements.len());
         let val = |u: &Unknown| -> f64 {
             self.index_of(u)
                 .map_or(0.0, |i| self.known_value(values, i))
         };
-        let mut offset = 0;
         for &mi in &g.measurements {
             let prep = &self.meas[mi];
             let m = &ds.measurements[mi];
@@ -151,6 +148,7 @@ impl Problem {
                     z.im
                 }
             };
+            let mut sigma = DMatrix::<f64>::zeros(2 * nf, 2 * nf);
             for r1 in 0..2 * nf {
                 for r2 in r1..2 * nf {
                     let mut acc = 0.0;
@@ -160,29 +158,31 @@ impl Problem {
                             acc += a * real(r2, c) * data_var[mi][c / 2];
                         }
                     }
-                    sigma[(offset + r1, offset + r2)] = acc;
-                    sigma[(offset + r2, offset + r1)] = acc;
+                    sigma[(r1, r2)] = acc;
+                    sigma[(r2, r1)] = acc;
                 }
             }
-            offset += 2 * nf;
+            blocks.push(sigma);
         }
-        sigma
+        blocks
     }
 
-    /// Cholesky factor `L` (`L Lᵀ = Σ`) of the sample covariance of the group's real rows, where `Σ` is the covariance
+    /// Cholesky factors `L` (`L Lᵀ = Σ`) of the sample covariance of the group's real rows, where `Σ` is the covariance
     /// across shots of the equation residuals evaluated at the median estimate (held fixed):
     /// the equation error the data noise makes, correlations between rows included (the same
     /// noisy amplitude enters several rows through the products). `Σ` is shrunk towards its
     /// diagonal by `shrinkage` (the sample covariance of few shots is noisy). Residuals of
-    /// per-shot fits would understate the noise where a row's own unknowns absorb it.
+    /// per-shot fits would understate the noise where a row's own unknowns absorb it. One
+    /// block per measurement: the shots of two measurements are separate acquisitions, so
+    /// their sample cross-covariance is noise only, and leaving it out keeps the cost linear
+    /// in the number of measurements.
     pub(super) fn whitening(
         &self,
         rows: &[Vec<MeasRows>],
         g: &FitGroup,
         values: &[Vec<f64>],
         shrinkage: f64,
-    ) -> Option<DMatrix<f64>> {
-        // Returns the Cholesky factor L of the shrunk sample covariance (whiten with L⁻¹).
+    ) -> Option<BlockWhitening> {
         let nshots = rows.len();
         let mut xbar = values.first()?.clone();
         for &u in &g.unknowns {
@@ -196,30 +196,93 @@ impl Problem {
             let (a, b, _) = self.assemble(shot_rows, &g.measurements, &g.unknowns, &xbar, None);
             res.push(&a * &xv - &b);
         }
-        let m = res.first()?.len();
-        let mean = res.iter().fold(DVector::zeros(m), |acc, r| acc + r) / nshots as f64;
-        let mut cov = DMatrix::<f64>::zeros(m, m);
-        for r in &res {
-            let d = r - &mean;
-            cov += &d * d.transpose();
+        let sizes: Vec<usize> = g
+            .measurements
+            .iter()
+            .map(|&mi| 2 * rows[0][mi].rows.len())
+            .collect();
+        let mean = res
+            .iter()
+            .fold(DVector::zeros(res[0].len()), |acc, r| acc + r)
+            / nshots as f64;
+        let mut blocks = Vec::with_capacity(sizes.len());
+        let mut offset = 0;
+        for &m in &sizes {
+            let mut cov = DMatrix::<f64>::zeros(m, m);
+            for r in &res {
+                let d = r.rows(offset, m) - mean.rows(offset, m);
+                cov += &d * d.transpose();
+            }
+            cov /= (nshots as f64 - 1.0).max(1.0);
+            blocks.push(cov);
+            offset += m;
         }
-        cov /= (nshots as f64 - 1.0).max(1.0);
-        let dmax = cov.diagonal().max();
+        // The floor and the shrinkage as over the whole group's covariance.
+        let dmax = blocks
+            .iter()
+            .map(|c| c.diagonal().max())
+            .fold(f64::NEG_INFINITY, f64::max);
         if !(dmax > 0.0 && dmax.is_finite()) {
             return None;
         }
-        for i in 0..m {
-            // Floor: rows whose residual never moves get the smallest nonzero variance.
-            if cov[(i, i)] <= 1e-300 {
-                cov[(i, i)] = dmax * 1e-12;
-            }
-            for j in 0..m {
-                if i != j {
-                    cov[(i, j)] *= 1.0 - shrinkage;
+        for cov in &mut blocks {
+            let m = cov.nrows();
+            for i in 0..m {
+                // Floor: rows whose residual never moves get the smallest nonzero variance.
+                if cov[(i, i)] <= 1e-300 {
+                    cov[(i, i)] = dmax * 1e-12;
+                }
+                for j in 0..m {
+                    if i != j {
+                        cov[(i, j)] *= 1.0 - shrinkage;
+                    }
                 }
             }
         }
-        cov.cholesky().map(|c| c.l())
+        BlockWhitening::factor(blocks)
+    }
+}
+
+/// A block-diagonal whitening `L⁻¹` of a group's rows: the lower Cholesky factor of each
+/// measurement's block of the covariance, in row order.
+#[derive(Debug, Clone)]
+pub(super) struct BlockWhitening {
+    blocks: Vec<DMatrix<f64>>,
+}
+
+impl BlockWhitening {
+    /// Factors every block (`L Lᵀ = Σ_block`); `None` when a block is not positive definite.
+    pub(super) fn factor(blocks: Vec<DMatrix<f64>>) -> Option<Self> {
+        let blocks = blocks
+            .into_iter()
+            .map(|c| c.cholesky().map(|c| c.l()))
+            .collect::<Option<Vec<_>>>()?;
+        Some(Self { blocks })
+    }
+
+    /// `(L⁻¹ a, L⁻¹ b)` block by block, or `None` when the rows do not match the blocks or a
+    /// triangular solve fails.
+    pub(super) fn whiten(
+        &self,
+        a: &DMatrix<f64>,
+        b: &DVector<f64>,
+    ) -> Option<(DMatrix<f64>, DVector<f64>)> {
+        let total: usize = self.blocks.iter().map(|l| l.nrows()).sum();
+        if total != a.nrows() || total != b.len() {
+            return None;
+        }
+        let (mut wa, mut wb) = (a.clone(), b.clone());
+        let mut offset = 0;
+        for l in &self.blocks {
+            let m = l.nrows();
+            let ok = l.solve_lower_triangular_mut(&mut wa.rows_mut(offset, m))
+                && l.solve_lower_triangular_mut(&mut wb.rows_mut(offset, m));
+            if !ok {
+                return None;
+            }
+            offset += m;
+        }
+        Some((wa, wb))
     }
 }
 
@@ -286,12 +349,47 @@ mod tests {
         let g = &p.groups[0];
         let var = p.relative_variances();
         let mut scratch: Vec<_> = p.meas.iter().map(|m| m.plan.scratch()).collect();
-        let sigma = p.equation_cov(&ds, g, 0, &t, &var, &mut scratch);
+        let blocks = p.equation_cov(&ds, g, 0, &t, &var, &mut scratch);
+        assert_eq!(blocks.len(), g.measurements.len());
+        let sigma = &blocks[0];
         // beta = 0: each row depends on its own amplitude only, through ω² − Ω² + iΩγ.
         let om = 2.0 * std::f64::consts::PI * 985.0;
         let lin = num_complex::Complex64::new(t[0] - om * om, om * t[1]);
         assert!((sigma[(0, 0)] / (lin.norm_sqr() * var[0][0]) - 1.0).abs() < 1e-12);
         assert!(sigma[(0, 2)].abs() < 1e-12 * sigma[(0, 0)]);
         assert!((sigma[(0, 1)] - sigma[(1, 0)]).abs() <= 1e-12 * sigma[(0, 0)]);
+    }
+
+    #[test]
+    fn block_whitening_equals_the_dense_whitening_of_the_block_diagonal_covariance() {
+        use super::BlockWhitening;
+        use nalgebra::{DMatrix, DVector};
+        // Two blocks (2 and 4 rows), positive definite, with correlations inside each.
+        let spd = |n: usize, seed: f64| {
+            let m = DMatrix::from_fn(n, n, |i, j| ((i * 7 + j * 3) as f64 + seed).sin());
+            &m * m.transpose() + DMatrix::identity(n, n) * 0.5
+        };
+        let (s1, s2) = (spd(2, 0.3), spd(4, 1.7));
+        let mut dense = DMatrix::zeros(6, 6);
+        dense.view_mut((0, 0), (2, 2)).copy_from(&s1);
+        dense.view_mut((2, 2), (4, 4)).copy_from(&s2);
+        let a = DMatrix::from_fn(6, 3, |i, j| {
+            (i as f64 + 1.0) * (j as f64 - 0.5) + 0.1 * i as f64
+        });
+        let b = DVector::from_fn(6, |i, _| (i as f64).cos());
+        let l = dense.cholesky().expect("spd").l();
+        let (da, db) = (
+            l.solve_lower_triangular(&a).expect("solve"),
+            l.solve_lower_triangular(&b).expect("solve"),
+        );
+        let w = BlockWhitening::factor(vec![s1, s2]).expect("blocks");
+        let (wa, wb) = w.whiten(&a, &b).expect("whiten");
+        assert!((wa - da).amax() < 1e-12 && (wb - db).amax() < 1e-12);
+        // Rows that do not match the blocks are refused, not whitened in part.
+        assert!(w
+            .whiten(&a.rows(0, 5).into_owned(), &b.rows(0, 5).into_owned())
+            .is_none());
+        // A block that is not positive definite gives no whitening.
+        assert!(BlockWhitening::factor(vec![DMatrix::from_element(2, 2, 1.0)]).is_none());
     }
 }

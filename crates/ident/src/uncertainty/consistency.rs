@@ -20,6 +20,13 @@
 //! measurement) are per-measurement unknowns of the fit already, so their joint covariance is
 //! used as is, with the joint fit's inflation.
 //!
+//! A stepped sweep is compared as one: its steps (one line each) share one copy `θ^(sweep)`,
+//! and sweeps are compared with sweeps and with the other measurements ([`Unit`]). A step
+//! alone cannot judge `Q` from one line, and comparing every pair of `n` steps costs `n²`
+//! comparisons and an `n × n` inversion (the 1,150-step sweep of issue 35 spent 80 % of its
+//! identification there). A dataset of more than [`MAX_UNITS`] units is not compared, and
+//! says so.
+//!
 //! For every pair `(a, b)` the statistic is
 //!
 //! ```text
@@ -70,6 +77,64 @@ pub struct Fitted<'a> {
     pub dof: usize,
     /// Measurement names, dataset order.
     pub names: &'a [String],
+    /// What is compared: each stepped sweep as one, every other measurement on its own
+    /// ([`units`]).
+    pub units: &'a [Unit],
+}
+
+/// A set of measurements whose frequency and Q are compared with other sets' as one: a stepped
+/// sweep's steps (one line each, they cannot be judged one by one, and a step-by-step
+/// comparison of `n` steps costs `n²` pairs and an `n × n` inversion), or one measurement.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Unit {
+    /// The sweep's name, or the measurement's.
+    pub name: String,
+    /// Its measurements (dataset indices).
+    pub measurements: Vec<usize>,
+}
+
+/// Every stepped sweep of `ds` as one [`Unit`] named by the sweep, every measurement outside a
+/// sweep as its own, in the order of their first measurement.
+pub fn units(ds: &harmonid_data::Dataset) -> Vec<Unit> {
+    let mut out: Vec<Unit> = Vec::new();
+    let mut by_sweep = std::collections::BTreeMap::new();
+    for (mi, m) in ds.measurements.iter().enumerate() {
+        match &m.spec.sweep {
+            Some(s) => match by_sweep.get(&s.sweep) {
+                Some(&u) => {
+                    let unit: &mut Unit = &mut out[u];
+                    unit.measurements.push(mi);
+                }
+                None => {
+                    by_sweep.insert(s.sweep.clone(), out.len());
+                    out.push(Unit {
+                        name: s.sweep.clone(),
+                        measurements: vec![mi],
+                    });
+                }
+            },
+            None => out.push(Unit {
+                name: m.spec.name.clone(),
+                measurements: vec![mi],
+            }),
+        }
+    }
+    out
+}
+
+/// At most this many units are compared (pairwise: `n(n−1)/2` comparisons and an inversion of
+/// `n` extra unknowns per quantity); a dataset with more is summarised by [`too_many_units`].
+pub const MAX_UNITS: usize = 64;
+
+/// The note for a dataset whose measurements are too many to compare one with another, or
+/// `None`.
+pub fn too_many_units(units: &[Unit]) -> Option<String> {
+    (units.len() > MAX_UNITS).then(|| {
+        format!(
+            "frequencies and Q were not compared between measurements: {} measurements outside stepped sweeps (at most {MAX_UNITS} are compared); group the steps of a sweep into a [[sweep]] to compare sweeps",
+            units.len()
+        )
+    })
 }
 
 /// A measurement's share of the information on an unknown below which it is not compared.
@@ -102,20 +167,29 @@ pub fn compare(fit: &Fitted<'_>) -> Vec<Comparison> {
     out
 }
 
-/// The per-measurement estimates of unknown `k` (mode `n`) and their pairwise comparisons.
+/// The per-unit estimates of unknown `k` (mode `n`) and their pairwise comparisons.
 fn split(fit: &Fitted<'_>, k: usize, quantity: Compared, n: usize, mode: &str) -> Vec<Comparison> {
     let fwd = fit.fwd;
     let nk = fwd.unknowns().len();
     let n_obs = fit.sigma.len();
-    let info_of = |mi: usize| -> f64 {
-        fwd.observations_of(mi)
+    if fit.units.len() > MAX_UNITS {
+        return Vec::new();
+    }
+    let observations = |u: usize| {
+        fit.units[u]
+            .measurements
+            .iter()
+            .flat_map(move |&mi| fwd.observations_of(mi))
+    };
+    let info_of = |u: usize| -> f64 {
+        observations(u)
             .map(|o| fit.jac[o * nk + k].norm_sqr() / fit.sigma[o].powi(2))
             .sum()
     };
-    let shares: Vec<f64> = (0..fit.names.len()).map(info_of).collect();
+    let shares: Vec<f64> = (0..fit.units.len()).map(info_of).collect();
     let top = shares.iter().copied().fold(0.0, f64::max);
-    let seen: Vec<usize> = (0..fit.names.len())
-        .filter(|&mi| top > 0.0 && shares[mi] > MIN_SHARE * top)
+    let seen: Vec<usize> = (0..fit.units.len())
+        .filter(|&u| top > 0.0 && shares[u] > MIN_SHARE * top)
         .collect();
     if seen.len() < 2 {
         return Vec::new();
@@ -127,8 +201,8 @@ fn split(fit: &Fitted<'_>, k: usize, quantity: Compared, n: usize, mode: &str) -
         jac[o * kk..o * kk + nk].copy_from_slice(&fit.jac[o * nk..(o + 1) * nk]);
         jac[o * kk + k] = Complex64::new(0.0, 0.0);
     }
-    for (j, &mi) in seen.iter().enumerate() {
-        for o in fwd.observations_of(mi) {
+    for (j, &u) in seen.iter().enumerate() {
+        for o in observations(u) {
             jac[o * kk + nk + j] = fit.jac[o * nk + k];
         }
     }
@@ -168,7 +242,10 @@ fn split(fit: &Fitted<'_>, k: usize, quantity: Compared, n: usize, mode: &str) -
             out.push(Comparison {
                 quantity,
                 mode: mode.to_string(),
-                measurements: [fit.names[seen[a]].clone(), fit.names[seen[b]].clone()],
+                measurements: [
+                    fit.units[seen[a]].name.clone(),
+                    fit.units[seen[b]].name.clone(),
+                ],
                 values: [value(ta), value(tb)],
                 stderrs: [
                     slope(ta) * cov[ia * c + ia].sqrt() * inflation,
