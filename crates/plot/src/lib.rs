@@ -11,6 +11,9 @@
 //!   truth (Fig. 3c–f);
 //! - [`ResponseCurve`]: a frequency-response curve, stable solid, unstable dashed, jumps and
 //!   backbone (Fig. 3g);
+//! - [`FrequencyResponse`]: a measured stepped-sine response (amplitude and phase against the
+//!   drive frequency, up- and down-sweeps marked apart, and the Nyquist view) with the model's
+//!   curve through its folds, one colour per drive level;
 //! - [`NoiseStudy`]: estimates ± 3σ against the noise level (Fig. S3);
 //! - [`PotentialMatrix`]: pairwise 2-D maps of a potential (Fig. 5c);
 //! - [`PlanFigure`]: a measurement plan over the resonances (each mode's linear response, the
@@ -37,6 +40,7 @@
 
 #![warn(missing_docs)]
 
+mod frequency_response;
 mod histogram;
 mod noise;
 mod plan;
@@ -48,6 +52,9 @@ pub mod style;
 /// The plotting library the figures are drawn with (for [`Figure`] implementations elsewhere).
 pub use plotters;
 
+pub use frequency_response::{
+    FrequencyResponse, MeasuredSweep, ModelBranch, ResponseFamily, SweepMark,
+};
 pub use histogram::Histogram;
 pub use noise::{NoisePanel, NoiseStudy};
 pub use plan::{ModeResponse, PlanFigure, PlannedMeasurement};

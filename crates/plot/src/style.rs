@@ -217,6 +217,17 @@ pub fn legend<DB: DrawingBackend>(
             LegendMark::Triangle => area
                 .draw(&TriangleMarker::new((x + 6, y), 6, color.filled()))
                 .drawn()?,
+            LegendMark::OpenDown => area
+                .draw(&PathElement::new(
+                    vec![
+                        (x + 1, y - 4),
+                        (x + 11, y - 4),
+                        (x + 6, y + 5),
+                        (x + 1, y - 4),
+                    ],
+                    color.stroke_width(2),
+                ))
+                .drawn()?,
         }
         x += 20;
         area.draw(&Text::new(
@@ -249,6 +260,8 @@ pub enum LegendMark {
     Band,
     /// A triangle.
     Triangle,
+    /// An open triangle pointing down (a down-sweep's points).
+    OpenDown,
 }
 
 #[cfg(test)]

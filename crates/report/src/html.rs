@@ -48,6 +48,53 @@ fn fit_of<'a>(fits: &'a [FitView], unknown: &str) -> Option<&'a FitView> {
     })
 }
 
+/// The measurements of a fit in few words: a sweep's steps by the sweep's name (once), the
+/// others by their own; more than six names as `first…last`; the count of steps when there
+/// are any (`level_0.1, level_0.2 (80 steps)`, `up_l00…dn_l11 (24 sweeps, 1152 steps)`).
+pub fn measurement_list(ds: &Dataset, names: &[String]) -> String {
+    let sweep_of = |n: &str| -> Option<String> {
+        let (base, k) = n.strip_suffix(']')?.rsplit_once('[')?;
+        (k.parse::<usize>().is_ok() && ds.manifest.sweeps.iter().any(|s| s.name == base))
+            .then(|| base.to_string())
+    };
+    let mut items: Vec<String> = Vec::new();
+    let (mut steps, mut sweeps, mut plain) = (0usize, 0usize, 0usize);
+    for n in names {
+        match sweep_of(n) {
+            Some(sw) => {
+                steps += 1;
+                if !items.contains(&sw) {
+                    sweeps += 1;
+                    items.push(sw);
+                }
+            }
+            None => {
+                plain += 1;
+                items.push(n.clone());
+            }
+        }
+    }
+    let mut out = if items.len() > 6 {
+        format!("{}…{}", items[0], items[items.len() - 1])
+    } else {
+        items.join(", ")
+    };
+    if steps > 0 {
+        let mut count = Vec::new();
+        if items.len() > 6 {
+            count.push(format!("{sweeps} sweeps"));
+        }
+        count.push(format!("{steps} steps"));
+        if plain > 0 && items.len() > 6 {
+            count.push(format!("{plain} measurements"));
+        }
+        out += &format!(" ({})", count.join(", "));
+    } else if items.len() > 6 {
+        out += &format!(" ({plain} measurements)");
+    }
+    out
+}
+
 /// An optional column of the parameter table.
 #[derive(Clone, Copy)]
 struct Extra {
@@ -70,6 +117,7 @@ const EXTRA: [Extra; 2] = [
 #[allow(clippy::too_many_arguments)] // one table row: each argument is one column
 fn row(
     out: &mut String,
+    ds: &Dataset,
     name: &str,
     unit: &str,
     e: &Estimate,
@@ -93,7 +141,7 @@ fn row(
         } else {
             format!("no: {}", esc(e.reason.as_deref().unwrap_or("")))
         },
-        fit.map_or("–".into(), |f| format!("{} ({})", f.stage, esc(&f.measurements.join(", ")))),
+        fit.map_or("–".into(), |f| format!("{} ({})", f.stage, esc(&measurement_list(ds, &f.measurements)))),
         fit.map_or("–".into(), |f| num(f.condition_number, 3)),
         truth.map_or("–".into(), |t| num(t, 8)),
     );
@@ -124,6 +172,11 @@ pub fn page(p: &PageInputs) -> String {
             );
         }
     };
+    if p.figures.iter().any(|f| f.stem.starts_with("response_")) {
+        section(&mut s, "responses", "Frequency responses", &|f| {
+            f.stem.starts_with("response_")
+        });
+    }
     section(
         &mut s,
         "spectra",
@@ -183,7 +236,11 @@ fn write_head(p: &PageInputs, s: &mut String) {
             None => "Identified by this report with the default settings of <code>harmonid identify</code>.".into(),
         }
     );
-    s.push_str("<nav><a href=\"#parameters\">parameters</a><a href=\"#equations\">equations</a><a href=\"#spectra\">spectra</a><a href=\"#histograms\">histograms</a>");
+    s.push_str("<nav><a href=\"#parameters\">parameters</a><a href=\"#equations\">equations</a>");
+    if p.figures.iter().any(|f| f.stem.starts_with("response_")) {
+        s.push_str("<a href=\"#responses\">frequency responses</a>");
+    }
+    s.push_str("<a href=\"#spectra\">spectra</a><a href=\"#histograms\">histograms</a>");
     if p.figures.iter().any(|f| f.stem == "potential") {
         s.push_str("<a href=\"#potential\">potential</a>");
     }
@@ -229,6 +286,7 @@ fn write_parameters(p: &PageInputs, s: &mut String) {
         let fit = fit_of(&r.fits, &format!("of {n}"));
         row(
             s,
+            p.ds,
             &format!("f_{n}"),
             "Hz",
             &m.f_hz,
@@ -239,6 +297,7 @@ fn write_parameters(p: &PageInputs, s: &mut String) {
         );
         row(
             s,
+            p.ds,
             &format!("Q_{n}"),
             "",
             &m.q,
@@ -264,7 +323,17 @@ fn write_parameters(p: &PageInputs, s: &mut String) {
         let truth = p
             .truth
             .and_then(|t| crate::result::truth_of_param(r, name, t));
-        row(s, name, "", e, &bound, fit_of(&r.fits, name), truth, &extra);
+        row(
+            s,
+            p.ds,
+            name,
+            "",
+            e,
+            &bound,
+            fit_of(&r.fits, name),
+            truth,
+            &extra,
+        );
     }
     s.push_str("</table>\n<p>value: median over shots; stderr: uncertainty of the value; std: spread of one shot after rejecting outliers by the interquartile rule; condition number of the column-equilibrated fit.</p>\n");
     // Fits.
@@ -274,7 +343,7 @@ fn write_parameters(p: &PageInputs, s: &mut String) {
             s,
             "<tr><td>{}</td><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
             f.stage,
-            esc(&f.measurements.join(", ")),
+            esc(&measurement_list(p.ds, &f.measurements)),
             f.unknowns.len(),
             num(f.condition_number, 3),
             num(f.relative_residual, 3)
@@ -304,4 +373,42 @@ fn write_equations(p: &PageInputs, s: &mut String) {
         }
     }
     s.push_str("</table>\n");
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use harmonid_data::{Direction, Manifest, SweepSpec};
+
+    #[test]
+    fn fits_name_sweeps_not_steps() {
+        let mut m = Manifest::new("t");
+        for n in ["up_l00", "dn_l00", "up_l01", "dn_l01"] {
+            m.sweeps
+                .push(SweepSpec::new(n, Direction::Up, vec![vec![1.0]; 300]));
+        }
+        let ds = Dataset {
+            dir: Default::default(),
+            manifest: m,
+            measurements: Vec::new(),
+            truth: None,
+            notes: Vec::new(),
+        };
+        fn steps(sw: &str) -> Vec<String> {
+            (0..300).map(|k| format!("{sw}[{k}]")).collect()
+        }
+        let two: Vec<String> = [steps("up_l00"), steps("dn_l00")].concat();
+        assert_eq!(measurement_list(&ds, &two), "up_l00, dn_l00 (600 steps)");
+        let mut all: Vec<String> = ["up_l00", "dn_l00", "up_l01", "dn_l01"]
+            .iter()
+            .flat_map(|s| steps(s))
+            .collect();
+        all.extend(["a", "b", "c"].map(String::from));
+        assert_eq!(
+            measurement_list(&ds, &all),
+            "up_l00…c (4 sweeps, 1200 steps, 3 measurements)"
+        );
+        let plain: Vec<String> = ["single_q1", "couple[x]"].map(String::from).to_vec();
+        assert_eq!(measurement_list(&ds, &plain), "single_q1, couple[x]");
+    }
 }

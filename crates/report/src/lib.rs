@@ -15,6 +15,7 @@ pub mod curves;
 mod html;
 pub mod plan;
 pub mod potential;
+pub mod response;
 pub mod result;
 pub mod spectra;
 
@@ -25,7 +26,7 @@ pub const MARKER: &str = ".harmonid-report";
 use harmonid_data::Dataset;
 use harmonid_ident::{Report, Settings};
 use harmonid_model::Model;
-use harmonid_plot::{Figure, Histogram, PlotError, PotentialMatrix, Spectrum};
+use harmonid_plot::{Figure, FrequencyResponse, Histogram, PlotError, PotentialMatrix, Spectrum};
 use harmonid_sim::NumericModel;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -83,6 +84,8 @@ pub enum AnyFigure {
     Histogram(Histogram),
     /// The potential matrix.
     Potential(PotentialMatrix),
+    /// A stepped-sine frequency response.
+    Response(FrequencyResponse),
 }
 
 impl Figure for AnyFigure {
@@ -91,6 +94,7 @@ impl Figure for AnyFigure {
             AnyFigure::Spectrum(f) => f.size(),
             AnyFigure::Histogram(f) => f.size(),
             AnyFigure::Potential(f) => f.size(),
+            AnyFigure::Response(f) => f.size(),
         }
     }
 
@@ -105,6 +109,7 @@ impl Figure for AnyFigure {
             AnyFigure::Spectrum(f) => f.draw(root),
             AnyFigure::Histogram(f) => f.draw(root),
             AnyFigure::Potential(f) => f.draw(root),
+            AnyFigure::Response(f) => f.draw(root),
         }
     }
 }
@@ -202,7 +207,13 @@ pub fn build(
         }
     };
     let truth_model = truth_model(ds, &names);
-    let mut figs = spectrum_figures(ds, identified.as_ref(), &result, &mut warnings);
+    let mut figs = response_figures(ds, identified.as_ref(), &result, &mut warnings);
+    figs.extend(spectrum_figures(
+        ds,
+        identified.as_ref(),
+        &result,
+        &mut warnings,
+    ));
     let quantities = quantities(&result, ds);
     let no_shots = histogram_figures(&quantities, &mut figs);
     if !no_shots.is_empty() && result_from.is_some() {
@@ -274,21 +285,116 @@ fn truth_model(ds: &Dataset, names: &[String]) -> Option<NumericModel> {
     })
 }
 
-/// The spectrum figures, one per measurement and point: one harmonic-balance solve per
-/// measurement, in parallel; their warnings are added to `warnings` in measurement order.
+/// Whether `m` is a step of a frequency sweep (drawn in a frequency-response figure, not as a
+/// spectrum of its own).
+fn in_frequency_sweep(ds: &Dataset, m: &harmonid_data::Measurement) -> bool {
+    m.spec.sweep.as_ref().is_some_and(|st| {
+        ds.manifest
+            .sweeps
+            .iter()
+            .any(|s| s.name == st.sweep && response::is_frequency_sweep(s))
+    })
+}
+
+/// The caption of a family's figure: what is drawn, and how well the model meets the steps.
+fn response_caption(r: &response::FamilyResponse) -> String {
+    let (mut num2, mut den2) = (0.0, 0.0);
+    for s in &r.sweeps {
+        if let Some(mx) = &s.model {
+            num2 +=
+                s.x.iter()
+                    .zip(mx)
+                    .map(|(a, b)| (a - b).norm_sqr())
+                    .sum::<f64>();
+            den2 += s.x.iter().map(|a| a.norm_sqr()).sum::<f64>();
+        }
+    }
+    let fit = if den2 > 0.0 {
+        format!(
+            " The model's steady state at each step (followed from step to step as the sweep was) differs from the measured X by {} % RMS of |X|.",
+            harmonid_plot::style::num(100.0 * (num2 / den2).sqrt(), 2)
+        )
+    } else {
+        String::new()
+    };
+    let model = match &r.model {
+        Some(m) => format!(
+            " Lines: the identified model's response at this drive by harmonic balance (harmonics of the drive up to {}, as the identification's lattice keeps them), continued through its folds: solid where stable, dashed where unstable; its force on the driven mode is {} N/kg (the identification's force of these steps: actuator gain × drive level, or the fitted force).",
+            m.harmonics,
+            harmonid_plot::style::num(m.force.iter().map(|z| z.norm()).fold(0.0, f64::max), 4)
+        ),
+        None => " No model curve.".into(),
+    };
+    let notes = if r.notes.is_empty() {
+        String::new()
+    } else {
+        format!(" Note: {}.", r.notes.join("; "))
+    };
+    format!(
+        "{}: the measured response at the drive frequency at {} (median over each step's shots; ▲ up-sweep, ▽ down-sweep, ● other order), in {}: amplitude |X| against the drive frequency (top left), phase of X against the step's identified force (bottom left: 0° far below a resonance, −90° at it), and the Nyquist view Re X against Im X (right).{model}{fit}{notes}",
+        r.family.label, r.point, r.unit
+    )
+}
+
+/// The frequency-response figures of the dataset's frequency sweeps: with more than one
+/// family, an overview of every family first; then one figure per family. Families are
+/// computed in parallel; a family without its model curve adds a warning.
+fn response_figures(
+    ds: &Dataset,
+    identified: Option<&NumericModel>,
+    result: &Report,
+    warnings: &mut Vec<String>,
+) -> Vec<Captioned> {
+    let fams = response::families(ds);
+    let rs: Vec<response::FamilyResponse> = fams
+        .par_iter()
+        .map(|f| response::family_response(identified, result, ds, f))
+        .filter(|r| !r.sweeps.is_empty())
+        .collect();
+    let mut figs: Vec<Captioned> = Vec::new();
+    if rs.len() > 1 {
+        figs.push((
+            "response_all".into(),
+            format!(
+                "Every drive level in one figure, one colour per level (dark: lowest), as in the per-level figures below: measured points (▲ up-sweep, ▽ down-sweep, ● other order) and the identified model's curves (solid stable, dashed unstable), in {}.",
+                rs[0].unit
+            ),
+            AnyFigure::Response(response::overview(&rs)),
+        ));
+    }
+    for r in &rs {
+        if identified.is_some() && r.model.is_none() {
+            warnings.extend(r.notes.iter().cloned());
+        }
+        figs.push((
+            stem(&format!("response_{}", r.family.label)),
+            response_caption(r),
+            AnyFigure::Response(response::figure(r)),
+        ));
+    }
+    figs
+}
+
+/// The spectrum figures, one per measurement and point, except the steps of frequency sweeps
+/// (their figures are the frequency responses): one harmonic-balance solve per measurement,
+/// in parallel; their warnings are added to `warnings` in measurement order.
 fn spectrum_figures(
     ds: &Dataset,
     identified: Option<&NumericModel>,
     result: &Report,
     warnings: &mut Vec<String>,
 ) -> Vec<Captioned> {
-    let per_meas: Vec<(Vec<Spectrum>, Option<String>)> = ds
+    let shown: Vec<&harmonid_data::Measurement> = ds
         .measurements
+        .iter()
+        .filter(|m| !in_frequency_sweep(ds, m))
+        .collect();
+    let per_meas: Vec<(Vec<Spectrum>, Option<String>)> = shown
         .par_iter()
         .map(|m| spectra::spectra(identified, result, ds, m))
         .collect();
     let mut figs: Vec<Captioned> = Vec::new();
-    for (m, (specs, warn)) in ds.measurements.iter().zip(per_meas) {
+    for (m, (specs, warn)) in shown.iter().zip(per_meas) {
         warnings.extend(warn);
         for (k, s) in specs.into_iter().enumerate() {
             let point = m

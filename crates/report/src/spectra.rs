@@ -16,7 +16,7 @@ const TOL_HZ: f64 = 1e-6;
 const ORDERS: [u32; 4] = [11, 9, 7, 5];
 
 /// The median of the real and of the imaginary parts (robust to outlier shots).
-fn complex_median(z: impl Iterator<Item = Complex64>) -> Complex64 {
+pub(crate) fn complex_median(z: impl Iterator<Item = Complex64>) -> Complex64 {
     let (mut re, mut im): (Vec<f64>, Vec<f64>) = z.map(|z| (z.re, z.im)).unzip();
     let med = |v: &mut Vec<f64>| {
         v.sort_by(f64::total_cmp);
@@ -178,6 +178,8 @@ pub fn spectra(
     };
     let kinds = classify(&m.freqs_hz, &m.spec.drives_hz, &modes_hz);
     let nf = m.freqs_hz.len();
+    // Shown in the dataset's unit (the data are held in metres, or volts).
+    let scale = ds.manifest.unit_scale().unwrap_or(1.0);
     // The fit's own standardized residuals of this measurement's lines (the verdict's), by
     // frequency and point: the residual panel in noise units.
     let verdict: Vec<&harmonid_data::result::LineResidual> = result
@@ -218,15 +220,15 @@ pub fn spectra(
                     let residual = if in_sigmas {
                         sigmas(m.freqs_hz[f], point_name)
                     } else {
-                        r.map(|r| (x - r).norm())
+                        r.map(|r| (x - r).norm() / scale)
                     };
                     let (kind, label) = kinds[f]
                         .clone()
                         .unwrap_or((LineKind::Mixing, "?".to_string()));
                     SpectrumLine {
                         f_hz: m.freqs_hz[f],
-                        measured: x.norm(),
-                        reconstructed: r.map(|r| r.norm()),
+                        measured: x.norm() / scale,
+                        reconstructed: r.map(|r| r.norm() / scale),
                         residual,
                         kind,
                         label,
@@ -235,9 +237,9 @@ pub fn spectra(
                 .collect();
             Spectrum {
                 title: format!("{} at {point}: median of {} shots", m.spec.name, m.n_shots),
-                unit: "m".into(),
+                unit: ds.manifest.displacement_unit.clone(),
                 lines,
-                noise_floor: noise_of_median(m, p),
+                noise_floor: noise_of_median(m, p).map(|s| s / scale),
                 residual_in_sigmas: in_sigmas,
             }
         })

@@ -149,6 +149,52 @@ fn response() -> ResponseCurve {
     }
 }
 
+/// A linear resonance at 1 kHz (Q 100, in V) at two levels: the model's circle and, for each
+/// level, an up-sweep and a down-sweep on it.
+fn frequency_response() -> FrequencyResponse {
+    let x = |f: f64, level: f64| {
+        let (w0, w) = (1000.0f64, f);
+        let (re, im) = (w0 * w0 - w * w, w * w0 / 100.0);
+        let d = re * re + im * im;
+        (level * 1e6 * re / d, -level * 1e6 * im / d)
+    };
+    let family = |level: f64| {
+        let f_model: Vec<f64> = (0..200).map(|i| 960.0 + 0.4 * i as f64).collect();
+        let f_up: Vec<f64> = (0..20).map(|i| 962.0 + 4.0 * i as f64).collect();
+        let f_down: Vec<f64> = f_up.iter().rev().map(|f| f + 1.0).collect();
+        ResponseFamily {
+            label: format!("level {level}"),
+            sweeps: vec![
+                MeasuredSweep {
+                    name: "up".into(),
+                    mark: SweepMark::Up,
+                    x: f_up.iter().map(|&f| x(f, level)).collect(),
+                    f_hz: f_up,
+                },
+                MeasuredSweep {
+                    name: "down".into(),
+                    mark: SweepMark::Down,
+                    x: f_down.iter().map(|&f| x(f, level)).collect(),
+                    f_hz: f_down,
+                },
+            ],
+            model: Some(ModelBranch {
+                x: f_model.iter().map(|&f| x(f, level)).collect(),
+                stable: f_model
+                    .iter()
+                    .map(|&f| !(999.0..1001.0).contains(&f))
+                    .collect(),
+                f_hz: f_model,
+            }),
+        }
+    };
+    FrequencyResponse {
+        title: "two levels".into(),
+        unit: "V".into(),
+        families: vec![family(0.1), family(0.2)],
+    }
+}
+
 fn noise() -> NoiseStudy {
     let levels: Vec<f64> = (0..6).map(|k| 10f64.powi(k - 3)).collect();
     let panel = |name: &str, truth: f64| NoisePanel {
@@ -245,6 +291,24 @@ fn histogram_renders() {
 #[test]
 fn response_renders() {
     check("response", &response());
+}
+
+#[test]
+fn frequency_response_renders() {
+    check("frequency_response", &frequency_response());
+    let mut one = frequency_response();
+    one.families.truncate(1);
+    let svg = to_svg(&one).expect("renders");
+    for label in [
+        "|X| (V)",
+        "Re X (V)",
+        "Im X (V)",
+        "up-sweep",
+        "down-sweep",
+        "model, unstable",
+    ] {
+        assert!(svg.contains(label), "{label} missing");
+    }
 }
 
 #[test]
