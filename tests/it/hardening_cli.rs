@@ -539,3 +539,222 @@ fn sweep_quotes_a_huge_frequency_as_written() {
     );
     assert!(!text.contains("0000000000"), "{text}");
 }
+
+const TABLE_MAP: &str = "[columns]\nfreq_hz = \"f\"\nx = \"X\"\ny = \"Y\"\n[conventions]\namplitude = \"peak\"\nquadrature = \"x+iy\"\ndisplacement_unit = \"V\"\n[drive]\nlevel = 0.1\nphase_rad = 0.0\n";
+
+/// A table of 41 rows of a Lorentzian (rows 2..=42 of the file), row `at` (1-based file line)
+/// replaced by `row` when given.
+fn lorentzian_table(at: usize, row: Option<&str>) -> String {
+    let mut lines = vec!["f,X,Y".to_string()];
+    for i in 0..41 {
+        let d = (i as f64 - 20.0) / 5.0;
+        let (x, y) = (1e-3 / (1.0 + d * d), -2e-4 * d * 5.0 / (1.0 + d * d));
+        lines.push(format!("{},{x},{y}", 100.0 + i as f64 * 0.5));
+    }
+    if let Some(r) = row {
+        lines[at - 1] = r.to_string();
+    }
+    lines.join("\n") + "\n"
+}
+
+/// `harmonid import FORMAT FILE ARGS --out DIR/outds` on `bytes` written as `name`; the
+/// message, whether it ran, and the folder (its `outds` the dataset). The output folder must
+/// not exist after a refusal.
+fn import(
+    format: &str,
+    name: &str,
+    bytes: &[u8],
+    extra: &[&str],
+) -> (bool, String, tempfile::TempDir) {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let tmp = dir.path();
+    let input = tmp.join(name);
+    std::fs::write(&input, bytes).expect("write input");
+    let map = tmp.join("map.toml");
+    std::fs::write(&map, TABLE_MAP).expect("write map");
+    let out = tmp.join("outds");
+    let mut args = vec!["import", format, s(&input), "--out", s(&out)];
+    if format == "table" {
+        args.extend(["--map", s(&map)]);
+    } else {
+        args.extend(["--amplitude", "rms", "--quadrature", "x+iy", "--volts"]);
+    }
+    args.extend_from_slice(extra);
+    let (ok, text) = run(&args);
+    if !ok {
+        assert!(!out.exists(), "a refusal leaves no output: {text}");
+    }
+    (ok, text, dir)
+}
+
+#[test]
+fn import_refuses_bad_rows_naming_the_file_row_and_value() {
+    // hostile 3, 5, 6: a 1e308 amplitude was printed as 309 digits and blamed on the dataset
+    // folder never written; an `inf` frequency joined the step before it and row 12 was blamed.
+    let cases = [
+        ("105,1e308,1e308", "amplitude (1e308, 1e308)"),
+        (
+            "inf,1e-3,1e-4",
+            "drive frequency inf is not a positive, finite frequency",
+        ),
+        (
+            "1e308,1e-3,1e-4",
+            "drive frequency 1e308 is not a positive, finite frequency",
+        ),
+        ("-105,1e-3,1e-4", "drive frequency -105 is not a positive"),
+        ("105,nan,1e-4", "amplitude (NaN, 0.0001) is not finite"),
+    ];
+    for (row, words) in cases {
+        let (ok, text, _) = import(
+            "table",
+            "f.csv",
+            lorentzian_table(11, Some(row)).as_bytes(),
+            &[],
+        );
+        assert!(!ok, "{row}: {text}");
+        assert!(
+            text.contains("f.csv, row 11:") && text.contains(words),
+            "{row}: {text}"
+        );
+        assert!(
+            !text.contains("outds") && !text.contains("0000000000"),
+            "{row}: {text}"
+        );
+    }
+    // hostile 4: the same in a LabOne demodulator CSV (RMS: ×√2 overflows nothing now).
+    let mut z = String::from("chunk;timestamp;x;y;freq;phase;dio;trigger;auxin0;auxin1\n");
+    for k in 0..10 {
+        for j in 0..5 {
+            let x = if (k, j) == (1, 2) { "1e308" } else { "1e-3" };
+            let tick = 1_000_000 + k * 60_000_000 + j * 6_000_000;
+            z += &format!("0;{tick};{x};{x};{};0;0;0;0;0\n", 1000 + k);
+        }
+    }
+    let (ok, text, _) = import("zi-csv", "z.csv", z.as_bytes(), &["--clockbase-hz", "60e6"]);
+    assert!(
+        !ok && text.contains("z.csv, row 9: amplitude (1e308, 1e308)"),
+        "{text}"
+    );
+    assert!(!text.contains("0000000000"), "{text}");
+}
+
+#[test]
+fn import_sweeper_refuses_bad_rows_naming_the_file_and_row() {
+    let sweeper = |f3: &str, sd: &str| {
+        let mut s = String::from("grid;bandwidth;count;x;xstddev;y;ystddev;frequency\n");
+        for k in 0..10 {
+            let f = if k == 3 {
+                f3.to_string()
+            } else {
+                (1000 + k).to_string()
+            };
+            s += &format!("{f};10.0;5;1e-3;{sd};2e-4;{sd};{f}\n");
+        }
+        s
+    };
+    // hostile 7: a 1e308 frequency was blamed on the dataset folder never written.
+    let (ok, text, _) = import(
+        "zi-sweeper",
+        "s.csv",
+        sweeper("1e308", "1e-5").as_bytes(),
+        &[],
+    );
+    assert!(!ok, "{text}");
+    assert!(
+        text.contains("s.csv, row 5: drive frequency 1e308"),
+        "{text}"
+    );
+    // hostile 9: a negative standard deviation was imported as a positive noise.
+    let (ok, text, _) = import("zi-sweeper", "s.csv", sweeper("1003", "-1").as_bytes(), &[]);
+    assert!(!ok, "{text}");
+    assert!(
+        text.contains("s.csv, row 2: column \"xstddev\": -1 is negative"),
+        "{text}"
+    );
+    // A zero deviation in one quadrature is allowed (the other carries the noise).
+    let ok_one = sweeper("1003", "1e-5").replace(";1e-3;1e-5;", ";1e-3;0;");
+    let (ok, text, _) = import("zi-sweeper", "s.csv", ok_one.as_bytes(), &[]);
+    assert!(ok, "{text}");
+}
+
+#[test]
+fn import_quotes_a_binary_header_as_a_short_escaped_excerpt() {
+    // hostile 1, 2: a binary file's first "line" (kilobytes) was quoted whole as the header.
+    let mut bytes: Vec<u8> = (0..5000u32)
+        .map(|i| b"\"\x01,;a\xff"[(i % 6) as usize])
+        .collect();
+    bytes.truncate(5000);
+    let lossy = String::from_utf8_lossy(&bytes).into_owned();
+    for (format, first) in [
+        ("table", "no column \"f\""),
+        ("zi-sweeper", "no column \"grid\""),
+    ] {
+        let (ok, text, _) = import(format, "bin.csv", lossy.as_bytes(), &[]);
+        assert!(!ok, "{text}");
+        assert!(
+            text.contains("bin.csv, row 1") && text.contains(first),
+            "{text}"
+        );
+        assert!(text.len() < 1_200, "{format}: {} bytes: {text}", text.len());
+        assert!(
+            !text.contains('\u{1}') && text.contains("\\u{1}"),
+            "escaped: {text}"
+        );
+    }
+}
+
+#[test]
+fn import_reads_a_table_with_a_byte_order_mark() {
+    // hostile 8: Excel's "CSV UTF-8" BOM made 'no column "f" (found: f, X, Y)'.
+    let bytes = [
+        b"\xEF\xBB\xBF".as_slice(),
+        lorentzian_table(0, None).as_bytes(),
+    ]
+    .concat();
+    let (ok, text, out) = import("table", "x.csv", &bytes, &[]);
+    assert!(ok, "{text}");
+    let manifest =
+        std::fs::read_to_string(out.path().join("outds/dataset.toml")).expect("manifest");
+    assert!(
+        manifest.contains("100.0") && manifest.contains("120.0"),
+        "{manifest}"
+    );
+}
+
+#[test]
+fn import_moku_refuses_a_negative_demodulation_frequency() {
+    // hostile 10: "-1000 Hz" in the header was imported as +1000 Hz.
+    let mut m = String::from("% Moku:Pro Lock-in Amplifier\n% Demodulation frequency -1000 Hz\n% Time (s), Channel 1 (V), Channel 2 (V)\n");
+    for j in 0..10 {
+        m += &format!("0.{j}, 1e-3, 1e-1\n");
+    }
+    let moku = ["--channels", "x,y", "--output-gain", "1"];
+    let (ok, text, _) = import("moku-csv", "m.csv", m.as_bytes(), &moku);
+    assert!(!ok, "{text}");
+    assert!(
+        text.contains("m.csv, row 2: the header's demodulation frequency is -1000 Hz")
+            && text.contains("--demod-hz"),
+        "{text}"
+    );
+    let (ok, text, _) = import(
+        "moku-csv",
+        "m.csv",
+        m.as_bytes(),
+        &[&moku[..], &["--demod-hz=-5"]].concat(),
+    );
+    assert!(
+        !ok && text.contains("--demod-hz") && text.contains("-5"),
+        "{text}"
+    );
+    // Given explicitly, the positive frequency is used.
+    let (ok, text, out) = import(
+        "moku-csv",
+        "m.csv",
+        m.as_bytes(),
+        &[&moku[..], &["--demod-hz", "1000"]].concat(),
+    );
+    assert!(ok, "{text}");
+    let manifest =
+        std::fs::read_to_string(out.path().join("outds/dataset.toml")).expect("manifest");
+    assert!(manifest.contains("drives_hz = [[1000.0]]"), "{manifest}");
+}

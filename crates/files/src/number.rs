@@ -1,7 +1,7 @@
 //! Numbers in messages: a user's `1e300` is quoted as `1e300`, not as the 301 digits Rust's `{}`
 //! writes for an `f64`.
 
-/// `v` as a message quotes it: plain decimals between 1e-4 and 1e7 (`207580.5`, `0.01`), else
+/// `v` as a message quotes it: plain decimals between 1e-4 and 1e9 (`207580.5`, `0.01`), else
 /// scientific (`1e300`, `-2.5e-9`); `inf`, `-inf` and `NaN` as Rust spells them.
 ///
 /// ```
@@ -10,7 +10,7 @@
 /// assert_eq!(harmonid_files::number(f64::INFINITY), "inf");
 /// ```
 pub fn number(v: f64) -> String {
-    if !v.is_finite() || v == 0.0 || (1e-4..1e7).contains(&v.abs()) {
+    if !v.is_finite() || v == 0.0 || (1e-4..1e9).contains(&v.abs()) {
         format!("{v}")
     } else {
         format!("{v:e}")

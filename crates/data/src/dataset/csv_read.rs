@@ -48,13 +48,9 @@ pub(super) fn shown(text: &str) -> String {
 }
 
 /// A number for a message: plain when moderate, in exponent form when very large or small
-/// (`{}` of 1e300 prints 301 digits).
+/// (`{}` of 1e300 prints 301 digits); [`harmonid_files::number`], the one rule.
 pub(super) fn num_text(x: f64) -> String {
-    if x != 0.0 && x.is_finite() && !(1e-4..1e9).contains(&x.abs()) {
-        format!("{x:e}")
-    } else {
-        format!("{x}")
-    }
+    harmonid_files::number(x)
 }
 
 pub(super) fn read_csv<R: std::io::Read>(

@@ -823,6 +823,7 @@ use sweep::read_sweep_csv;
 pub use sweep::{Direction, PerStep, SweepSpec, SweepStep};
 
 use csv_read::read_csv;
+pub use csv_read::{MAX_AMPLITUDE_M, MAX_FREQ_HZ};
 use parts::{check_drives_measured, check_measurement};
 use validate::validate_manifest;
 use write::{csv_text, sweep_csv_text};

@@ -77,7 +77,9 @@ pub(super) fn check_measurement(
         .find(|x| x.re.abs() > MAX_AMPLITUDE_M || x.im.abs() > MAX_AMPLITUDE_M)
     {
         return Err(bad(format!(
-            "amplitude {x} m is more than {MAX_AMPLITUDE_M:e} m: not a resonator's displacement"
+            "amplitude {}, {} m is more than {MAX_AMPLITUDE_M:e} m: not a resonator's displacement",
+            num_text(x.re),
+            num_text(x.im)
         )));
     }
     if let Some(i) = m

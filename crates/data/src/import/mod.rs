@@ -20,8 +20,9 @@ pub use crate::conventions::{
 };
 use crate::dataset::{
     Dataset, DatasetError, Direction, GivenNoise, Manifest, Measurement, MeasurementSpec, PerStep,
-    SweepSpec, FREQ_REL_TOL,
+    SweepSpec, FREQ_REL_TOL, MAX_AMPLITUDE_M, MAX_FREQ_HZ,
 };
+use harmonid_files::number;
 use num_complex::Complex64;
 use std::path::{Path, PathBuf};
 
@@ -68,12 +69,21 @@ pub enum ImportError {
 }
 
 /// Reads an input file as text; an I/O failure names it.
+/// The text of `path`, a UTF-8 byte order mark (Excel's "CSV UTF-8") dropped: it would be the
+/// invisible first character of the first column's name.
 fn read_input(path: &Path) -> Result<String, ImportError> {
-    std::fs::read_to_string(path).map_err(|source| ImportError::Io {
+    let text = std::fs::read_to_string(path).map_err(|source| ImportError::Io {
         path: path.to_path_buf(),
         source,
+    })?;
+    Ok(match text.strip_prefix(BOM) {
+        Some(rest) => rest.to_string(),
+        None => text,
     })
 }
+
+/// The UTF-8 byte order mark, U+FEFF.
+const BOM: char = '\u{feff}';
 
 /// Calls `each(row, line)` for every line of the text file `path` (rows 1-based), streamed
 /// through one reused buffer: a 70 MB record is never held whole.
@@ -94,7 +104,16 @@ fn for_each_line(
         row += 1;
         match reader.read_line(&mut line) {
             Ok(0) => return Ok(()),
-            Ok(_) => each(row, line.trim_end_matches(['\n', '\r']))?,
+            Ok(_) => {
+                let line = line.trim_end_matches(['\n', '\r']);
+                // A byte order mark before the header is no part of the first name.
+                let line = if row == 1 {
+                    line.trim_start_matches(BOM)
+                } else {
+                    line
+                };
+                each(row, line)?
+            }
             Err(e) if e.kind() == std::io::ErrorKind::InvalidData => {
                 return Err(ImportError::Input {
                     path: path.to_path_buf(),
@@ -328,13 +347,17 @@ impl Step {
         let known = self.lines.iter().position(|&l| same(l, f));
         let line = known.map_or(f, |i| self.lines[i]);
         let x = conv.apply(r.z, line);
-        if !(x.re.is_finite() && x.im.is_finite() && line.is_finite() && line > 0.0) {
+        if !(x.re.abs() <= MAX_AMPLITUDE_M && x.im.abs() <= MAX_AMPLITUDE_M) {
             return Err(input_error(
                 inputs,
                 r.origin,
                 format!(
-                    "frequency {} and amplitude {} {} do not make a finite sample at a positive frequency (NaN rows must be removed, not imported)",
-                    r.line, r.z.re, r.z.im
+                    "amplitude ({}, {}) is ({}, {}) {unit} with the conventions applied: more than {MAX_AMPLITUDE_M:e} {unit}, not a resonator's displacement; check the row, the amplitude and the units (displacement_unit, metres_per_unit)",
+                    number(r.z.re),
+                    number(r.z.im),
+                    number(x.re),
+                    number(x.im),
+                    unit = conv.displacement_unit
                 ),
             ));
         }
@@ -354,7 +377,7 @@ impl Step {
                     r.origin,
                     format!(
                         "line {} Hz is not among the {} lines of its step's first sample; every sample of a step must measure the same lines",
-                        r.line,
+                        number(r.line),
                         self.lines.len()
                     ),
                 ))
@@ -455,6 +478,38 @@ fn check_settle_s(settle: Settle) -> Result<(), ImportError> {
     Ok(())
 }
 
+/// A record's frequencies are positive and finite, at most [`MAX_FREQ_HZ`] in Hz, and its
+/// amplitude is finite, else an error at its file and row naming the value as written (`inf`,
+/// `1e308`): a step is cut by its frequency, so an `inf` would otherwise join its neighbours'
+/// step and be blamed on the next row.
+fn check_record(r: &Record, fscale: f64, inputs: &[PathBuf]) -> Result<(), ImportError> {
+    for (what, f) in [("drive frequency", r.drive), ("frequency", r.line)] {
+        if !(f.is_finite() && f > 0.0 && f * fscale <= MAX_FREQ_HZ) {
+            return Err(input_error(
+                inputs,
+                r.origin,
+                format!(
+                    "{what} {} is not a positive, finite frequency of at most {MAX_FREQ_HZ:e} Hz{}; fix or remove the row",
+                    number(f),
+                    if fscale == 1.0 { String::new() } else { format!(" (× frequency_scale {})", number(fscale)) }
+                ),
+            ));
+        }
+    }
+    if !(r.z.re.is_finite() && r.z.im.is_finite()) {
+        return Err(input_error(
+            inputs,
+            r.origin,
+            format!(
+                "amplitude ({}, {}) is not finite; NaN rows must be removed, not imported",
+                number(r.z.re),
+                number(r.z.im)
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// The records cut into complete steps, consumed as they come. Settling by time needs every
 /// record's time; an empty input is an error naming the first file.
 fn collect_steps(
@@ -473,6 +528,7 @@ fn collect_steps(
                 message: "the input has no sample times; drop settling samples by count (settle_samples) instead".into(),
             });
         }
+        check_record(&r, fscale, inputs)?;
         let new_step = starts_step(last.as_ref(), &r);
         last = Some(r);
         if new_step {

@@ -45,12 +45,14 @@ pub struct Options {
 
 /// One file: its header's demodulation frequency (if any) and its rows.
 struct MokuFile {
-    demod_hz: Option<f64>,
+    /// The header's demodulation frequency, Hz, and its row.
+    demod_hz: Option<(usize, f64)>,
     rows: Vec<(usize, f64, f64, f64)>,
 }
 
 /// A frequency with its unit in `text` after the word "demodulation" (`1.000 000 MHz`,
-/// `2.5e5 Hz`, `250 kHz`), in Hz.
+/// `2.5e5 Hz`, `250 kHz`), in Hz, with its sign (`-1000 Hz` is -1000: refused by the caller,
+/// never read as +1000).
 fn header_frequency(text: &str) -> Option<f64> {
     let lower = text.to_ascii_lowercase();
     let at = lower.find("demodulation")?;
@@ -61,7 +63,11 @@ fn header_frequency(text: &str) -> Option<f64> {
     let mut i = 0;
     while i < bytes.len() {
         if bytes[i].is_ascii_digit() {
-            let start = i;
+            let start = if i > 0 && "+-".contains(bytes[i - 1]) {
+                i - 1
+            } else {
+                i
+            };
             while i < bytes.len()
                 && (bytes[i].is_ascii_digit() || ".eE+- ".contains(bytes[i]))
                 && !(bytes[i] == ' ' && i + 1 < bytes.len() && bytes[i + 1].is_alphabetic())
@@ -103,7 +109,7 @@ fn read_moku(path: &Path) -> Result<MokuFile, ImportError> {
         }
         if let Some(h) = t.strip_prefix('%') {
             if file.demod_hz.is_none() {
-                file.demod_hz = header_frequency(h);
+                file.demod_hz = header_frequency(h).map(|f| (row, f));
             }
             continue;
         }
@@ -176,6 +182,15 @@ pub fn import(
                     .into(),
         });
     }
+    if let Some(f) = opts.demod_hz.iter().find(|f| !(f.is_finite() && **f > 0.0)) {
+        return Err(ImportError::Convention {
+            origin: "--demod-hz".into(),
+            message: format!(
+                "{}: a demodulation frequency is a positive number of Hz",
+                harmonid_files::number(*f)
+            ),
+        });
+    }
     if !opts.demod_hz.is_empty() && opts.demod_hz.len() != inputs.len() {
         return Err(ImportError::Convention {
             origin: "--demod-hz".into(),
@@ -190,7 +205,18 @@ pub fn import(
     for (fi, path) in inputs.iter().enumerate() {
         let file = read_moku(path)?;
         let f = match (opts.demod_hz.get(fi), file.demod_hz) {
-            (Some(&f), _) | (None, Some(f)) => f,
+            (Some(&f), _) => f,
+            (None, Some((row, f))) if !(f.is_finite() && f > 0.0) => {
+                return Err(ImportError::Input {
+                    path: path.clone(),
+                    row: Some(row),
+                    message: format!(
+                        "the header's demodulation frequency is {} Hz, not a positive frequency: the sign is never dropped silently (demodulating at -f conjugates x + iy); check the instrument's settings, then give the drive frequency with --demod-hz and the matching --quadrature",
+                        harmonid_files::number(f)
+                    ),
+                })
+            }
+            (None, Some((_, f))) => f,
             (None, None) => {
                 return Err(ImportError::Input {
                     path: path.clone(),
@@ -268,5 +294,10 @@ mod tests {
         assert_eq!(header_frequency(" Demodulation at 250 kHz"), Some(250e3));
         assert_eq!(header_frequency(" Acquisition rate: 1000 Hz"), None);
         assert_eq!(header_frequency(" Demodulation: external"), None);
+        // hostile 10: the sign is kept (it was read as +1000 Hz).
+        assert_eq!(
+            header_frequency(" Demodulation frequency -1000 Hz"),
+            Some(-1000.0)
+        );
     }
 }

@@ -493,7 +493,7 @@ fn read_text(
                 Some(header_at + 1),
                 format!(
                     "no column \"{key}\" in the header (found: {})",
-                    header.join(", ")
+                    crate::text::header_names(header.iter().map(String::as_str))
                 ),
             )
         })?;

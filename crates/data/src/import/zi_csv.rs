@@ -58,7 +58,7 @@ fn read_demod(path: &Path) -> Result<Demod, ImportError> {
                         Some(1),
                         format!(
                             "no column \"{name}\" (found: {}); a LabOne demodulator CSV has chunk;timestamp;x;y;freq;...",
-                            header.join(";")
+                            crate::text::header_names(header.iter().copied())
                         ),
                     )
                 })?;

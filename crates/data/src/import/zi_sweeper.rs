@@ -53,7 +53,7 @@ fn read_points(path: &Path) -> Result<Vec<Point>, ImportError> {
                         1,
                         format!(
                             "no column \"{name}\" (found: {}); a LabOne sweeper CSV has grid, x, y, xstddev, ystddev, count, ...",
-                            header.join(&sep.to_string())
+                            crate::text::header_names(header.iter().copied())
                         ),
                     )
                 })?;
@@ -87,6 +87,14 @@ fn read_points(path: &Path) -> Result<Vec<Point>, ImportError> {
         };
         let grid = num(c[0], "grid")?;
         let (sx, sy) = (num(c[3], "xstddev")?, num(c[4], "ystddev")?);
+        for (name, sd) in [("xstddev", sx), ("ystddev", sy)] {
+            if sd < 0.0 {
+                return Err(bad(
+                    row,
+                    format!("column \"{name}\": {} is negative; a standard deviation is 0 or more (is this column the deviation, or another quantity?)", harmonid_files::number(sd)),
+                ));
+            }
+        }
         let t = field(c[5], "count")?;
         let count: u32 = t
             .parse::<f64>()
