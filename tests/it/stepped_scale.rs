@@ -62,4 +62,37 @@ fn a_thousand_steps_identify_within_their_error_bars() {
     for (name, d) in &dev {
         assert!(d.abs() < 4.0, "{name}: {d} stderr off ({dev:?})");
     }
+    // The misfit per sweep: every step in one of the 24 sweeps, their χ² summing the fit's,
+    // each percentage in the summary as in the result.
+    let g = rep.goodness_of_fit.as_ref().expect("verdict");
+    assert_eq!(g.sweeps.len(), 24);
+    assert_eq!(g.sweeps.iter().map(|s| s.steps).sum::<usize>(), 1152);
+    let chi2: f64 = g.sweeps.iter().map(|s| s.chi2).sum();
+    assert!((chi2 / g.chi2 - 1.0).abs() < 1e-9, "{chi2} vs {}", g.chi2);
+    // A correct model misses a sweep by its noise: about 1.15 sigmas RMS with the noise of
+    // 5 shots (χ²/dof ν/(ν − 2) = 4/3), a sweep's 96 residuals scattering by ~0.1.
+    let mut rms: Vec<f64> = g.sweeps.iter().map(|s| s.rms_residual_sigma).collect();
+    rms.sort_by(f64::total_cmp);
+    assert!(
+        (1.0..1.3).contains(&rms[12]),
+        "median {} of {rms:?}",
+        rms[12]
+    );
+    let summary = rep.summary(None);
+    for s in &g.sweeps {
+        let text = format!(
+            "{} {} %",
+            s.name,
+            harmonid::data::result::sig3(100.0 * s.relative_rms)
+        );
+        assert!(summary.contains(&text), "{text} not in\n{summary}");
+        // Every sweep is fitted to about its noise (a step at a fold, where the model's
+        // branch may jump one step from the data's, costs a sweep a few tenths).
+        assert!(
+            s.rms_residual_sigma < 2.0,
+            "{}: {} sigmas",
+            s.name,
+            s.rms_residual_sigma
+        );
+    }
 }

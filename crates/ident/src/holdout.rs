@@ -93,8 +93,9 @@ pub fn identify_with_holdout(
         ..settings.clone()
     };
     let prediction = identify(&fixed, &held_ds, &shot_noise)?;
+    let floor = report.goodness_of_fit.as_ref().and_then(|g| g.error_floor);
     report.holdout = match &prediction.goodness_of_fit {
-        Some(g) => held_out(g, &held_ds, held),
+        Some(g) => held_out(g, &held_ds, held, floor),
         None => {
             return Err(IdentError::Holdout(format!(
                 "--holdout {}: the estimate cannot be simulated for the held-out measurements ({})",
@@ -107,21 +108,31 @@ pub fn identify_with_holdout(
 }
 
 /// The held-out entries of the prediction's verdict `g` on `held_ds`: one per measurement
-/// (a step of a sweep names its sweep), then one per held-out sweep summing its steps.
+/// (a step of a sweep names its sweep), then one per held-out sweep summing its steps. With
+/// the fit's error `floor`, each also in floor-inclusive sigmas.
 fn held_out(
     g: &harmonid_data::result::GoodnessOfFit,
     held_ds: &Dataset,
     held: &[String],
+    floor: Option<f64>,
 ) -> Vec<HeldOut> {
     let judged = g.p_value.is_some();
+    // Per measurement: Σ|X̄ − X|²/(s² + floor²) over its lines.
+    let floored: Option<Vec<f64>> = floor
+        .filter(|_| judged)
+        .map(|s0| floored_chi2(g, held_ds, s0));
     let mut out: Vec<HeldOut> = g
         .measurements
         .iter()
         .zip(&held_ds.measurements)
-        .map(|(m, dm)| HeldOut {
+        .enumerate()
+        .map(|(i, (m, dm))| HeldOut {
             measurement: m.name.clone(),
             lines: m.lines,
             rms_sigma: judged.then_some(m.rms_residual_sigma),
+            rms_sigma_floor: floored
+                .as_ref()
+                .map(|c| (c[i] / (2 * m.lines).max(1) as f64).sqrt()),
             relative_rms: m.relative_rms,
             sweep: dm.spec.sweep.as_ref().map(|s| s.sweep.clone()),
             steps: None,
@@ -138,26 +149,53 @@ fn held_out(
         if steps.is_empty() {
             continue;
         }
-        let lines: usize = steps.iter().map(|m| m.lines).sum();
-        let meas2: f64 = steps
-            .iter()
-            .map(|m| m.amplitude_rms.powi(2) * m.lines as f64)
-            .sum();
-        let miss2: f64 = steps
-            .iter()
-            .map(|m| (m.relative_rms * m.amplitude_rms).powi(2) * m.lines as f64)
-            .sum();
-        let chi2: f64 = steps.iter().map(|m| m.chi2).sum();
+        let sum = harmonid_data::result::SweepFit::of_steps(name, &steps);
+        let floor_chi2 = floored.as_ref().map(|c| {
+            held_ds
+                .measurements
+                .iter()
+                .zip(c)
+                .filter(|(dm, _)| dm.spec.sweep.as_ref().is_some_and(|s| &s.sweep == name))
+                .map(|(_, c)| c)
+                .sum::<f64>()
+        });
         out.push(HeldOut {
             measurement: name.clone(),
-            lines,
-            rms_sigma: judged.then(|| (chi2 / (2 * lines).max(1) as f64).sqrt()),
-            relative_rms: (miss2 / meas2).sqrt(),
+            lines: sum.lines,
+            rms_sigma: judged.then_some(sum.rms_residual_sigma),
+            rms_sigma_floor: floor_chi2.map(|c| (c / (2 * sum.lines).max(1) as f64).sqrt()),
+            relative_rms: sum.relative_rms,
             sweep: None,
-            steps: Some(steps.len()),
+            steps: Some(sum.steps),
         });
     }
     out
+}
+
+/// Per measurement of `held_ds`, the prediction's `χ²` with the error floor `s0` added in
+/// quadrature to every line's shot noise of the mean (as the fit weighed its own lines): the
+/// residual `|X̄ − X| = (line's sigmas) · s` of `g`'s lines, `s` from the held-out shots.
+fn floored_chi2(g: &harmonid_data::result::GoodnessOfFit, held_ds: &Dataset, s0: f64) -> Vec<f64> {
+    let pooled = crate::shots::pool(held_ds);
+    let mut lines = g.lines.iter();
+    pooled
+        .sigma
+        .iter()
+        .zip(&pooled.used)
+        .map(|(sigma, &n)| {
+            let Some(sigma) = sigma else {
+                return f64::NAN;
+            };
+            sigma
+                .iter()
+                .map(|s| {
+                    let s = s / (n as f64).sqrt();
+                    let r = lines.next().map_or(f64::NAN, |l| l.sigma * s);
+                    r * r / (s * s + s0 * s0)
+                })
+                .sum()
+        })
+        .collect()
 }
 
 /// `model` with every mode's `f`, `Q` and every parameter fixed at `report`'s values.

@@ -52,6 +52,53 @@ pub struct GoodnessOfFit {
     /// its expectation, so `χ²` no longer tests the model.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error_floor: Option<f64>,
+    /// Per stepped sweep (`[[sweep]]`), its steps' misfit summed, in the order of their first
+    /// step; absent for a dataset without sweeps.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub sweeps: Vec<SweepFit>,
+}
+
+/// A stepped sweep's share of the misfit: its steps' [`MeasurementFit`]s summed.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SweepFit {
+    /// The sweep's name.
+    pub name: String,
+    /// Its steps.
+    pub steps: usize,
+    /// Its measured lines, every step's.
+    pub lines: usize,
+    /// Its part of `χ²`.
+    pub chi2: f64,
+    /// `√(Σ|X̄ − X|² / Σ|X̄|²)` over every line of every step: the misfit in the measured
+    /// amplitudes' units, what a lab reads as "the fit is off by 6 %".
+    pub relative_rms: f64,
+    /// Root mean square of the standardized residuals per quadrature, in noise sigmas (the
+    /// floor's included when one was fitted).
+    pub rms_residual_sigma: f64,
+}
+
+impl SweepFit {
+    /// The sum of `steps` (the measurements of sweep `name`).
+    pub fn of_steps(name: &str, steps: &[&MeasurementFit]) -> Self {
+        let lines: usize = steps.iter().map(|m| m.lines).sum();
+        let meas2: f64 = steps
+            .iter()
+            .map(|m| m.amplitude_rms.powi(2) * m.lines as f64)
+            .sum();
+        let miss2: f64 = steps
+            .iter()
+            .map(|m| (m.relative_rms * m.amplitude_rms).powi(2) * m.lines as f64)
+            .sum();
+        let chi2: f64 = steps.iter().map(|m| m.chi2).sum();
+        Self {
+            name: name.to_string(),
+            steps: steps.len(),
+            lines,
+            chi2,
+            relative_rms: (miss2 / meas2).sqrt(),
+            rms_residual_sigma: (chi2 / (2 * lines).max(1) as f64).sqrt(),
+        }
+    }
 }
 
 /// One measurement's share of the misfit.
@@ -102,6 +149,24 @@ pub struct LineResidual {
 }
 
 impl GoodnessOfFit {
+    /// The misfit in percent of the measured amplitudes, overall and per sweep, as the
+    /// summary prints it (the number a lab reads beside `χ²`).
+    pub fn misfit_line(&self) -> String {
+        let mut s = format!(
+            "misfit {} % RMS of the measured amplitudes",
+            sig3(100.0 * self.relative_rms)
+        );
+        if !self.sweeps.is_empty() {
+            let per: Vec<String> = self
+                .sweeps
+                .iter()
+                .map(|w| format!("{} {} %", w.name, sig3(100.0 * w.relative_rms)))
+                .collect();
+            s.push_str(&format!("; per sweep: {}", per.join(", ")));
+        }
+        s
+    }
+
     /// The verdict in one line, for the summary's head.
     pub fn one_line(&self) -> String {
         let head = format!(

@@ -7,7 +7,9 @@ mod goodness;
 mod summary;
 
 pub use estimator::{Estimator, UnknownEstimator};
-pub use goodness::{p_text, sig3, GoodnessOfFit, LineResidual, MeasurementFit, P_DOES_NOT_FIT};
+pub use goodness::{
+    p_text, sig3, GoodnessOfFit, LineResidual, MeasurementFit, SweepFit, P_DOES_NOT_FIT,
+};
 
 use serde::{Deserialize, Deserializer, Serialize};
 use std::collections::BTreeMap;
@@ -272,6 +274,11 @@ pub struct HeldOut {
     /// sigmas (about 1 for a model that predicts to the noise; absent without shot noise).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rms_sigma: Option<f64>,
+    /// With an error floor fitted (`identify --error-floor`): the same RMS with the floor
+    /// added in quadrature to every line's shot noise, as the fit weighed its own lines
+    /// (about 1 for a model that predicts as well as it fits).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rms_sigma_floor: Option<f64>,
     /// `√(Σ|X̄ − X|² / Σ|X̄|²)` over its lines.
     pub relative_rms: f64,
     /// For a step of a held-out sweep: the sweep's name (the summary prints the sweep's

@@ -194,17 +194,20 @@ impl Report {
         );
         if let Some(g) = &self.goodness_of_fit {
             let _ = writeln!(s, "  goodness of fit: {}", g.one_line());
+            let _ = writeln!(s, "  {}", g.misfit_line());
         }
         for h in self.holdout.iter().filter(|h| h.sweep.is_none()) {
             let _ = writeln!(
                 s,
-                "  held out \"{}\" ({}{} lines, not fitted): predicted to {}{:.3} % RMS of its amplitudes",
+                "  held out \"{}\" ({}{} lines, not fitted): predicted to {:.3} % RMS of its amplitudes{}{}",
                 h.measurement,
                 h.steps.map_or(String::new(), |k| format!("sweep of {k} steps, ")),
                 h.lines,
+                100.0 * h.relative_rms,
+                h.rms_sigma_floor
+                    .map_or(String::new(), |r| format!(", {r:.3} sigmas RMS with the error floor")),
                 h.rms_sigma
-                    .map_or(String::new(), |r| format!("{r:.3} noise sigmas RMS, ")),
-                100.0 * h.relative_rms
+                    .map_or(String::new(), |r| format!(", {r:.3} shot-noise sigmas RMS")),
             );
         }
     }

@@ -157,7 +157,7 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
         ));
     }
     warnings.extend(tables::undetermined_warnings(&modes, &parameters));
-    warnings.extend(jackknife_warnings);
+    warnings.extend(jackknife_warning(&jackknife_warnings));
     if let Some(text) = goodness_of_fit.as_ref().and_then(|g| g.headline()) {
         warnings.insert(0, text);
     }
@@ -196,6 +196,48 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
         warnings,
         consistency,
     }
+}
+
+/// A quantity whose jackknife standard error disagrees with its Fisher one.
+#[derive(Debug, Clone)]
+struct JackknifeDisagreement {
+    key: String,
+    jackknife: f64,
+    fisher: f64,
+}
+
+/// One warning for every quantity whose jackknife and Fisher standard errors disagree by more
+/// than [`JACKKNIFE_TOL`] (a warning a quantity drowned the others on real data), the largest
+/// ratios named first, or `None`.
+fn jackknife_warning(list: &[JackknifeDisagreement]) -> Option<String> {
+    const NAMED: usize = 3;
+    let mut sorted: Vec<&JackknifeDisagreement> = list.iter().collect();
+    let ratio = |d: &JackknifeDisagreement| (d.fisher / d.jackknife).ln().abs();
+    sorted.sort_by(|a, b| ratio(b).total_cmp(&ratio(a)));
+    let named: Vec<String> = sorted
+        .iter()
+        .take(NAMED)
+        .map(|d| {
+            format!(
+                "{} (jackknife {:.3e}, Fisher {:.3e})",
+                d.key, d.jackknife, d.fisher
+            )
+        })
+        .collect();
+    let more = match sorted.len().saturating_sub(NAMED) {
+        0 => String::new(),
+        n => format!(" and {n} more"),
+    };
+    let s = if list.len() == 1 { "" } else { "s" };
+    (!list.is_empty()).then(|| {
+        format!(
+            "the jackknife and Fisher standard errors disagree by more than {:.0} % for {} quantit{}: {}{more}",
+            100.0 * JACKKNIFE_TOL,
+            list.len(),
+            if s.is_empty() { "y" } else { "ies" },
+            named.join(", ")
+        )
+    })
 }
 
 /// The equation-error fits' conditioning warnings: warnings when their estimate is reported or
@@ -309,8 +351,14 @@ impl Judge<'_> {
     /// Sets `e`'s value and, unless the model fixes it, its standard error (Fisher bound
     /// times the model-misfit inflation for ml, the per-shot spread over `√n` for linear),
     /// bounds, jackknife and whether the data determine it. A jackknife that disagrees with
-    /// the Fisher error adds a warning to `warnings`.
-    fn apply(&self, q: Quantity, e: &mut Estimate, value: f64, warnings: &mut Vec<String>) {
+    /// the Fisher error is added to `disagreements`.
+    fn apply(
+        &self,
+        q: Quantity,
+        e: &mut Estimate,
+        value: f64,
+        disagreements: &mut Vec<JackknifeDisagreement>,
+    ) {
         let fixed = e.reason.as_deref() == Some(FIXED_BY_THE_MODEL);
         // A single value's median, as the per-shot tables read it: NaN unless finite.
         e.value = if value.is_finite() { value } else { f64::NAN };
@@ -368,12 +416,11 @@ impl Judge<'_> {
         }
         if let Some(j) = e.jackknife {
             if (j / e.stderr - 1.0).abs() > JACKKNIFE_TOL {
-                warnings.push(format!(
-                    "{}: the jackknife standard error {j:.3e} and the Fisher one {:.3e} disagree by more than {:.0} %",
-                    q.key(&self.prob.mode_names, &self.prob.param_names),
-                    e.stderr,
-                    100.0 * JACKKNIFE_TOL
-                ));
+                disagreements.push(JackknifeDisagreement {
+                    key: q.key(&self.prob.mode_names, &self.prob.param_names),
+                    jackknife: j,
+                    fisher: e.stderr,
+                });
             }
         }
     }
@@ -382,6 +429,37 @@ impl Judge<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn jackknife_disagreements_are_one_warning_largest_first() {
+        let d = |key: &str, jackknife: f64| JackknifeDisagreement {
+            key: key.into(),
+            jackknife,
+            fisher: 1.0,
+        };
+        assert_eq!(jackknife_warning(&[]), None);
+        let one = jackknife_warning(&[d("beta1", 2.0)]).expect("one");
+        assert!(
+            one.ends_with("for 1 quantity: beta1 (jackknife 2.000e0, Fisher 1.000e0)"),
+            "{one}"
+        );
+        let list = [
+            d("a", 1.5),
+            d("b", 1e-3),
+            d("c", 10.0),
+            d("e", 0.5),
+            d("f", 3.0),
+        ];
+        let w = jackknife_warning(&list).expect("many");
+        // Largest ratios either way first: b (1000x), c (10x), f (3x); two more counted.
+        assert!(
+            w.contains("for 5 quantities: b (")
+                && w.contains("), c (")
+                && w.contains("), f (")
+                && w.ends_with(" and 2 more"),
+            "{w}"
+        );
+    }
 
     #[test]
     fn start_diagnostics_are_notes_when_the_output_error_fit_fits() {

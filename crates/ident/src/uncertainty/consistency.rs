@@ -428,59 +428,69 @@ fn erfc(x: f64) -> f64 {
     }
 }
 
-/// At most this many inconsistency warnings are written one by one (the largest `|z|`); the
-/// rest are counted in one line, so that they do not drown the other warnings.
-pub const MAX_INCONSISTENCY_WARNINGS: usize = 5;
-
 /// The warnings for the comparisons beyond the threshold of `comparisons.len()` comparisons
-/// at [`FAMILY_ALPHA`]: the [`MAX_INCONSISTENCY_WARNINGS`] largest one by one, then one line
-/// counting the others and the measurements they involve.
+/// at [`FAMILY_ALPHA`]: one line per quantity and mode (in the comparisons' order), naming its
+/// largest discrepancy and counting the others and the measurements they involve, so that a
+/// long sweep's many comparisons do not drown the warnings a user must act on.
 pub fn warnings(comparisons: &[Comparison]) -> Vec<String> {
     let limit = threshold(comparisons.len(), FAMILY_ALPHA);
-    let beyond: Vec<&Comparison> = comparisons.iter().filter(|c| c.z.abs() > limit).collect();
-    // The largest |z| are written, in the comparisons' order; the rest counted.
-    let mut by_size = beyond.clone();
-    by_size.sort_by(|a, b| b.z.abs().total_cmp(&a.z.abs()));
-    let rest = by_size.split_off(by_size.len().min(MAX_INCONSISTENCY_WARNINGS));
-    let mut out: Vec<String> = beyond
+    let mut kinds: Vec<(Compared, &str, Vec<&Comparison>)> = Vec::new();
+    for c in comparisons.iter().filter(|c| c.z.abs() > limit) {
+        match kinds
+            .iter_mut()
+            .find(|(q, m, _)| *q == c.quantity && *m == c.mode)
+        {
+            Some((_, _, list)) => list.push(c),
+            None => kinds.push((c.quantity, &c.mode, vec![c])),
+        }
+    }
+    kinds
         .into_iter()
-        .filter(|c| by_size.iter().any(|k| std::ptr::eq(*k, *c)))
-        .map(|c| {
-            let unit = if c.quantity == Compared::Frequency {
-                " Hz"
-            } else {
-                ""
-            };
-            format!(
-                "inconsistent measurements: {} of {} is {:.6e} ± {:.2e}{unit} in \"{}\" but {:.6e} ± {:.2e}{unit} in \"{}\": {:.1} standard errors apart (the limit for {} comparisons is {limit:.2}); the device changed between them, or the model misses something one of them excites",
-                c.quantity.label(),
-                c.mode,
-                c.values[0],
-                c.stderrs[0],
-                c.measurements[0],
-                c.values[1],
-                c.stderrs[1],
-                c.measurements[1],
-                c.z.abs(),
-                comparisons.len(),
-            )
-        })
-        .collect();
-    if !rest.is_empty() {
-        let mut measurements: Vec<&str> = rest
+        .map(|(_, _, list)| kind_warning(&list, comparisons.len(), limit))
+        .collect()
+}
+
+/// One quantity's warning: its largest discrepancy, then how many more and among how many
+/// measurements.
+fn kind_warning(list: &[&Comparison], total: usize, limit: f64) -> String {
+    let worst = list
+        .iter()
+        .copied()
+        .max_by(|a, b| a.z.abs().total_cmp(&b.z.abs()))
+        .unwrap_or(list[0]);
+    let unit = if worst.quantity == Compared::Frequency {
+        " Hz"
+    } else {
+        ""
+    };
+    let more = if list.len() > 1 {
+        let mut names: Vec<&str> = list
             .iter()
             .flat_map(|c| c.measurements.iter().map(String::as_str))
             .collect();
-        measurements.sort_unstable();
-        measurements.dedup();
-        out.push(format!(
-            "inconsistent measurements: {} more comparisons beyond the limit of {limit:.2} (up to {:.1} standard errors apart), among {} measurements; the model misses something the measurements excite differently, or the device changed",
-            rest.len(),
-            rest[0].z.abs(),
-            measurements.len()
-        ));
-    }
-    out
+        names.sort_unstable();
+        names.dedup();
+        format!(
+            "; {} more comparison{} of it beyond the limit, among {} measurements",
+            list.len() - 1,
+            if list.len() == 2 { "" } else { "s" },
+            names.len()
+        )
+    } else {
+        String::new()
+    };
+    format!(
+        "inconsistent measurements: {} of {} is {:.6e} ± {:.2e}{unit} in \"{}\" but {:.6e} ± {:.2e}{unit} in \"{}\": {:.1} standard errors apart (the limit for {total} comparisons is {limit:.2}){more}; the device changed between them, or the model misses something one of them excites",
+        worst.quantity.label(),
+        worst.mode,
+        worst.values[0],
+        worst.stderrs[0],
+        worst.measurements[0],
+        worst.values[1],
+        worst.stderrs[1],
+        worst.measurements[1],
+        worst.z.abs(),
+    )
 }
 
 #[cfg(test)]
@@ -492,7 +502,7 @@ mod tests {
     use std::f64::consts::PI;
 
     #[test]
-    fn many_inconsistencies_are_five_lines_and_a_count() {
+    fn many_inconsistencies_are_one_line_per_quantity_naming_the_worst() {
         let c = |i: usize, z: f64| Comparison {
             quantity: Compared::Q,
             mode: "q1".into(),
@@ -505,18 +515,24 @@ mod tests {
         let mut cs: Vec<Comparison> = (0..8).map(|i| c(i, 10.0 + i as f64)).collect();
         cs.extend((8..20).map(|i| c(i, 0.5)));
         let w = warnings(&cs);
-        assert_eq!(w.len(), 6, "{w:#?}");
-        // The five largest (a3..a7) in the comparisons' order, then the count.
-        assert!(w[0].contains("\"a3\"") && w[4].contains("\"a7\""), "{w:#?}");
+        assert_eq!(w.len(), 1, "{w:#?}");
+        // The largest (a7, 17 sigmas) named, the other seven counted with their measurements.
         assert!(
-            w[5].contains("3 more comparisons")
-                && w[5].contains("up to 12.0 standard errors")
-                && w[5].contains("among 6 measurements"),
+            w[0].starts_with("inconsistent measurements: Q of q1")
+                && w[0].contains("\"a7\"")
+                && w[0].contains("17.0 standard errors apart")
+                && w[0]
+                    .contains("7 more comparisons of it beyond the limit, among 16 measurements"),
             "{}",
-            w[5]
+            w[0]
         );
-        // Few: every one written, nothing counted.
-        assert_eq!(warnings(&cs[..3]).len(), 3);
+        // Another quantity or mode is a line of its own; one beyond the limit counts nothing.
+        let mut f = c(20, 30.0);
+        f.quantity = Compared::Frequency;
+        cs.push(f);
+        let w = warnings(&cs);
+        assert_eq!(w.len(), 2, "{w:#?}");
+        assert!(w[1].starts_with("inconsistent measurements: f of q1") && !w[1].contains("more"));
     }
 
     /// One linear mode (Q 100) seen in two two-tone measurements with drive levels: "a" with

@@ -16,7 +16,7 @@
 //! and nothing can be judged: `p_value` is `None`.
 
 pub use harmonid_data::result::{
-    p_text, GoodnessOfFit, LineResidual, MeasurementFit, P_DOES_NOT_FIT,
+    p_text, GoodnessOfFit, LineResidual, MeasurementFit, SweepFit, P_DOES_NOT_FIT,
 };
 use harmonid_data::Dataset;
 use num_complex::Complex64;
@@ -112,10 +112,31 @@ pub(crate) fn goodness_of_fit(
         relative_rms: (total_miss2 / total_meas2).sqrt(),
         stderr_inflation: 1.0,
         converged: true,
+        sweeps: sweep_fits(ds, &measurements),
         measurements,
         lines,
         error_floor: None,
     }
+}
+
+/// Every stepped sweep's steps summed ([`SweepFit::of_steps`]), in the order of their first
+/// step; `measurements` in `ds`'s order.
+pub(crate) fn sweep_fits(ds: &Dataset, measurements: &[MeasurementFit]) -> Vec<SweepFit> {
+    let mut order: Vec<&str> = Vec::new();
+    let mut steps: std::collections::BTreeMap<&str, Vec<&MeasurementFit>> = Default::default();
+    for (m, fit) in ds.measurements.iter().zip(measurements) {
+        if let Some(s) = &m.spec.sweep {
+            let list = steps.entry(s.sweep.as_str()).or_default();
+            if list.is_empty() {
+                order.push(s.sweep.as_str());
+            }
+            list.push(fit);
+        }
+    }
+    order
+        .into_iter()
+        .map(|name| SweepFit::of_steps(name, &steps[name]))
+        .collect()
 }
 
 /// The first three cumulants of one line's `t = |X̄ − X|²/s² = 2·F(2, ν)`: from the raw
