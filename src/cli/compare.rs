@@ -32,6 +32,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         let m = harmonid_model::load(path).map_err(miette::Report::new)?;
         models.push((path.display().to_string(), m));
     }
+    refuse_same_models(&args.models, &models)?;
     let dataset_files = ds.input_files();
     let mut inputs: Vec<&std::path::Path> = args.models.iter().map(|p| p.as_path()).collect();
     inputs.extend(dataset_files.iter().map(|p| p.as_path()));
@@ -55,6 +56,42 @@ pub fn run(args: Args) -> miette::Result<()> {
     if let Some(out) = &args.out {
         write_output(out, json.as_bytes(), &inputs)?;
         eprintln!("wrote {}", out.display());
+    }
+    Ok(())
+}
+
+/// Two models that are one file, or the same modes, parameters and equations, are refused
+/// naming both: fitted twice, they differ by nothing, and a ranking of them ("the data barely
+/// support m.hb, ΔBIC 0.0") reads as a verdict on nothing.
+fn refuse_same_models(
+    paths: &[PathBuf],
+    models: &[(String, harmonid_model::Model)],
+) -> miette::Result<()> {
+    // The model as its report shows it, without the first line (which names the file).
+    let body = |m: &harmonid_model::Model| {
+        let text = m.to_text();
+        text.split_once('\n')
+            .map_or(String::new(), |(_, b)| b.to_string())
+    };
+    let bodies: Vec<String> = models.iter().map(|(_, m)| body(m)).collect();
+    for j in 1..paths.len() {
+        for i in 0..j {
+            let why = if harmonid_files::same_file(&paths[i], &paths[j]) {
+                "the same file"
+            } else if bodies[i] == bodies[j] {
+                "the same model (the same modes, parameters and equations)"
+            } else {
+                continue;
+            };
+            return Err(miette::miette!(
+                help = "compare models that differ (e.g. with and without a term): a model compared with itself is supported exactly as much as itself",
+                "model {} ({}) and model {} ({}) are {why}: there is nothing to compare",
+                i + 1,
+                paths[i].display(),
+                j + 1,
+                paths[j].display()
+            ));
+        }
     }
     Ok(())
 }

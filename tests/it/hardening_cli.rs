@@ -758,3 +758,25 @@ fn import_moku_refuses_a_negative_demodulation_frequency() {
         std::fs::read_to_string(out.path().join("outds/dataset.toml")).expect("manifest");
     assert!(manifest.contains("drives_hz = [[1000.0]]"), "{manifest}");
 }
+
+#[test]
+fn compare_refuses_a_model_compared_with_itself() {
+    // hostile 11: `compare ds m.hb m.hb` said "the data barely support m.hb (BIC 0.0 below
+    // m.hb's)" and exited 0.
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let m = copied_model(tmp.path());
+    let data = example("data");
+    let (ok, text) = run(&["compare", s(&data), s(&m), s(&m)]);
+    assert!(!ok, "{text}");
+    assert!(
+        text.contains("model 1") && text.contains("model 2") && text.contains("are the same file"),
+        "{text}"
+    );
+    // A copy under another name, with a comment: the same model.
+    let copy = tmp.path().join("copy.hb");
+    let source = std::fs::read_to_string(&m).expect("read");
+    std::fs::write(&copy, format!("# a copy\n{source}")).expect("write");
+    let (ok, text) = run(&["compare", s(&data), s(&m), s(&copy)]);
+    assert!(!ok, "{text}");
+    assert!(text.contains("are the same model"), "{text}");
+}
