@@ -40,6 +40,7 @@ from ._harmonid import (
     plan,
     simulate,
     sweep,
+    response,
 )
 
 from . import io  # noqa: E402  (after _harmonid, which it re-exports)
@@ -66,6 +67,7 @@ __all__ = [
     "plan",
     "simulate",
     "sweep",
+    "response",
 ]
 
 

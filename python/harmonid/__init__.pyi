@@ -18,6 +18,7 @@ from ._harmonid import (
     plan as plan,
     simulate as simulate,
     sweep as sweep,
+    response as response,
 )
 
 from . import io as io

@@ -134,6 +134,21 @@ def sweep(
     harmonics: int = 3,
     two_tone_spacing_hz: Optional[float] = None,
 ) -> dict[str, Any]: ...
+def response(
+    model: Model,
+    result: IdentifyResult,
+    dataset: Dataset,
+    sweep: str,
+) -> dict[str, Any]:
+    """The frequency response of the stepped sweep `sweep` and of every sweep of its drive
+    level, measured and as the identified model gives it (the data of `harmonid report`'s
+    frequency-response figure): `family`, `level`, `unit` (the dataset's; every `x` is in it),
+    `point`, `notes`; `sweeps` (per sweep `name`, `direction`, `steps`, `f_hz`, complex `x`
+    with its phase against the step's identified force, `amplitude`, `phase_rad`, and the model
+    at each step `model_x`, `model_amplitude`, `model_phase_rad`); `model` (None without one):
+    the curve through its folds, `f_hz`, `x`, `amplitude`, `phase_rad`, `stable`, `force`
+    (N/kg per mode), `harmonics`."""
+    ...
 def simulate(
     model: Model,
     values: Union[Mapping[str, Any], IdentifyResult, _Path],

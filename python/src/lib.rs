@@ -20,6 +20,7 @@ mod judge;
 mod mix;
 mod model;
 mod plan;
+mod response;
 mod simulate;
 mod sweep;
 mod values;
@@ -39,6 +40,7 @@ fn _harmonid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(judge::compare, m)?)?;
     m.add_function(wrap_pyfunction!(judge::discover, m)?)?;
     m.add_function(wrap_pyfunction!(sweep::sweep, m)?)?;
+    m.add_function(wrap_pyfunction!(response::response, m)?)?;
     m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;
     m.add_class::<plan::PlanResult>()?;
     m.add_function(wrap_pyfunction!(plan::plan, m)?)?;
