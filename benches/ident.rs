@@ -11,6 +11,10 @@
 //! Duffing mode with nonlinear damping, 40 single-tone steps at each of 4 drive levels, each
 //! step a measurement of one line, 10 shots, one actuator gain for the whole sweep; the whole
 //! default identification.
+//! `hysteretic_1152steps`, `hysteretic_10008steps`: a lab's stepped-sine frequency response
+//! (issue 35): a softening Duffing mode with nonlinear damping, 12 drive levels each swept up
+//! and down through its folds (48 or 417 steps a sweep, 5 samples a step, 0.02 nm), the whole
+//! identification with the error floor, one gain for the dataset.
 //! `long_record_1m_rows`: one Duffing mode driven by two tones (the nanostring's `single_q1`),
 //! 125 000 shots of its 8 lines at 0.05 nm, 1 million rows, as a long lock-in record gives;
 //! the whole default identification.
@@ -69,6 +73,26 @@ fn bench_stepped_sweep(c: &mut Criterion) {
     group.finish();
 }
 
+fn bench_hysteretic_sweeps(c: &mut Criterion) {
+    let model = harmonid_model::parse_str(gen::DAMPED_DUFFING, "softening.hb").expect("model");
+    let settings = Settings {
+        force_model: ForceModel::GainPerMode,
+        error_floor: true,
+        ..Settings::default()
+    };
+    let mut group = c.benchmark_group("identify/stepped_sweep");
+    group.sample_size(10);
+    for steps in [48usize, 417] {
+        let (v, sweeps) = gen::hysteretic_sweeps(12, steps);
+        let clean = gen::simulate_sweeps_clean(&model, &v, &sweeps, &[1.0], 5);
+        let ds = gen::add_noise(&clean, 2e-11, 3);
+        group.bench_function(format!("hysteretic_{}steps", 24 * steps), |b| {
+            b.iter(|| black_box(identify(&model, black_box(&ds), &settings).expect("identify")))
+        });
+    }
+    group.finish();
+}
+
 fn bench_long_record(c: &mut Criterion) {
     let model = harmonid_model::parse_str(
         "mode q1 at 207.58 kHz\nparam beta1\npotential: beta1/4*q1^4\n",
@@ -101,6 +125,7 @@ criterion_group!(
     benches,
     bench_identify,
     bench_stepped_sweep,
+    bench_hysteretic_sweeps,
     bench_long_record
 );
 criterion_main!(benches);
