@@ -13,7 +13,8 @@ pub struct Args {
     pub dataset: PathBuf,
     /// The starting model (`*.hb`): its modes, and the terms it already has.
     pub model: PathBuf,
-    /// Degrees of the candidate equation terms: `--degrees 3` (cubic), `--degrees 2,3`.
+    /// Degrees of the candidate equation terms: `--degrees 3` (cubic), `--degrees 2,3` (a
+    /// repeated degree counts once).
     #[arg(long, value_delimiter = ',', required = true)]
     pub degrees: Vec<u32>,
     /// Candidates as potential terms (one parameter per monomial of degree + 1, its

@@ -50,7 +50,8 @@ pub enum LibraryForm {
 /// The candidate terms.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Library {
-    /// Degrees of the equation terms (a potential monomial has one more).
+    /// Degrees of the equation terms (a potential monomial has one more); a repeated degree
+    /// counts once.
     pub degrees: Vec<u32>,
     /// Per equation or as potentials.
     pub form: LibraryForm,
@@ -459,7 +460,15 @@ fn candidates(model: &Model, library: &Library) -> Vec<Candidate> {
             .collect()
     };
     let mut out = Vec::new();
+    // A degree given twice (`--degrees 3,3,3`) is one degree: each candidate once, or the
+    // library and the multiple-testing count would be inflated by repeats.
+    let mut degrees: Vec<u32> = Vec::with_capacity(library.degrees.len());
     for &d in &library.degrees {
+        if !degrees.contains(&d) {
+            degrees.push(d);
+        }
+    }
+    for d in degrees {
         match library.form {
             LibraryForm::Equation => {
                 for m in monomials(nm, d) {
@@ -688,6 +697,13 @@ mod tests {
         );
         // 4 cubic monomials × 2 equations, less q1^3 in the equation of q1.
         assert_eq!(per_eq.len(), 7);
+        // hostile 12: a repeated degree is one degree (it tripled the library).
+        let repeated = Library {
+            degrees: vec![3, 3, 3],
+            form: LibraryForm::Equation,
+        };
+        let names = |c: &[Candidate]| c.iter().map(|c| c.name.clone()).collect::<Vec<_>>();
+        assert_eq!(names(&candidates(&m, &repeated)), names(&per_eq));
         assert!(per_eq
             .iter()
             .any(|c| c.name == "b1_21" && c.words == "q1^2*q2 in the equation of q1"));
