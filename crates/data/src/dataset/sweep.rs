@@ -204,6 +204,13 @@ pub(super) fn check_sweep(sw: &SweepSpec) -> Result<(), String> {
     if sw.direction == Direction::Level {
         return check_ladder(sw);
     }
+    if matches!(sw.direction, Direction::Up | Direction::Down) && sw.drives_hz.len() < 2 {
+        return Err(format!(
+            "sweep \"{name}\" is declared direction = \"{}\" but has {} step: a sweep up or down needs at least two steps (a branch is followed from one step to the next); add its other steps, or declare it \"unordered\"",
+            sw.direction.name(),
+            sw.drives_hz.len()
+        ));
+    }
     let first = |k: usize| sw.drives_hz[k].first().copied().unwrap_or(f64::NAN);
     for k in 1..sw.drives_hz.len() {
         let (a, b) = (first(k - 1), first(k));

@@ -139,6 +139,14 @@ fn broken_sweeps_are_refused_with_what_to_do() {
             "step 1 is at 101 Hz after step 0 at 100 Hz",
         ),
         (
+            MANIFEST.replace(
+                "drives_hz = [[100.0], [101.0], [102.0]]\ndrive_levels_v = [[0.1], [0.2], [0.3]]",
+                "drives_hz = [[100.0]]\ndrive_levels_v = [0.1]",
+            ),
+            sweep_csv(true),
+            "sweep \"up\" is declared direction = \"up\" but has 1 step: a sweep up or down needs at least two steps",
+        ),
+        (
             MANIFEST.to_string(),
             sweep_csv(false),
             "settle_s = 0.25 needs a time_s column",
