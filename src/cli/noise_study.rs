@@ -368,6 +368,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     };
     let clean = plan.simulate_numeric(&model, &clean_settings)?.dataset;
     let (enbw, n_samples, sigmas) = lock_in_sigmas(&args, &clean, &levels)?;
+    check_signal(&clean, &levels, &sigmas)?;
     let settings = IdentSettings {
         force_model: ForceModel::Auto,
         min_shots_for_weights: 0,
@@ -498,6 +499,28 @@ fn lock_in_sigmas(
     let n_samples = fs * args.window_s;
     let sigmas: Vec<f64> = levels.iter().map(|l| l.sigma_m(enbw, n_samples)).collect();
     Ok((enbw, n_samples, sigmas))
+}
+
+/// Refuses, before the identifications, a level whose noise σ per quadrature is at least the
+/// plan's strongest line (noise-free): every line is then under the noise, each fit stays near
+/// its start, and a row of estimates "within 0.1 % of the truth" would only echo the start.
+fn check_signal(clean: &Dataset, levels: &[NoiseLevel], sigmas: &[f64]) -> miette::Result<()> {
+    let strongest = clean
+        .measurements
+        .iter()
+        .flat_map(|m| m.data.iter().map(|z| z.norm()))
+        .fold(0.0, f64::max);
+    if let Some(l) = sigmas.iter().position(|&s| s >= strongest) {
+        return Err(miette!(
+            help = "study noise levels below the signal: the default levels run from 1e-15 to 1e-10 m per quadrature",
+            "noise level {} ({}) gives σ = {} m per quadrature, at least the plan's strongest line ({} m, noise-free): every line would be under the noise and the estimates meaningless (each fit stays at its start)",
+            harmonid_files::number(levels[l].value()),
+            level_unit(&levels[l]),
+            harmonid_files::number(sigmas[l]),
+            format!("{strongest:.3e}")
+        ));
+    }
+    Ok(())
 }
 
 /// Refuses a study too small or too large before any work: at least two realisations, at most

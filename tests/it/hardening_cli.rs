@@ -780,3 +780,29 @@ fn compare_refuses_a_model_compared_with_itself() {
     assert!(!ok, "{text}");
     assert!(text.contains("are the same model"), "{text}");
 }
+
+#[test]
+fn noise_study_refuses_noise_above_every_line() {
+    // hostile 18: σ = 1e10 m against lines of 1e-8 m exited 0 with estimates "within 0.1 % of
+    // the truth" (each fit stayed at its start).
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("ns.csv");
+    let (ok, text) = run(&[
+        "noise-study",
+        "--sigma",
+        "1e-12,1e10",
+        "--realisations",
+        "2",
+        "--quiet",
+        "--out",
+        s(&out),
+    ]);
+    assert!(!ok, "{text}");
+    assert!(
+        text.contains("noise level 1e10")
+            && text.contains("strongest line (8.807e-9 m")
+            && text.contains("meaningless"),
+        "{text}"
+    );
+    assert!(!out.exists());
+}
