@@ -613,10 +613,11 @@ pub fn simulate_sweeps_clean(
 /// A lab's stepped-sine frequency response of [`DAMPED_DUFFING`] softened (`beta1 < 0`): at
 /// each of `levels` drive levels (linear peak response 1 to 20 nm, evenly spaced) one sweep up
 /// and one down through ±6 linewidths around the resonance, `steps` steps each, so that the top
-/// levels are bistable and each direction jumps at its own fold. Names `up_l{level}` and
+/// levels are bistable and each direction jumps at its own fold (`eta1` = 5e17, a tenth of
+/// [`stepped_sweep_plan`]'s: that much damping would keep every level below its fold). Names `up_l{level}` and
 /// `dn_l{level}`; `2 · levels · steps` steps in all. For [`simulate_sweeps_clean`].
 pub fn hysteretic_sweeps(levels: usize, steps: usize) -> (Values, Vec<SteppedSweep>) {
-    let mut v = damped_duffing_values(5.0e18);
+    let mut v = damped_duffing_values(5.0e17);
     v.params.insert("beta1".into(), -2.6e25);
     let (f, q) = (v.f_hz[0], v.q[0]);
     let w = std::f64::consts::TAU * f;
