@@ -96,3 +96,20 @@ fn a_thousand_steps_identify_within_their_error_bars() {
         );
     }
 }
+
+/// A dataset beyond what one identification holds is refused before any work, saying why and
+/// what to do (100,000 steps would take about 2.7 GB).
+#[test]
+fn too_many_steps_are_refused_before_any_work() {
+    let (model, _, mut ds) = dataset(1, 2, 0);
+    let one = ds.measurements[0].clone();
+    ds.measurements = vec![one; harmonid::ident::MAX_MEASUREMENTS + 1];
+    let e = identify(&model, &ds, &settings()).expect_err("refused");
+    let text = e.to_string();
+    assert!(
+        text.contains("50001 measurements, above the 50000")
+            && text.contains("27 kB per one-line step")
+            && text.contains("1.4 GB"),
+        "{text}"
+    );
+}

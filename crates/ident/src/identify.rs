@@ -21,6 +21,12 @@ use std::collections::BTreeMap;
 /// standard errors use every shot.
 pub const MAX_SHOT_FITS: usize = 1000;
 
+/// The most measurements (steps of stepped sweeps, mostly) one identification takes: its cost
+/// is linear in them, about 27 kB and 0.3 ms per one-line step with five samples (the 10,008-step
+/// bench: 267 MB, 2.3 s), so 50,000 steps hold about 1.4 GB. A larger dataset is refused before
+/// any work ([`IdentError::TooManyMeasurements`]), saying what to do.
+pub const MAX_MEASUREMENTS: usize = 50_000;
+
 /// The shots of `ds` fitted one by one (see [`MAX_SHOT_FITS`]): `None` when that is all of
 /// them, else the dataset of those shots and their indices (of a measurement with the most
 /// shots; a measurement with fewer keeps the nearest of its own).
@@ -59,6 +65,13 @@ fn shot_sample(ds: &Dataset) -> Option<(Dataset, Vec<usize>)> {
 /// a quarter of the ladders (at least one) miss (then the model does, and a note says so). See
 /// `docs/identification.md`.
 pub fn identify(model: &Model, ds: &Dataset, settings: &Settings) -> Result<Report, IdentError> {
+    if ds.measurements.len() > MAX_MEASUREMENTS {
+        return Err(IdentError::TooManyMeasurements {
+            file: ds.dir.join("dataset.toml").display().to_string(),
+            found: ds.measurements.len(),
+            limit: MAX_MEASUREMENTS,
+        });
+    }
     let mut report = identify_every_level(model, ds, settings)?;
     let levels: usize = ladders(ds).iter().map(|l| l.1.len()).sum();
     if levels == 0 {

@@ -69,7 +69,7 @@ pub use finalize::{
 };
 pub use forward::{ForwardError, ForwardModel, ForwardSettings, Widened};
 pub use holdout::{identify_with_holdout, HeldOut};
-pub use identify::{identify, LADDER_ALPHA, MAX_SHOT_FITS};
+pub use identify::{identify, LADDER_ALPHA, MAX_MEASUREMENTS, MAX_SHOT_FITS};
 pub use layout::{Quantity, Unknown, UnknownTable};
 pub use output_error::ml::{refine, MlFit, MlSettings};
 pub use problem::{

@@ -17,6 +17,20 @@ pub enum IdentError {
         help("identification needs every coefficient linear in the parameters (e.g. `g12`, `3/4*beta1 + g12`); fix the product of parameters in the model")
     )]
     NonAffine(#[from] harmonid_model::NonAffineTerm),
+    /// More measurements than an identification holds in memory.
+    #[error("{file}: {found} measurements, above the {limit} one identification takes: it holds about 27 kB per one-line step (10,000 steps take 270 MB and 3 s), so this dataset would need about {gb:.1} GB", gb = *found as f64 * 27e3 / 1e9)]
+    #[diagnostic(
+        code(harmonid::ident::too_many_measurements),
+        help("identify the sweeps of a few drive levels at a time (`--holdout` the others, or a dataset per level), or keep every n-th step of each sweep")
+    )]
+    TooManyMeasurements {
+        /// Manifest path.
+        file: String,
+        /// Its measurements.
+        found: usize,
+        /// [`crate::MAX_MEASUREMENTS`].
+        limit: usize,
+    },
     /// No nominal frequency for a mode.
     #[error("mode {mode} has no nominal resonance frequency: give it in the model (`mode {mode} at ... kHz`), in the dataset's [nominal_hz], or on the command line")]
     #[diagnostic(
