@@ -4,7 +4,7 @@
 use harmonid_ident::Settings;
 use harmonid_report::Source;
 use miette::{miette, IntoDiagnostic, WrapErr};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `harmonid report`.
 #[derive(Debug, clap::Args)]
@@ -37,6 +37,7 @@ pub fn run(args: Args) -> miette::Result<()> {
                     path.display()
                 )
             })?;
+            check_result_matches(path, &rep, &args.model, &model, &args.dataset, &ds)?;
             Source::Result(path.clone(), Box::new(rep))
         }
         None => Source::Identify(Settings::default()),
@@ -58,5 +59,63 @@ pub fn run(args: Args) -> miette::Result<()> {
         args.out.join("index.html").display(),
         page.figures.len()
     ));
+    Ok(())
+}
+
+/// A result of another model or dataset is refused, naming what differs: its modes and
+/// parameters must be the model's, and every measurement it fitted must be in the dataset
+/// (a report headlines the result's fit, shots and values as those of this model and data).
+fn check_result_matches(
+    path: &Path,
+    rep: &harmonid_ident::Report,
+    model_path: &Path,
+    model: &harmonid_model::Model,
+    dataset_path: &Path,
+    ds: &harmonid_data::Dataset,
+) -> miette::Result<()> {
+    let list = |names: Vec<&str>| {
+        let names = names.into_iter().map(str::to_string).collect();
+        harmonid_data::text::first_and_more(names, 8).join(", ")
+    };
+    let differs = |what: &str, theirs: Vec<&str>, ours: Vec<&str>, whose: &Path| {
+        miette!(
+            help = format!(
+                "{} was identified from {} and {}: report it with those, or identify this pair (harmonid identify {} {} --out r.json)",
+                path.display(),
+                rep.model,
+                rep.dataset,
+                model_path.display(),
+                dataset_path.display()
+            ),
+            "{} is a result of another {}: its {what} are {}; {} has {}",
+            path.display(),
+            if what == "measurements" { "dataset" } else { "model" },
+            list(theirs),
+            whose.display(),
+            list(ours)
+        )
+    };
+    let mut modes: Vec<&str> = rep.modes.keys().map(String::as_str).collect();
+    let mut ours = model.mode_names();
+    modes.sort_unstable();
+    ours.sort_unstable();
+    if modes != ours {
+        return Err(differs("modes", modes, ours, model_path));
+    }
+    let params: Vec<&str> = rep.parameters.keys().map(String::as_str).collect();
+    let mut ours = model.param_names();
+    ours.sort_unstable();
+    if params != ours {
+        return Err(differs("parameters", params, ours, model_path));
+    }
+    let measured: Vec<&str> = ds
+        .measurements
+        .iter()
+        .map(|m| m.spec.name.as_str())
+        .collect();
+    let fitted: Vec<&str> = rep.forces.keys().map(String::as_str).collect();
+    if fitted.iter().any(|f| !measured.contains(f)) {
+        return Err(differs("measurements", fitted, measured, dataset_path));
+    }
     Ok(())
 }

@@ -806,3 +806,50 @@ fn noise_study_refuses_noise_above_every_line() {
     );
     assert!(!out.exists());
 }
+
+#[test]
+fn report_refuses_a_result_of_another_model_or_dataset() {
+    // hostile 17: a three-mode model's result, reported against the two-mode data, headlined
+    // that result's fit, shots and values as the two-mode model's.
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let (model, data) = (example("model.hb"), example("data"));
+    let result = tmp.path().join("r.json");
+    let (ok, text) = run(&["identify", s(&model), s(&data), "--out", s(&result)]);
+    assert!(ok, "{text}");
+    let out = tmp.path().join("rep");
+    let report =
+        |m: &Path, r: &Path| run(&["report", s(m), s(&data), "--result", s(r), "--out", s(&out)]);
+
+    let three = root().join("examples/cubic_3mode/model.hb");
+    let (ok, text) = report(&three, &result);
+    assert!(!ok, "{text}");
+    assert!(
+        text.contains("is a result of another model: its modes are q1, q2;")
+            && text.contains("cubic_3mode/model.hb has q1, q2, q3")
+            && text.contains("harmonid identify"),
+        "{text}"
+    );
+    let renamed = tmp.path().join("renamed.hb");
+    let source = std::fs::read_to_string(&model).expect("read");
+    std::fs::write(&renamed, source.replace("g12", "g_12")).expect("write");
+    let (ok, text) = report(&renamed, &result);
+    assert!(!ok, "{text}");
+    assert!(
+        text.contains("its parameters are beta1, beta2, g12;")
+            && text.contains("renamed.hb has beta1, beta2, g_12"),
+        "{text}"
+    );
+    let json = std::fs::read_to_string(&result).expect("read");
+    let foreign = tmp.path().join("foreign.json");
+    std::fs::write(&foreign, json.replace("\"single_q1\"", "\"single_q3\"")).expect("write");
+    let (ok, text) = report(&model, &foreign);
+    assert!(!ok, "{text}");
+    assert!(
+        text.contains("is a result of another dataset: its measurements are couple_q1_q2, single_q2, single_q3;"),
+        "{text}"
+    );
+    assert!(!out.exists());
+    // Its own model and dataset: reported.
+    let (ok, text) = report(&model, &result);
+    assert!(ok && out.join("index.html").exists(), "{text}");
+}
