@@ -37,7 +37,8 @@ pub struct Args {
     /// The dataset folder to write.
     #[arg(long)]
     pub out: PathBuf,
-    /// Replace --out even if it is a non-empty folder that is not a harmonid dataset.
+    /// Replace --out even if it is a non-empty folder that is not a harmonid dataset (never a
+    /// folder holding a model, values, plan or result file, or an input of this run).
     #[arg(long)]
     pub force: bool,
     /// table: the mapping file (columns, conventions, settling; docs/data-format.md).

@@ -23,7 +23,7 @@ pub struct Args {
     #[arg(long)]
     pub out: PathBuf,
     /// Replace `--out` even when it is a non-empty folder that is not a harmonid dataset (never
-    /// a folder holding the model, values or plan).
+    /// a folder holding the model, values or plan, or any model, values, plan or result file).
     #[arg(long)]
     pub force: bool,
     /// Simulate in the time domain with lock-in demodulation instead of harmonic balance.

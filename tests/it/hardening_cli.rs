@@ -853,3 +853,58 @@ fn report_refuses_a_result_of_another_model_or_dataset() {
     let (ok, text) = report(&model, &result);
     assert!(ok && out.join("index.html").exists(), "{text}");
 }
+
+#[test]
+fn import_force_never_deletes_a_folder_holding_a_model_or_values() {
+    // `import --force` replaced any non-dataset folder: a folder holding the model and values
+    // of a study was deleted. The same guard as simulate's (harmonid_files::check_output_dir).
+    let table = lorentzian_table(0, None);
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let input = tmp.path().join("t.csv");
+    std::fs::write(&input, &table).expect("write");
+    let map = tmp.path().join("map.toml");
+    std::fs::write(&map, TABLE_MAP).expect("write");
+    let study = tmp.path().join("study");
+    std::fs::create_dir(&study).expect("mkdir");
+    std::fs::copy(example("model.hb"), study.join("model.hb")).expect("copy");
+    std::fs::copy(example("values.toml"), study.join("values.toml")).expect("copy");
+    let import = |out: &Path| {
+        run(&[
+            "import",
+            "table",
+            s(&input),
+            "--map",
+            s(&map),
+            "--out",
+            s(out),
+            "--force",
+        ])
+    };
+    let (ok, text) = import(&study);
+    assert!(!ok, "{text}");
+    assert!(
+        text.contains("even with --force")
+            && (text.contains("study/model.hb") || text.contains("study/values.toml")),
+        "{text}"
+    );
+    assert!(study.join("model.hb").exists() && study.join("values.toml").exists());
+    // simulate --force: the same refusal.
+    let (ok, text) = simulate(tmp.path(), &study, &["--force"]);
+    assert!(!ok && text.contains("even with --force"), "{text}");
+    // A folder of other files is still replaced when forced, and a dataset without --force.
+    let scratch = tmp.path().join("scratch");
+    std::fs::create_dir(&scratch).expect("mkdir");
+    std::fs::write(scratch.join("notes.txt"), "old").expect("write");
+    let (ok, text) = import(&scratch);
+    assert!(ok && scratch.join("dataset.toml").exists(), "{text}");
+    let (ok, text) = run(&[
+        "import",
+        "table",
+        s(&input),
+        "--map",
+        s(&map),
+        "--out",
+        s(&scratch),
+    ]);
+    assert!(ok, "{text}");
+}

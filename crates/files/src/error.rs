@@ -63,6 +63,21 @@ pub enum FileError {
         /// What made it not a dataset (e.g. "it holds thesis.tex").
         reason: String,
     },
+    /// The output folder holds a model, values, plan or result file: never replaced, even
+    /// with `--force` (that is someone's work, not a dataset harmonid wrote).
+    #[error("will not replace {path}, even with --force: it holds {file}, a harmonid model, values, plan or result file, not part of a dataset", path = path.display(), file = file.display())]
+    #[diagnostic(
+        code(harmonid::files::holds_work),
+        help(
+            "write the dataset to a new or empty folder, or move that file out of the folder first"
+        )
+    )]
+    HoldsWork {
+        /// The output folder.
+        path: PathBuf,
+        /// The file found in it.
+        file: PathBuf,
+    },
     /// A path of an input leads outside the folder it must stay in.
     #[error("{path} leads outside {dir} (through `..` or a symbolic link); it is not read", path = path.display(), dir = dir.display())]
     #[diagnostic(

@@ -193,15 +193,63 @@ pub fn check_output_dir(dir: &Path, opts: DirWrite<'_>) -> Result<(), FileError>
         .map_err(io_err(dir))?
         .next()
         .is_none();
-    if !empty && !opts.force {
+    if !empty {
         if let Err(reason) = is_dataset_dir(dir) {
-            return Err(FileError::NotADataset {
-                path: dir.to_path_buf(),
-                reason,
-            });
+            if !opts.force {
+                return Err(FileError::NotADataset {
+                    path: dir.to_path_buf(),
+                    reason,
+                });
+            }
+            if let Some(file) = work_file(dir) {
+                return Err(FileError::HoldsWork {
+                    path: dir.to_path_buf(),
+                    file,
+                });
+            }
         }
     }
     Ok(())
+}
+
+/// The first file under `dir` (symbolic links not followed; at most 100,000 entries looked
+/// at, and a folder too large to look through counts as holding work) that harmonid reads as
+/// someone's work: a model (`.hb`), values, plan or mapping (`.toml`, other than a dataset's
+/// own `dataset.toml` and `truth.toml` at the top beside a `dataset.toml`) or a result
+/// (`.json`).
+fn work_file(dir: &Path) -> Option<PathBuf> {
+    fn scan(dir: &Path, top: bool, budget: &mut usize) -> Option<PathBuf> {
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            return Some(dir.to_path_buf());
+        };
+        for entry in entries.flatten() {
+            *budget = budget.saturating_sub(1);
+            let path = entry.path();
+            if *budget == 0 {
+                return Some(path);
+            }
+            let Ok(t) = entry.file_type() else {
+                return Some(path);
+            };
+            let name = entry.file_name().to_string_lossy().to_lowercase();
+            if t.is_dir() {
+                if let Some(found) = scan(&path, false, budget) {
+                    return Some(found);
+                }
+                continue;
+            }
+            // A dataset's own manifest and truth (with its manifest beside them).
+            let own = top
+                && (name == "dataset.toml" || name == "truth.toml")
+                && dir.join("dataset.toml").is_file();
+            let work = [".hb", ".toml", ".json"].iter().any(|e| name.ends_with(e));
+            if work && !own {
+                return Some(path);
+            }
+        }
+        None
+    }
+    scan(dir, true, &mut 100_000)
 }
 
 /// Writes folder `dir` atomically: checks it with [`check_output_dir`], creates a staging
@@ -373,6 +421,29 @@ mod tests {
         };
         replace_dir(&thesis, opts, fill).expect("forced");
         assert!(!thesis.join("thesis.tex").exists());
+
+        // Even forced, a folder holding a model, values, plan or result is never replaced.
+        for work in [
+            "model.hb",
+            "values.toml",
+            "sub/plan.TOML",
+            "r.json",
+            "truth.toml",
+        ] {
+            let folder = root.path().join("work");
+            let file = folder.join(work);
+            std::fs::create_dir_all(file.parent().expect("parent")).expect("mkdir");
+            std::fs::write(folder.join("notes.txt"), "mine").expect("write");
+            std::fs::write(&file, "mine").expect("write");
+            let e = replace_dir(&folder, opts, fill).expect_err(work);
+            assert!(
+                matches!(&e, FileError::HoldsWork { file: f, .. } if f == &file),
+                "{work}: {e}"
+            );
+            assert!(e.to_string().contains("even with --force"), "{e}");
+            assert!(file.exists(), "{work}");
+            std::fs::remove_dir_all(&folder).expect("clean");
+        }
 
         // A failing fill leaves the old folder and no staging behind.
         let before: Vec<_> = std::fs::read_dir(root.path()).expect("ls").collect();
