@@ -613,7 +613,10 @@ fn sweep_name(part: &[Step], grouping: &Grouping, names: &mut Vec<String>) -> St
 /// phases when every step has a level.
 fn sweep_spec(part: &[Step], name: String) -> SweepSpec {
     let fs: Vec<f64> = part.iter().map(|s| s.drive).collect();
-    let direction = if fs.windows(2).all(|w| w[1] > w[0]) {
+    // One step has no direction (a sweep up or down needs two steps to follow a branch).
+    let direction = if fs.len() < 2 {
+        Direction::Unordered
+    } else if fs.windows(2).all(|w| w[1] > w[0]) {
         Direction::Up
     } else if fs.windows(2).all(|w| w[1] < w[0]) {
         Direction::Down
