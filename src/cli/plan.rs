@@ -157,7 +157,6 @@ pub fn run(args: Args) -> miette::Result<()> {
     if args.shots == 0 {
         return Err(miette!("--shots must be at least 1"));
     }
-    // Before any work: a million draws would allocate and simulate for days.
     harmonid_plan::check_draws(args.draws)?;
     let inputs: Vec<&std::path::Path> = [
         Some(&args.model),

@@ -89,23 +89,6 @@ impl Default for DesignSettings {
 /// Devices drawn from the guess's range for a plan's worst-case bounds, by default.
 pub const DEFAULT_DRAWS: usize = 10;
 
-/// The most devices a plan's bounds are drawn over: each draw simulates the whole plan on one
-/// device (10,000 draws are already hours of work), so more is refused before any work.
-pub const MAX_DRAWS: usize = 10_000;
-
-/// Refuses more than [`MAX_DRAWS`] draws, saying the bound and why.
-pub fn check_draws(draws: usize) -> Result<(), PlanError> {
-    if draws > MAX_DRAWS {
-        return Err(PlanError::Setting {
-            what: "the devices drawn from the range (--draws)",
-            found: draws.to_string(),
-            expected: "at most 10000: each draw simulates the whole plan on one device, and the \
-                       worst case of 100 draws is already well resolved",
-        });
-    }
-    Ok(())
-}
-
 /// The drive ladder `harmonid plan` gives every measurement of a design over a guess's range,
 /// by default: half, three quarters and all of the designed forces.
 pub const DEFAULT_LADDER: [f64; 3] = [0.5, 0.75, 1.0];
@@ -452,7 +435,7 @@ fn check_settings(s: &DesignSettings) -> Result<(), PlanError> {
         let found = s.max_frequencies.to_string();
         return Err(setting("the lines per measurement", found, "at least 2"));
     }
-    check_draws(s.draws)?;
+    crate::check_draws(s.draws)?;
     let rising = s.ladder.windows(2).all(|w| w[1] > w[0]);
     if !(rising
         && s.ladder.len() <= harmonid_experiment::MAX_LEVELS

@@ -270,7 +270,7 @@ pub fn robustness(
     shots: usize,
     draws: usize,
 ) -> Result<Robustness, PlanError> {
-    crate::design::check_draws(draws)?;
+    crate::check_draws(draws)?;
     let plan = with_levels(plan, &NumericModel::from_model(model, range.guess())?)?;
     // Each device is simulated apart (in parallel: the draws are independent and each costs
     // the whole plan's simulation), then gathered in draw order.

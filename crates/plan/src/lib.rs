@@ -21,8 +21,8 @@ mod range;
 mod terms;
 
 pub use design::{
-    check_draws, default_ladder, design, design_with_progress, DesignSettings, DesignStep,
-    DEFAULT_DRAWS, DEFAULT_LADDER, MAX_DRAWS,
+    default_ladder, design, design_with_progress, DesignSettings, DesignStep, DEFAULT_DRAWS,
+    DEFAULT_LADDER,
 };
 pub use evaluate::{evaluate, robustness, Evaluation, Finding, Robustness};
 pub use range::{
@@ -154,6 +154,23 @@ pub enum PlanError {
         /// What the linear algebra said.
         reason: String,
     },
+}
+
+/// The most devices a plan's bounds are drawn over: each draw simulates the whole plan on one
+/// device (10,000 draws are already hours of work), so more is refused before any work.
+pub const MAX_DRAWS: usize = 10_000;
+
+/// Refuses more than [`MAX_DRAWS`] draws, saying the bound and why.
+pub fn check_draws(draws: usize) -> Result<(), PlanError> {
+    if draws > MAX_DRAWS {
+        return Err(PlanError::Setting {
+            what: "the devices drawn from the range (--draws)",
+            found: draws.to_string(),
+            expected: "at most 10000: each draw simulates the whole plan on one device, and the \
+                       worst case of 100 draws is already well resolved",
+        });
+    }
+    Ok(())
 }
 
 impl From<ExperimentError> for PlanError {
