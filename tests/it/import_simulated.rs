@@ -330,3 +330,77 @@ fn zi_sweeper_from_a_simulated_sweep_with_its_noise() {
         assert_eq!(noise.samples[0], 4);
     }
 }
+
+/// Writes `csv` and `map` into `dir` and imports the table with the mapping.
+fn import_table(
+    dir: &Path,
+    csv: &str,
+    map: &str,
+) -> Result<Dataset, harmonid::data::import::ImportError> {
+    let p = dir.join("sweep.csv");
+    std::fs::write(&p, csv).expect("write");
+    let m = dir.join("map.toml");
+    std::fs::write(&m, map).expect("write map");
+    let mapping = table::Mapping::load(&m).expect("mapping");
+    table::import(&[p], &mapping, Path::new("out")).map(|(ds, _)| ds)
+}
+
+/// Rows `f,x,y[,level]` of a lab's sweep up then down at each level of `levels`, two samples a
+/// step.
+fn up_and_down(levels: &[f64], with_level: bool) -> String {
+    let mut s = String::from(if with_level {
+        "f,x,y,level\n"
+    } else {
+        "f,x,y\n"
+    });
+    for &l in levels {
+        for f in [100.0, 101.0, 102.0, 103.0, 102.0, 101.0, 100.0] {
+            for _ in 0..2 {
+                let _ = write!(s, "{f:?},{:e},{:e}", 1e-3 * l, -2e-3 * l);
+                let _ = if with_level {
+                    writeln!(s, ",{l:?}")
+                } else {
+                    writeln!(s)
+                };
+            }
+        }
+    }
+    s
+}
+
+const XY_MAP: &str = r#"[columns]
+freq_hz = "f"
+x = "x"
+y = "y"
+[conventions]
+amplitude = "peak"
+quadrature = "x+iy"
+displacement_unit = "V"
+"#;
+
+#[test]
+fn table_sweep_up_and_down_per_level_is_an_up_and_a_down_sweep() {
+    use harmonid::data::Direction;
+    let dir = tempfile::tempdir().expect("tempdir");
+    let map = XY_MAP.replace("y = \"y\"\n", "y = \"y\"\ndrive_level = \"level\"\n");
+    let ds = import_table(dir.path(), &up_and_down(&[0.1, 0.2], true), &map).expect("import");
+    let got: Vec<(&str, Direction, usize)> = ds
+        .manifest
+        .sweeps
+        .iter()
+        .map(|s| (s.name.as_str(), s.direction, s.drives_hz.len()))
+        .collect();
+    assert_eq!(
+        got,
+        [
+            ("level_0.1_up", Direction::Up, 4),
+            ("level_0.1_down", Direction::Down, 3),
+            ("level_0.2_up", Direction::Up, 4),
+            ("level_0.2_down", Direction::Down, 3),
+        ]
+    );
+    // One step stays unordered (a direction needs two steps).
+    let one = "f,x,y\n100.0,1e-3,2e-3\n100.0,1e-3,2e-3\n";
+    let ds = import_table(dir.path(), one, XY_MAP).expect("import one step");
+    assert_eq!(ds.manifest.sweeps[0].direction, Direction::Unordered);
+}

@@ -573,7 +573,7 @@ fn drop_settling(steps: &mut [Step], settle: Settle) -> Result<(usize, usize), I
 }
 
 /// The sweeps as `[start, end)` ranges of steps: a new one at each group change, and at each
-/// level change when `grouping` asks.
+/// level change when `grouping` asks (then [`split_turns`] cuts one that turns back).
 fn cut_sweeps(steps: &[Step], grouping: &Grouping) -> Vec<(usize, usize)> {
     let mut sweeps: Vec<(usize, usize)> = Vec::new();
     let mut start = 0;
@@ -589,16 +589,67 @@ fn cut_sweeps(steps: &[Step], grouping: &Grouping) -> Vec<(usize, usize)> {
     sweeps
 }
 
-/// The name of the sweep of steps `part`: its group's name, else its drive level, with
-/// `_2`, `_3`, ... appended when `names` (the sweeps named so far) already has it.
-fn sweep_name(part: &[Step], grouping: &Grouping, names: &mut Vec<String>) -> String {
+/// A cut sweep: its `[start, end)` range of steps and the suffix of its name (`_up`, `_down`
+/// for the two legs of a sweep that turns back; empty otherwise).
+type Cut = (usize, usize, &'static str);
+
+/// Where the drives `fs` turn back: `Some(k)` when `fs[..k]` runs strictly one way (up or
+/// down) and `fs[k..]` strictly the other, each leg of two steps or more (the turning point
+/// may be repeated at the start of the second leg); `None` for a sweep one way, of one step, or
+/// in any other order.
+fn turning_point(fs: &[f64]) -> Option<usize> {
+    if fs.len() < 4 {
+        return None;
+    }
+    let dir = (fs[1] - fs[0]).signum();
+    if dir == 0.0 {
+        return None;
+    }
+    let k = 1 + fs
+        .windows(2)
+        .take_while(|w| (w[1] - w[0]).signum() == dir)
+        .count();
+    if k == fs.len() {
+        return None;
+    }
+    let back = &fs[k..];
+    let turns =
+        (fs[k] - fs[k - 1]) * dir <= 0.0 && back.windows(2).all(|w| (w[1] - w[0]).signum() == -dir);
+    (k >= 2 && back.len() >= 2 && turns).then_some(k)
+}
+
+/// The sweeps `sweeps`, each that turns back (a lab's up-and-down sweep per level) cut into
+/// its two legs, named with `_up` and `_down`.
+fn split_turns(steps: &[Step], sweeps: &[(usize, usize)]) -> Vec<Cut> {
+    let mut cuts = Vec::new();
+    for &(a, b) in sweeps {
+        let fs: Vec<f64> = steps[a..b].iter().map(|s| s.drive).collect();
+        match turning_point(&fs) {
+            Some(k) => {
+                let (first, second) = if fs[1] > fs[0] {
+                    ("_up", "_down")
+                } else {
+                    ("_down", "_up")
+                };
+                cuts.push((a, a + k, first));
+                cuts.push((a + k, b, second));
+            }
+            None => cuts.push((a, b, "")),
+        }
+    }
+    cuts
+}
+
+/// The name of the sweep of steps `part`: its group's name, else its drive level, then
+/// `suffix`, with `_2`, `_3`, ... appended when `names` (the sweeps named so far) already has it.
+fn sweep_name(part: &[Step], grouping: &Grouping, suffix: &str, names: &mut Vec<String>) -> String {
     let base = match grouping.group_names.get(part[0].group) {
         Some(n) if !grouping.split_on_level => n.clone(),
         _ => format!(
             "level_{}",
             part[0].level.map_or("none".into(), |l| format!("{l}"))
         ),
-    };
+    } + suffix;
     let mut name = base.clone();
     let mut i = 2;
     while names.contains(&name) {
@@ -638,15 +689,15 @@ fn sweep_spec(part: &[Step], name: String) -> SweepSpec {
 fn sweeps_and_measurements(
     manifest: &mut Manifest,
     steps: &[Step],
-    sweeps: &[(usize, usize)],
+    sweeps: &[Cut],
     grouping: &Grouping,
     inputs: &[PathBuf],
 ) -> Result<Vec<Measurement>, ImportError> {
     let mut measurements = Vec::new();
     let mut names: Vec<String> = Vec::new();
-    for &(a, b) in sweeps {
+    for &(a, b, suffix) in sweeps {
         let part = &steps[a..b];
-        let name = sweep_name(part, grouping, &mut names);
+        let name = sweep_name(part, grouping, suffix, &mut names);
         let sw = sweep_spec(part, name);
         for (k, s) in part.iter().enumerate() {
             measurements.push(s.measurement(sw.step_spec(k), inputs)?);
@@ -685,7 +736,7 @@ pub fn build(
     check_settle_s(settle)?;
     let mut steps = collect_steps(records, conv, settle, inputs)?;
     let (read, kept) = drop_settling(&mut steps, settle)?;
-    let sweeps = cut_sweeps(&steps, grouping);
+    let sweeps = split_turns(&steps, &cut_sweeps(&steps, grouping));
     let mut manifest = Manifest::new(format!("imported by harmonid import {format}"));
     manifest.displacement_unit = conv.displacement_unit.clone();
     let measurements = sweeps_and_measurements(&mut manifest, &steps, &sweeps, grouping, inputs)?;
