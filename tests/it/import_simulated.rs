@@ -404,3 +404,17 @@ fn table_sweep_up_and_down_per_level_is_an_up_and_a_down_sweep() {
     let ds = import_table(dir.path(), one, XY_MAP).expect("import one step");
     assert_eq!(ds.manifest.sweeps[0].direction, Direction::Unordered);
 }
+
+#[test]
+fn table_without_a_level_column_refuses_levels_merged_into_one_sweep() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // Two levels up and down, the level column not mapped: one sweep that comes back twice.
+    let err = import_table(dir.path(), &up_and_down(&[0.1, 0.2], true), XY_MAP)
+        .expect_err("levels merged")
+        .to_string();
+    assert!(err.contains("[columns] drive_level"), "{err}");
+    assert!(err.contains("several drive levels merged"), "{err}");
+    // One level up and down without a level column is two sweeps, not a refusal.
+    let ds = import_table(dir.path(), &up_and_down(&[0.1], false), XY_MAP).expect("one level");
+    assert_eq!(ds.manifest.sweeps.len(), 2);
+}

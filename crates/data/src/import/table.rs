@@ -374,7 +374,7 @@ pub fn import(
             names
         },
     };
-    build(
+    let (ds, note) = build(
         "table",
         inputs,
         records,
@@ -382,7 +382,37 @@ pub fn import(
         mapping.settle,
         &grouping,
         out,
-    )
+    )?;
+    if c.drive_level.is_none() {
+        refuse_merged_levels(&ds, inputs)?;
+    }
+    Ok((ds, note))
+}
+
+/// Without a drive level column, a sweep that comes back to a drive frequency (after a sweep
+/// that turns back was cut in two) holds several drive levels merged: an error naming the
+/// sweep, the frequency, and the mapping key to add.
+fn refuse_merged_levels(ds: &Dataset, inputs: &[PathBuf]) -> Result<(), ImportError> {
+    for sw in &ds.manifest.sweeps {
+        let fs: Vec<f64> = sw.drives_hz.iter().map(|d| d[0]).collect();
+        for (k, &f) in fs.iter().enumerate() {
+            let Some(j) = fs[..k].iter().position(|&g| super::same(f, g)) else {
+                continue;
+            };
+            return Err(ImportError::Input {
+                path: inputs.first().cloned().unwrap_or_default(),
+                row: None,
+                message: format!(
+                    "sweep \"{}\" comes back to {} Hz (steps {} and {}) and the mapping has no drive level column: several drive levels merged into one sweep? Map the level column in the mapping, [columns] drive_level = \"<its header>\" (or label the sweeps: [columns] sweep = \"<column>\")",
+                    sw.name,
+                    harmonid_files::number(f),
+                    j + 1,
+                    k + 1
+                ),
+            });
+        }
+    }
+    Ok(())
 }
 
 /// A name usable as a sweep name and file stem: letters, digits, `-`, `_` and `.` kept.
