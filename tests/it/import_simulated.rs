@@ -418,3 +418,25 @@ fn table_without_a_level_column_refuses_levels_merged_into_one_sweep() {
     let ds = import_table(dir.path(), &up_and_down(&[0.1], false), XY_MAP).expect("one level");
     assert_eq!(ds.manifest.sweeps.len(), 2);
 }
+
+#[test]
+fn table_sweep_column_of_text_labels_names_the_sweeps() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut s = String::from("f,x,y,run\n");
+    for (run, fs) in [
+        ("s00", [100.0, 101.0, 102.0]),
+        ("s01", [102.0, 101.0, 100.0]),
+    ] {
+        for f in fs {
+            let _ = writeln!(s, "{f:?},1e-3,-2e-3,{run}");
+        }
+    }
+    let map = XY_MAP.replace("y = \"y\"\n", "y = \"y\"\nsweep = \"run\"\n");
+    let ds = import_table(dir.path(), &s, &map).expect("text labels");
+    let names: Vec<&str> = ds.manifest.sweeps.iter().map(|s| s.name.as_str()).collect();
+    assert_eq!(names, ["s00", "s01"]);
+    // Numeric labels keep their names (sweep_1).
+    let ds = import_table(dir.path(), &s.replace("s00", "1").replace("s01", "2"), &map)
+        .expect("numeric labels");
+    assert_eq!(ds.manifest.sweeps[0].name, "sweep_1");
+}

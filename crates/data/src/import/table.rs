@@ -234,8 +234,11 @@ fn check_phase_range(
 struct Group {
     /// The group's name (empty: the input file's stem).
     name: String,
-    /// The values of every wanted column.
+    /// The values of every wanted column but the sweep labels.
     cols: BTreeMap<String, Vec<f64>>,
+    /// The sweep label of each row, as written (text or a number), when a sweep column is
+    /// mapped.
+    labels: Option<Vec<String>>,
     /// The 1-based line of each value in a text file (comment and blank lines counted), for
     /// messages; `None` for a MATLAB file.
     rows: Option<Vec<usize>>,
@@ -268,15 +271,20 @@ pub fn import(
     let unit = mapping.conventions.phase_unit;
     let mut records = Vec::new();
     let mut names = Vec::new();
-    let mut sweep_labels: Vec<u64> = Vec::new();
+    let mut sweep_labels: Vec<String> = Vec::new();
     for (fi, path) in inputs.iter().enumerate() {
         let groups = if path
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("mat"))
         {
-            read_mat(path, &wanted)?
+            read_mat(path, &wanted, c.sweep.as_deref())?
         } else {
-            read_text(path, &wanted, mapping.delimiter.as_deref())?
+            read_text(
+                path,
+                &wanted,
+                mapping.delimiter.as_deref(),
+                c.sweep.as_deref(),
+            )?
         };
         let file_name = path
             .file_name()
@@ -286,6 +294,7 @@ pub fn import(
         for Group {
             name: gname,
             cols,
+            labels,
             rows,
         } in groups
         {
@@ -330,13 +339,13 @@ pub fn import(
                     }
                     _ => Complex64::new(f64::NAN, f64::NAN),
                 };
-                let group = match get(&c.sweep) {
+                let group = match &labels {
                     Some(s) => {
-                        let label = s[i].to_bits();
-                        match sweep_labels.iter().position(|&l| l == label) {
+                        let name = sweep_label_name(&s[i]);
+                        match sweep_labels.iter().position(|l| *l == name) {
                             Some(p) => p,
                             None => {
-                                sweep_labels.push(label);
+                                sweep_labels.push(name);
                                 sweep_labels.len() - 1
                             }
                         }
@@ -367,9 +376,6 @@ pub fn import(
         split_on_level: c.sweep.is_none() && names.len() == 1,
         group_names: if c.sweep.is_some() {
             sweep_labels
-                .iter()
-                .map(|l| format!("sweep_{}", f64::from_bits(*l)))
-                .collect()
         } else {
             names
         },
@@ -415,6 +421,15 @@ fn refuse_merged_levels(ds: &Dataset, inputs: &[PathBuf]) -> Result<(), ImportEr
     Ok(())
 }
 
+/// The sweep name of a sweep column's label: `sweep_<n>` for a number (`1` and `1.0` are one
+/// sweep, `sweep_1`), the label itself, sanitized, for text (`s00`).
+fn sweep_label_name(label: &str) -> String {
+    match label.trim().parse::<f64>() {
+        Ok(v) => format!("sweep_{v}"),
+        Err(_) => sanitize(label.trim()),
+    }
+}
+
 /// A name usable as a sweep name and file stem: letters, digits, `-`, `_` and `.` kept.
 fn sanitize(name: &str) -> String {
     name.chars()
@@ -428,7 +443,9 @@ fn sanitize(name: &str) -> String {
         .collect()
 }
 
-fn read_mat(path: &Path, wanted: &[&String]) -> Result<Groups, ImportError> {
+/// The groups of a MATLAB file: every wanted column read as numbers, the sweep column's
+/// numbers then also kept as its labels.
+fn read_mat(path: &Path, wanted: &[&String], sweep: Option<&str>) -> Result<Groups, ImportError> {
     let file = mat::load(path)?;
     let mut groups: Groups = Vec::new();
     for key in wanted {
@@ -450,6 +467,7 @@ fn read_mat(path: &Path, wanted: &[&String]) -> Result<Groups, ImportError> {
                     Group {
                         name,
                         cols: BTreeMap::new(),
+                        labels: None,
                         rows: None,
                     }
                 })
@@ -475,13 +493,22 @@ fn read_mat(path: &Path, wanted: &[&String]) -> Result<Groups, ImportError> {
             g.cols.insert((*key).clone(), v);
         }
     }
+    if let Some(key) = sweep {
+        for g in &mut groups {
+            let v = g.cols.get(key).cloned().unwrap_or_default();
+            g.labels = Some(v.iter().map(|x| format!("{x}")).collect());
+        }
+    }
     Ok(groups)
 }
 
+/// The one group of a text table: every wanted column read as numbers but the sweep column
+/// (`sweep`), kept as written (`s00`, `1`); an empty label is refused with its row.
 fn read_text(
     path: &Path,
     wanted: &[&String],
     delimiter: Option<&str>,
+    sweep: Option<&str>,
 ) -> Result<Groups, ImportError> {
     let text = read_input(path)?;
     let bad = |row: Option<usize>, message: String| ImportError::Input {
@@ -529,8 +556,12 @@ fn read_text(
         })?;
         idx.push(((*key).clone(), i));
     }
-    let mut cols: BTreeMap<String, Vec<f64>> =
-        idx.iter().map(|(k, _)| (k.clone(), Vec::new())).collect();
+    let mut cols: BTreeMap<String, Vec<f64>> = idx
+        .iter()
+        .filter(|(k, _)| Some(k.as_str()) != sweep)
+        .map(|(k, _)| (k.clone(), Vec::new()))
+        .collect();
+    let mut labels = sweep.map(|_| Vec::new());
     let mut rows = Vec::new();
     for (n, line) in lines {
         let t = line.trim_start();
@@ -549,6 +580,16 @@ fn read_text(
                     ),
                 )
             })?;
+            if let (Some(l), true) = (labels.as_mut(), Some(key.as_str()) == sweep) {
+                if cell.is_empty() {
+                    return Err(bad(
+                        Some(n + 1),
+                        format!("column \"{key}\": empty sweep label"),
+                    ));
+                }
+                l.push(cell.clone());
+                continue;
+            }
             let v: f64 = cell.parse().map_err(|_| {
                 bad(
                     Some(n + 1),
@@ -562,6 +603,7 @@ fn read_text(
     Ok(vec![Group {
         name: String::new(),
         cols,
+        labels,
         rows: Some(rows),
     }])
 }
