@@ -20,6 +20,8 @@ enum Command {
     Mix(cli::mix::Args),
     /// Import instrument files (lock-in exports, tables, MATLAB files) into a dataset folder.
     Import(cli::import::Args),
+    /// Pool datasets of one device (rounds of the lab loop) into one dataset folder.
+    Merge(cli::merge::Args),
     /// Identify the model's coefficients from a measured dataset.
     Identify(cli::identify::Args),
     /// Fit one dataset by several models: which one the data support, and does it fit?
@@ -44,6 +46,7 @@ fn main() -> miette::Result<()> {
         Command::Check(args) => cli::check::run(args),
         Command::Mix(args) => cli::mix::run(args),
         Command::Import(args) => cli::import::run(args),
+        Command::Merge(args) => cli::merge::run(args),
         Command::Identify(args) => cli::identify::run(args),
         Command::Compare(args) => cli::compare::run(args),
         Command::Discover(args) => cli::discover::run(args),

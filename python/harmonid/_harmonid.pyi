@@ -50,6 +50,15 @@ class Dataset:
         description: str = "",
         sweeps: Optional[Sequence[Mapping[str, Any]]] = None,
     ) -> Dataset: ...
+    @staticmethod
+    def merge(datasets: Sequence[Dataset]) -> Dataset:
+        """Pools datasets of one device into one (in memory; write it with `to_folder`).
+
+        They must agree on displacement_unit, points and shapes, nominal_hz and import
+        conventions (else `DatasetError` naming the file, key and both values). A name in several
+        datasets becomes `<folder>_<name>` in each; sweeps keep their steps; `truth` is kept only
+        when identical in all; `notes` says what was renamed or dropped.
+        """
     def to_folder(self, path: _Path) -> None: ...
     @property
     def path(self) -> str: ...

@@ -338,6 +338,25 @@ impl Dataset {
         Ok(Dataset::wrap(ds))
     }
 
+    /// Pools datasets of one device (the rounds of the lab loop) into one, in memory.
+    ///
+    /// The datasets must agree on `displacement_unit`, the points and their mode shapes,
+    /// `nominal_hz` and the import conventions; the first disagreement raises `DatasetError`
+    /// naming the file, the key and both values. A measurement or sweep name found in several
+    /// datasets is renamed `<folder>_<name>` in each (the folder the dataset was read from;
+    /// `ds<i>`, 1-based, for one built from arrays); sweeps keep their steps. `truth` is kept
+    /// only when identical in all; `notes` says what was renamed or dropped. Write the result
+    /// with `to_folder` (as `harmonid merge DS... --out DIR` does).
+    #[staticmethod]
+    fn merge(py: Python<'_>, datasets: Vec<PyRef<'_, Dataset>>) -> PyResult<Self> {
+        let inputs: Vec<harmonid_data::Dataset> =
+            datasets.iter().map(|d| (*d.inner).clone()).collect();
+        let ds = py
+            .detach(|| harmonid_data::Dataset::merge(&inputs))
+            .map_err(|e| dataset_error(&e))?;
+        Ok(Dataset::wrap(ds))
+    }
+
     /// Writes the dataset folder (replacing `path` if it exists; written atomically).
     fn to_folder(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         let ds = Arc::clone(&self.inner);

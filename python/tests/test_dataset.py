@@ -139,3 +139,30 @@ def test_a_pump_travels_with_its_measurement(tmp_path):
     arrs["single_q1"].pop("pump_levels")
     with pytest.raises(harmonid.DatasetError, match="pump_levels"):
         harmonid.Dataset.from_arrays(arrs, points=pts, displacement_unit="nm")
+
+
+def test_merge_pools_two_rounds_and_refuses_another_unit(tmp_path):
+    import shutil
+
+    shutil.copytree(REPO / DATA_2, tmp_path / "round2")
+    one = harmonid.Dataset.from_folder(DATA_2)
+    two = harmonid.Dataset.from_folder(tmp_path / "round2")
+    merged = harmonid.Dataset.merge([one, two])
+    assert len(merged.measurements) == 2 * len(one.measurements)
+    assert "data_single_q1" in merged.measurements
+    assert "round2_couple_q1_q2" in merged.measurements
+    assert merged.truth is not None
+    assert "round2_single_q2" in merged.truth["forces"]
+    assert any("round2_single_q1" in n for n in merged.notes)
+    merged.to_folder(tmp_path / "merged")
+    back = harmonid.Dataset.from_folder(tmp_path / "merged")
+    assert back.measurements == merged.measurements
+    m = one.measurement("single_q1")
+    nm = harmonid.Dataset.from_arrays(
+        {"x": {k: m[k] for k in ("drives_hz", "freqs_hz")} | {"amplitudes": m["amplitudes"][:, :, 0] * 1e9}},
+        displacement_unit="nm",
+        points={"p0": one.manifest["point"][0]["shape"]},
+        nominal_hz=one.manifest["nominal_hz"],
+    )
+    with pytest.raises(harmonid.DatasetError, match="displacement_unit"):
+        harmonid.Dataset.merge([one, nm])

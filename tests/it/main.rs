@@ -19,6 +19,7 @@ mod identify_consistency;
 mod identify_shared;
 mod import_simulated;
 mod long_record;
+mod merge_cli;
 mod mix_cli;
 mod model_broken;
 mod model_docs;

@@ -122,6 +122,42 @@ pub enum DatasetError {
         /// Closest measured frequency, Hz.
         nearest_hz: f64,
     },
+    /// Datasets to merge disagree on a key that says what their numbers mean.
+    #[error(
+        "{path}: {key} is {found}, but {first} has {expected}; datasets merged must agree on it"
+    )]
+    #[diagnostic(
+        code(harmonid::dataset::merge_mismatch),
+        help("merge pools datasets of one device taken with the same conventions, unit, points and nominal frequencies (docs/data-format.md, \"Merging datasets\"); convert or re-import the odd one")
+    )]
+    MergeMismatch {
+        /// Manifest of the input that differs.
+        path: PathBuf,
+        /// The key (`displacement_unit`, `point "p0" shape.q1`, `nominal_hz.q2`, ...).
+        key: String,
+        /// Its value there.
+        found: String,
+        /// Manifest of the first input.
+        first: PathBuf,
+        /// Its value in the first input.
+        expected: String,
+    },
+    /// A name in two inputs whose folders have the same name too: renaming cannot part them.
+    #[error("measurement or sweep \"{name}\" is in {first} and in {second}, and both would be renamed \"{renamed}\"")]
+    #[diagnostic(
+        code(harmonid::dataset::merge_name_clash),
+        help("a name in several inputs is prefixed by its folder's name; give the input folders different names (e.g. round1, round2)")
+    )]
+    MergeNameClash {
+        /// The name found in both.
+        name: String,
+        /// The prefixed name both would get.
+        renamed: String,
+        /// Manifest of one input.
+        first: PathBuf,
+        /// Manifest of the other.
+        second: PathBuf,
+    },
     /// An output folder that may not be replaced, or an input path outside the dataset folder.
     #[error(transparent)]
     #[diagnostic(transparent)]
@@ -810,6 +846,9 @@ fn entries_from(
 }
 
 mod csv_read;
+mod merge;
+#[cfg(test)]
+mod merge_tests;
 mod parts;
 mod sweep;
 #[cfg(test)]

@@ -1,0 +1,96 @@
+//! [`Dataset::merge`]: sweeps keep their steps under prefixed names, truth is kept only when
+//! identical, a name clash the folders cannot part is refused.
+
+use super::*;
+
+const MANIFEST: &str = r#"
+format = "harmonid-dataset/1"
+displacement_unit = "nm"
+[nominal_hz]
+q1 = 100.0
+[[measurement]]
+name = "single"
+drives_hz = [100.0]
+[[sweep]]
+name = "up"
+direction = "up"
+drives_hz = [[100.0], [101.0], [102.0]]
+"#;
+
+fn csv(file: &str) -> String {
+    if file.starts_with("up") {
+        let mut s = String::from("step,shot,freq_hz,re,im\n");
+        for k in 0..3 {
+            s.push_str(&format!("{k},0,{},{k},1\n", 100 + k));
+        }
+        s
+    } else {
+        "shot,freq_hz,re,im\n0,100.0,1,2\n".to_string()
+    }
+}
+
+fn load(dir: &str, manifest: &str) -> Dataset {
+    Dataset::from_readers(Path::new(dir), manifest, None, |f| {
+        Ok(std::io::Cursor::new(csv(f)))
+    })
+    .expect("dataset")
+}
+
+#[test]
+fn sweeps_keep_their_steps_under_the_folder_prefix() {
+    let mut a = load("lab/r1", MANIFEST);
+    let b = load("lab/r2", MANIFEST);
+    a.truth = Some(Truth::default());
+    let m = Dataset::merge(&[a, b]).expect("merge");
+    let names: Vec<&str> = m
+        .measurements
+        .iter()
+        .map(|m| m.spec.name.as_str())
+        .collect();
+    assert_eq!(
+        names,
+        [
+            "r1_single",
+            "r1_up[0]",
+            "r1_up[1]",
+            "r1_up[2]",
+            "r2_single",
+            "r2_up[0]",
+            "r2_up[1]",
+            "r2_up[2]"
+        ]
+    );
+    assert!(m.truth.is_none());
+    assert!(
+        m.notes.iter().any(|n| n.contains("truth.toml dropped")),
+        "{:?}",
+        m.notes
+    );
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("merged");
+    m.write(&out).expect("write");
+    let back = Dataset::load(&out).expect("read back");
+    assert_eq!(back.manifest.sweeps.len(), 2);
+    assert_eq!(back.measurements.len(), 8);
+    assert_eq!(
+        back.measurement("r2_up[2]").expect("step").data,
+        m.measurements[7].data
+    );
+}
+
+#[test]
+fn disagreements_and_unpartable_names_are_refused() {
+    let a = load("a/r", MANIFEST);
+    let err = Dataset::merge(&[a.clone(), load("b/r", MANIFEST)]).expect_err("clash");
+    assert!(
+        matches!(err, DatasetError::MergeNameClash { ref renamed, .. } if renamed == "r_single"),
+        "{err}"
+    );
+    let other = MANIFEST.replace("q1 = 100.0", "q1 = 100.5");
+    let err = Dataset::merge(&[a, load("b/s", &other)]).expect_err("nominal");
+    let text = err.to_string();
+    assert!(
+        text.contains("nominal_hz.q1") && text.contains("100.5") && text.contains("b/s"),
+        "{text}"
+    );
+}
