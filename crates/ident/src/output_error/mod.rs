@@ -253,10 +253,9 @@ pub(crate) fn fit(
         goodness.fits = None;
         goodness.error_floor = floor;
     }
-    let consistency = compare_measurements(fwd, &fit, &meas, &noise, &cols, &pooled.mean);
-    notes.extend(consistency::too_many_units(&consistency::units(
-        &pooled.mean,
-    )));
+    let (consistency, skipped) =
+        compare_measurements(fwd, &fit, &meas, &noise, &cols, &pooled.mean);
+    notes.extend(skipped);
     if !fit.converged {
         notes.push(format!(
             "the output-error fit stopped after {} steps before converging (χ² {:.4e} from {:.4e})",
@@ -616,7 +615,8 @@ impl Tries<'_> {
 }
 
 /// Every frequency, Q and gain compared between the measurements that see it
-/// ([`consistency::compare`]), with the noise the fit used.
+/// ([`consistency::compare`]), with the noise the fit used, and the note when the dataset has
+/// too many units to compare ([`consistency::too_many_units`]).
 fn compare_measurements(
     fwd: &ForwardModel,
     fit: &MlFit,
@@ -624,7 +624,7 @@ fn compare_measurements(
     noise: &Noise,
     cols: &[usize],
     mean: &Dataset,
-) -> Vec<consistency::Comparison> {
+) -> (Vec<consistency::Comparison>, Option<String>) {
     let kept: Vec<usize> = cols
         .iter()
         .copied()
@@ -640,7 +640,7 @@ fn compare_measurements(
         .map(|m| m.spec.name.clone())
         .collect();
     let units = consistency::units(mean);
-    consistency::compare(&consistency::Fitted {
+    let comparisons = consistency::compare(&consistency::Fitted {
         fwd,
         theta: &fit.theta,
         meas,
@@ -651,5 +651,6 @@ fn compare_measurements(
         dof: fit.dof,
         names: &names,
         units: &units,
-    })
+    });
+    (comparisons, consistency::too_many_units(&units))
 }
