@@ -2,9 +2,15 @@
 //! measure, identify, plan again, measure again) become one dataset to identify from.
 //!
 //! The inputs must agree on everything that says what a number means: `format`,
-//! `displacement_unit`, the points and their mode shapes, `nominal_hz`, and the import
-//! conventions (`[import].conventions`, or none in every input). The first disagreement is a
-//! [`DatasetError::MergeMismatch`] naming the file, the key and both values.
+//! `displacement_unit`, the points and their mode shapes, the modes of `nominal_hz`, and the
+//! import conventions (`[import].conventions`, or none in every input). The first disagreement
+//! is a [`DatasetError::MergeMismatch`] naming the file, the key and both values.
+//!
+//! Nominal frequencies are guesses that each round of the lab loop refines (a plan writes its
+//! guess into the dataset it makes), so their values may differ: the merged dataset keeps the
+//! last input's (the latest round's), provided every measured line and drive tone of every input
+//! belongs to the same mode under them as under its own (the spectrally closest nominal
+//! resonance); otherwise [`DatasetError::MergeAttribution`] names the line.
 //!
 //! Names: a measurement or sweep name found in more than one input is renamed, in every input
 //! holding it, to `<folder>_<name>` where `<folder>` is the name of the input's folder (`ds<i>`,
@@ -88,8 +94,8 @@ fn compared_keys(m: &Manifest) -> Vec<(String, Option<String>)> {
     v
 }
 
-/// The numbers compared within [`FREQ_REL_TOL`]: each point's shape value, each nominal
-/// frequency (the names were compared first, so the lists line up).
+/// The numbers compared within [`FREQ_REL_TOL`]: each point's shape value (the names were
+/// compared first, so the lists line up).
 fn compared_numbers(m: &Manifest) -> Vec<(String, f64)> {
     let mut v = Vec::new();
     for p in &m.points {
@@ -97,10 +103,70 @@ fn compared_numbers(m: &Manifest) -> Vec<(String, f64)> {
             v.push((format!("point \"{}\" shape.{mode}", p.name), x));
         }
     }
-    for (mode, &f) in &m.nominal_hz {
-        v.push((format!("nominal_hz.{mode}"), f));
-    }
     v
+}
+
+/// The mode whose nominal resonance is spectrally closest to `hz` (the first of equally close
+/// ones: the identification's rule, `harmonid_spectral::nearest_of`).
+fn nearest<'a>(nominal_hz: &'a BTreeMap<String, f64>, hz: f64) -> Option<&'a str> {
+    nominal_hz
+        .iter()
+        .min_by(|a, b| (hz - a.1).abs().total_cmp(&(hz - b.1).abs()))
+        .map(|(m, _)| m.as_str())
+}
+
+/// The merged dataset's nominal frequencies: the last input's, once every line and drive tone
+/// of every input is checked to keep its mode under them; a note when the inputs differ.
+fn merged_nominal(
+    inputs: &[Dataset],
+    notes: &mut Vec<String>,
+) -> Result<BTreeMap<String, f64>, DatasetError> {
+    let Some(last) = inputs.last() else {
+        return Ok(BTreeMap::new());
+    };
+    let merged = last.manifest.nominal_hz.clone();
+    let differ = inputs.iter().any(|d| {
+        d.manifest
+            .nominal_hz
+            .iter()
+            .zip(&merged)
+            .any(|((_, a), (_, b))| !close(*a, *b))
+    });
+    if !differ {
+        return Ok(merged);
+    }
+    for ds in inputs {
+        let own = &ds.manifest.nominal_hz;
+        for m in &ds.measurements {
+            for &hz in m.freqs_hz.iter().chain(&m.spec.drives_hz) {
+                let (a, b) = (nearest(own, hz), nearest(&merged, hz));
+                if a != b {
+                    return Err(DatasetError::MergeAttribution {
+                        path: manifest_path(ds),
+                        measurement: m.spec.name.clone(),
+                        hz,
+                        own: a.unwrap_or_default().to_string(),
+                        merged: b.unwrap_or_default().to_string(),
+                        last: manifest_path(last),
+                    });
+                }
+            }
+        }
+    }
+    let shown = |ds: &Dataset| {
+        ds.manifest
+            .nominal_hz
+            .iter()
+            .map(|(m, f)| format!("{m} = {f}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    notes.push(format!(
+        "the inputs' nominal frequencies differ ({}: {}); the merged dataset keeps the last input's, under which every line keeps its mode",
+        manifest_path(&inputs[0]).display(),
+        shown(&inputs[0])
+    ));
+    Ok(merged)
 }
 
 /// The first key on which `other` differs from `first`, as a [`DatasetError::MergeMismatch`].
@@ -276,6 +342,7 @@ impl Dataset {
             ..first.manifest.clone()
         };
         manifest.import = merged_import(inputs, &mut notes);
+        manifest.nominal_hz = merged_nominal(inputs, &mut notes)?;
         let mut measurements = Vec::new();
         let mut renamed: Vec<Vec<(String, String)>> = Vec::new();
         for (i, ds) in inputs.iter().enumerate() {

@@ -86,11 +86,37 @@ fn disagreements_and_unpartable_names_are_refused() {
         matches!(err, DatasetError::MergeNameClash { ref renamed, .. } if renamed == "r_single"),
         "{err}"
     );
-    let other = MANIFEST.replace("q1 = 100.0", "q1 = 100.5");
-    let err = Dataset::merge(&[a, load("b/s", &other)]).expect_err("nominal");
+    let other = MANIFEST.replace("displacement_unit = \"nm\"", "displacement_unit = \"m\"");
+    let err = Dataset::merge(&[a, load("b/s", &other)]).expect_err("unit");
     let text = err.to_string();
     assert!(
-        text.contains("nominal_hz.q1") && text.contains("100.5") && text.contains("b/s"),
+        text.contains("displacement_unit") && text.contains("\"m\"") && text.contains("b/s"),
+        "{text}"
+    );
+}
+
+/// Rounds of the lab loop carry the guesses of their plans as nominal frequencies: those may
+/// differ, the last input's are kept, unless a line would change its mode.
+#[test]
+fn nominal_frequencies_may_differ_while_every_line_keeps_its_mode() {
+    let a = load("lab/r1", MANIFEST);
+    let b = load("lab/r2", &MANIFEST.replace("q1 = 100.0", "q1 = 100.5"));
+    let m = Dataset::merge(&[a, b]).expect("merge");
+    assert_eq!(m.manifest.nominal_hz["q1"], 100.5);
+    assert!(
+        m.notes.iter().any(|n| n.contains("nominal frequencies differ")),
+        "{:?}",
+        m.notes
+    );
+    // Two modes: the line at 101 Hz is q1's under r1's guess (q2 at 103 Hz) but q2's under
+    // r2's (q2 at 101.2 Hz).
+    let two = |q2: &str| MANIFEST.replace("q1 = 100.0", &format!("q1 = 100.0\nq2 = {q2}"));
+    let a = load("lab/r1", &two("103.0"));
+    let b = load("lab/r2", &two("101.2"));
+    let err = Dataset::merge(&[a, b]).expect_err("attribution changes");
+    let text = err.to_string();
+    assert!(
+        text.contains("101 Hz") && text.contains("mode q1") && text.contains("to q2"),
         "{text}"
     );
 }

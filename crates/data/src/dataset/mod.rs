@@ -142,6 +142,27 @@ pub enum DatasetError {
         /// Its value in the first input.
         expected: String,
     },
+    /// Under the merged dataset's nominal frequencies (the last input's) a line of an input
+    /// would belong to another mode than under the input's own.
+    #[error("{path}: line {hz} Hz of \"{measurement}\" belongs to mode {own} under its own nominal_hz but to {merged} under {last}'s, which the merged dataset keeps")]
+    #[diagnostic(
+        code(harmonid::dataset::merge_attribution),
+        help("nominal frequencies decide which mode a line belongs to; give the inputs nominal_hz values that attribute every line alike (edit [nominal_hz] in one dataset.toml), or identify them apart")
+    )]
+    MergeAttribution {
+        /// Manifest of the input holding the line.
+        path: PathBuf,
+        /// Its measurement.
+        measurement: String,
+        /// The line (a measured frequency or a drive tone), Hz.
+        hz: f64,
+        /// Its mode under the input's nominal frequencies.
+        own: String,
+        /// Its mode under the merged ones.
+        merged: String,
+        /// Manifest of the input whose nominal frequencies the merge keeps.
+        last: PathBuf,
+    },
     /// A name in two inputs whose folders have the same name too: renaming cannot part them.
     #[error("measurement or sweep \"{name}\" is in {first} and in {second}, and both would be renamed \"{renamed}\"")]
     #[diagnostic(
