@@ -104,7 +104,9 @@ fn nominal_frequencies_may_differ_while_every_line_keeps_its_mode() {
     let m = Dataset::merge(&[a, b]).expect("merge");
     assert_eq!(m.manifest.nominal_hz["q1"], 100.5);
     assert!(
-        m.notes.iter().any(|n| n.contains("nominal frequencies differ")),
+        m.notes
+            .iter()
+            .any(|n| n.contains("nominal frequencies differ")),
         "{:?}",
         m.notes
     );
