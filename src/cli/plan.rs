@@ -5,7 +5,10 @@
 use crate::cli::common::{check_outputs, print_out, write_output};
 use harmonid_data::Point;
 use harmonid_experiment::{guess_from_reports, read_guess, read_result, Plan};
-use harmonid_plan::{design_with_progress, evaluate, robustness, DesignSettings, GuessRange};
+use harmonid_plan::{
+    design_for_instrument, evaluate, lockin_lines, lockin_plan, lockin_time_s, robustness,
+    DesignSettings, Evaluation, GuessRange, InstrumentSettings, LockIn,
+};
 use miette::{miette, IntoDiagnostic, WrapErr};
 use std::path::PathBuf;
 
@@ -39,8 +42,9 @@ pub struct Args {
     /// Devices drawn from the guess's range for the plan's median and worst bounds.
     #[arg(long, value_name = "N", default_value_t = harmonid_plan::DEFAULT_DRAWS)]
     pub draws: usize,
-    /// Per-quadrature noise σ of every lock-in amplitude: metres, or with a unit (`0.05nm`,
-    /// `50pm`, `1e-10m`).
+    /// Per-quadrature noise σ of every lock-in amplitude, in the dataset's unit: metres, or
+    /// with a unit (`0.05nm`, `50pm`, `1e-10m`); volts for data kept in the instrument's volts
+    /// (`2uV`, `0.04V`, `3mV`, `5nV`: the plan's `displacement_unit` is then `V`).
     #[arg(long)]
     pub noise: String,
     /// Shots per measurement.
@@ -84,9 +88,23 @@ pub struct Args {
     /// gain, else the median over measurements; a --gain wins).
     #[arg(long, value_name = "RESULT.json")]
     pub gains_from: Option<PathBuf>,
-    /// Largest drive level per tone, V (needs a gain for every driven mode).
+    /// Largest drive level, V (needs a gain for every driven mode): per tone with the generic
+    /// instrument; with an --instrument profile the tones' summed amplitude on the one output
+    /// (default: the profile's output range).
     #[arg(long, value_name = "V")]
     pub max_voltage: Option<f64>,
+    /// The lock-in that runs the plan: mfli, mfli-mf (with the MF-MD option), hf2li (with
+    /// HF2-MF), uhfli (with UHF-MF), moku, or generic (no instrument limits). A profile holds
+    /// the plan to its oscillators, demodulators and output range, caps the tones' summed
+    /// volts, and writes per level the drive volts, the demodulator filter, the settling time
+    /// and the samples (the plan's `[instrument]`); it needs the actuator gains (--gain or
+    /// --gains-from).
+    #[arg(long, value_name = "NAME", default_value = "generic")]
+    pub instrument: LockIn,
+    /// The demodulator filter's order (poles, 6 dB/octave each) with an --instrument profile;
+    /// default: the order that settles fastest while rejecting the nearest other line by 60 dB.
+    #[arg(long, value_name = "N")]
+    pub filter_order: Option<u32>,
     /// Largest drive force per tone, N/kg.
     #[arg(long)]
     pub max_force: Option<f64>,
@@ -106,12 +124,36 @@ pub struct Args {
     pub plot: Option<PathBuf>,
 }
 
-/// Parses `0.05nm`, `50pm`, `1e-10`, `1e-10m` into metres (a positive σ).
-fn parse_sigma(s: &str) -> miette::Result<f64> {
-    match harmonid_data::parse_length(s) {
-        Ok(v) if v > 0.0 => Ok(v),
-        Ok(_) => Err(miette!("--noise {s}: expected a positive σ, e.g. 0.05nm")),
-        Err(e) => Err(miette!("--noise {s}: {e}")),
+/// Volt units `--noise` reads, with how many of each make one volt (longest suffix first).
+const VOLT_UNITS: [(&str, f64); 5] = [
+    ("mV", 1e3),
+    ("uV", 1e6),
+    ("µV", 1e6),
+    ("nV", 1e9),
+    ("V", 1.0),
+];
+
+/// Parses `0.05nm`, `50pm`, `1e-10`, `1e-10m` into metres, or `2uV`, `0.04 V` into volts (a
+/// positive σ), with the dataset unit it is in (`m` or `V`).
+fn parse_sigma(s: &str) -> miette::Result<(f64, &'static str)> {
+    let t = s.trim();
+    let quoted: String = t.chars().take(40).collect();
+    if let Some((unit, per)) = VOLT_UNITS.iter().find(|(u, _)| t.ends_with(u)) {
+        return match t[..t.len() - unit.len()].trim().parse::<f64>() {
+            Ok(v) if v.is_finite() && v > 0.0 => Ok((v / per, harmonid_data::units::VOLTS)),
+            _ => Err(miette!(
+                "--noise {quoted}: expected a positive finite σ in volts, e.g. 2uV or 0.04V"
+            )),
+        };
+    }
+    match harmonid_data::parse_length(t) {
+        Ok(v) if v > 0.0 => Ok((v, "m")),
+        Ok(_) => Err(miette!(
+            "--noise {quoted}: expected a positive σ, e.g. 0.05nm (or 2uV for data in volts)"
+        )),
+        Err(e) => Err(miette!(
+            "--noise {quoted}: {e}; data kept in volts take volts (2uV, 0.04V)"
+        )),
     }
 }
 
@@ -153,11 +195,17 @@ pub fn run(args: Args) -> miette::Result<()> {
             harmonid_experiment::RESULT_SPREAD_STDERR
         );
     }
-    let sigma = parse_sigma(&args.noise)?;
+    let (sigma, unit) = parse_sigma(&args.noise)?;
     if args.shots == 0 {
         return Err(miette!("--shots must be at least 1"));
     }
     harmonid_plan::check_draws(args.draws)?;
+    let inst = InstrumentSettings {
+        lockin: args.instrument,
+        max_voltage: args.max_voltage,
+        filter_order: args.filter_order,
+    };
+    inst.checked()?;
     let inputs: Vec<&std::path::Path> = [
         Some(&args.model),
         Some(&args.values),
@@ -205,76 +253,17 @@ pub fn run(args: Args) -> miette::Result<()> {
         (r.guess().clone(), Some(r))
     };
     let (plan, ev) = if let Some(path) = &args.evaluate {
-        let text = std::fs::read_to_string(path)
-            .into_diagnostic()
-            .wrap_err_with(|| format!("cannot read the plan {}", path.display()))?;
-        let plan = Plan::from_toml(&text, &path.display().to_string())?;
-        let pb = super::progress::spinner("scoring the plan");
-        let ev = evaluate(&model, &values, &plan, sigma, args.shots).and_then(|mut ev| {
-            if let Some(r) = &range {
-                ev.robustness = Some(robustness(&model, r, &plan, sigma, args.shots, args.draws)?);
-            }
-            Ok(ev)
-        });
-        pb.finish_and_clear();
-        let ev = ev?;
-        (plan, ev)
+        evaluate_plan(&args, &model, &values, range.as_ref(), sigma, &inst, path)?
     } else {
-        let points = args
-            .point
-            .iter()
-            .enumerate()
-            .map(|(i, s)| parse_point(i, s))
-            .collect::<miette::Result<Vec<_>>>()?;
-        let settings = DesignSettings {
-            sigma_m: sigma,
-            shots: args.shots,
-            max_frequencies: args.max_frequencies,
-            max_measurements: args.max_measurements,
-            grid_hz: args.grid_hz,
-            max_force: args.max_force.unwrap_or(f64::INFINITY),
-            gains: gains(&args)?,
-            max_voltage: args.max_voltage,
-            points,
-            time_budget_s: (args.time_budget > 0.0).then_some(args.time_budget),
-            ladder: args
-                .ladder
-                .clone()
-                .unwrap_or_else(|| harmonid_plan::default_ladder(range.is_some())),
-            range,
-            draws: args.draws,
-        };
-        let pb = super::progress::bar(0, "designing measurement", false);
-        let designed = design_with_progress(&model, &values, &settings, &mut |step| {
-            pb.set_length(step.total as u64);
-            pb.set_position(step.done as u64);
-            pb.set_message(step.name.to_string());
-        });
-        pb.finish_and_clear();
-        let (plan, ev) = designed?;
-        for note in &ev.notes {
-            eprintln!("note: {note}");
-        }
-        if let Some(out) = &args.out {
-            write_output(out, plan.to_toml().as_bytes(), &inputs)?;
-            let recorded: usize = plan
-                .measurements
-                .iter()
-                .map(|m| m.levels.len().max(1))
-                .sum();
-            let shots = recorded * args.shots;
-            eprintln!(
-                "wrote {} ({} measurements, {recorded} with their ladders' levels; on a {} Hz grid each shot integrates at least {} s, the plan's {shots} shots at least {} s)",
-                out.display(),
-                plan.measurements.len(),
-                args.grid_hz,
-                1.0 / args.grid_hz,
-                shots as f64 / args.grid_hz
-            );
-        }
-        (plan, ev)
+        design_plan(&args, &model, &values, range, (sigma, unit), &inst, &inputs)?
     };
     print_out(format_args!("{}", ev.table()));
+    if let Some(i) = &plan.instrument {
+        print_out(format_args!("{}\n", lockin_lines(i).join("\n")));
+    }
+    if let Some(text) = what_new_data_add(&found, &ev) {
+        print_out(format_args!("{text}"));
+    }
     if let Some(b) = &args.bounds {
         let text = serde_json::to_string_pretty(&ev.to_json()).into_diagnostic()?;
         write_output(b, text.as_bytes(), &inputs)?;
@@ -285,6 +274,149 @@ pub fn run(args: Args) -> miette::Result<()> {
         eprintln!("wrote {}", path.display());
     }
     Ok(())
+}
+
+/// `--evaluate`: scores the plan at `path` (over `range` when there is one) and, with an
+/// instrument profile, checks it against the instrument and derives its lock-in settings.
+fn evaluate_plan(
+    args: &Args,
+    model: &harmonid_model::Model,
+    values: &harmonid_sim::ModelValues,
+    range: Option<&GuessRange>,
+    sigma: f64,
+    inst: &InstrumentSettings,
+    path: &std::path::Path,
+) -> miette::Result<(Plan, Evaluation)> {
+    let text = std::fs::read_to_string(path)
+        .into_diagnostic()
+        .wrap_err_with(|| format!("cannot read the plan {}", path.display()))?;
+    let mut plan = Plan::from_toml(&text, &path.display().to_string())?;
+    if inst.lockin != LockIn::Generic {
+        let num = harmonid_sim::NumericModel::from_model(model, values).into_diagnostic()?;
+        plan.noise.shots = args.shots;
+        plan.instrument = Some(lockin_plan(&plan, &num, inst).wrap_err_with(|| {
+            format!(
+                "{}: cannot be run on --instrument {}",
+                path.display(),
+                inst.lockin
+            )
+        })?);
+    }
+    let pb = super::progress::spinner("scoring the plan");
+    let ev = evaluate(model, values, &plan, sigma, args.shots).and_then(|mut ev| {
+        if let Some(r) = range {
+            ev.robustness = Some(robustness(model, r, &plan, sigma, args.shots, args.draws)?);
+        }
+        Ok(ev)
+    });
+    pb.finish_and_clear();
+    Ok((plan, ev?))
+}
+
+/// `--out`: designs the plan (held to the instrument's profile) and writes it, in the noise's
+/// unit, saying how long the lock-in takes to run it.
+#[allow(clippy::too_many_arguments)]
+fn design_plan(
+    args: &Args,
+    model: &harmonid_model::Model,
+    values: &harmonid_sim::ModelValues,
+    range: Option<GuessRange>,
+    (sigma, unit): (f64, &str),
+    inst: &InstrumentSettings,
+    inputs: &[&std::path::Path],
+) -> miette::Result<(Plan, Evaluation)> {
+    let points = args
+        .point
+        .iter()
+        .enumerate()
+        .map(|(i, s)| parse_point(i, s))
+        .collect::<miette::Result<Vec<_>>>()?;
+    let settings = DesignSettings {
+        sigma_m: sigma,
+        shots: args.shots,
+        max_frequencies: args.max_frequencies,
+        max_measurements: args.max_measurements,
+        grid_hz: args.grid_hz,
+        max_force: args.max_force.unwrap_or(f64::INFINITY),
+        gains: gains(args)?,
+        max_voltage: args.max_voltage,
+        points,
+        time_budget_s: (args.time_budget > 0.0).then_some(args.time_budget),
+        ladder: args
+            .ladder
+            .clone()
+            .unwrap_or_else(|| harmonid_plan::default_ladder(range.is_some())),
+        range,
+        draws: args.draws,
+    };
+    let pb = super::progress::bar(0, "designing measurement", false);
+    let designed = design_for_instrument(model, values, &settings, inst, &mut |step| {
+        pb.set_length(step.total as u64);
+        pb.set_position(step.done as u64);
+        pb.set_message(step.name.to_string());
+    });
+    pb.finish_and_clear();
+    let (mut plan, ev) = designed?;
+    plan.displacement_unit = unit.to_string();
+    for note in &ev.notes {
+        eprintln!("note: {note}");
+    }
+    if let Some(out) = &args.out {
+        write_output(out, plan.to_toml().as_bytes(), inputs)?;
+        let recorded: usize = plan
+            .measurements
+            .iter()
+            .map(|m| m.levels.len().max(1))
+            .sum();
+        let shots = recorded * args.shots;
+        let time = match &plan.instrument {
+            Some(i) => format!(
+                "on {}: {:.4e} s of settling and recording in all (per level below)",
+                i.profile,
+                lockin_time_s(i)
+            ),
+            None => format!(
+                "on a {} Hz grid each shot integrates at least {} s, the plan's {shots} shots at least {} s (a multi-frequency lock-in's base period; --instrument gives a lock-in's own times)",
+                args.grid_hz,
+                1.0 / args.grid_hz,
+                shots as f64 / args.grid_hz
+            ),
+        };
+        eprintln!(
+            "wrote {} ({} measurements, {recorded} with their ladders' levels; {time})",
+            out.display(),
+            plan.measurements.len(),
+        );
+    }
+    Ok((plan, ev))
+}
+
+/// With `--after` results: per quantity, the relative standard error of the existing data
+/// (the results combined), the new plan's bound alone, and both together (`1/√(1/a² + 1/b²)`,
+/// independent data; correlations between quantities are not used). `None` without results.
+fn what_new_data_add(found: &harmonid_experiment::Guess, ev: &Evaluation) -> Option<String> {
+    if found.spread.is_empty() {
+        return None;
+    }
+    let mut out = String::from(
+        "what the new data add (relative standard errors: the --after results combined, the plan alone, both):\n",
+    );
+    for b in &ev.bounds.quantities {
+        let Some(harmonid_experiment::Spread::Abs(a)) = found.spread.get(&b.name) else {
+            continue;
+        };
+        let before = a / harmonid_experiment::RESULT_SPREAD_STDERR / b.value.abs();
+        let both = (before.powi(-2) + b.rel.powi(-2)).powf(-0.5);
+        out.push_str(&format!(
+            "  {:<14} {:>10.3e} {:>10.3e} {:>10.3e}  ({:.2}× smaller)\n",
+            b.name,
+            before,
+            b.rel,
+            both,
+            before / both
+        ));
+    }
+    Some(out)
 }
 
 /// The actuator gains (N/kg per V) of `--gain` and `--gains-from`.

@@ -43,6 +43,7 @@
 #![allow(clippy::result_large_err)]
 
 mod error;
+mod lockin;
 mod noise;
 mod params_from_eom;
 mod plan;
@@ -50,6 +51,7 @@ mod run;
 mod values;
 
 pub use error::{ExperimentError, PlanError};
+pub use lockin::{LockinLevel, PlanInstrument};
 pub use noise::{sigma_from_asd, sigma_from_time_rms, NoiseLevel};
 pub use params_from_eom::{parameters_from_eom, DerivedParameters};
 pub use plan::{Plan, PlanMeasurement, PlanNoise, MAX_LEVELS, MAX_MEASURED, MAX_SHOTS, MAX_TONES};

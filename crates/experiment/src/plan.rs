@@ -47,6 +47,10 @@ pub struct Plan {
     /// The drive configurations.
     #[serde(default, rename = "measurement")]
     pub measurements: Vec<PlanMeasurement>,
+    /// The lock-in the plan was designed for and its settings per level (`plan --instrument`);
+    /// metadata the simulation does not read.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub instrument: Option<crate::lockin::PlanInstrument>,
 }
 
 fn unit_m() -> String {
@@ -645,6 +649,9 @@ impl Plan {
                     return Err(issue(a, format!("{v}: expected a finite mode-shape value")));
                 }
             }
+        }
+        if let Some(why) = self.instrument.as_ref().and_then(|i| i.check()) {
+            return Err(issue(vec![key("instrument")], why));
         }
         for (m, &f) in &self.nominal_hz {
             if !(f.is_finite() && f > 0.0) {

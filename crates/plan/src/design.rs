@@ -165,6 +165,17 @@ fn round3(x: f64) -> f64 {
     format!("{x:.2e}").parse().unwrap_or(x)
 }
 
+/// Rounds a positive `x` down to 3 significant digits (`0.4499` → `0.449`).
+fn floor3(x: f64) -> f64 {
+    if !(x.is_finite() && x > 0.0) {
+        return x;
+    }
+    let e = 10f64.powi(x.log10().floor() as i32 - 2);
+    // Through the decimal form, as `round3`, so the level reads `0.449`.
+    let d = ((x / e) * (1.0 + 1e-12)).floor();
+    format!("{:.2e}", d * e).parse().unwrap_or(d * e)
+}
+
 /// A measurement with `tones` (`(Hz, mode, force N/kg)`), phase 0, drive levels through the
 /// actuator gains `gains` (N/kg per level unit, per mode): each level rounded to 3 significant
 /// digits, the force the level times the gain (with gains 1, levels = forces).
@@ -284,6 +295,20 @@ pub fn design_with_progress(
     settings: &DesignSettings,
     progress: &mut dyn FnMut(DesignStep<'_>),
 ) -> Result<(Plan, Evaluation), PlanError> {
+    design_inner(model, values, settings, None, progress)
+}
+
+/// [`design_with_progress`] with the drive's tones on one output whose summed amplitude is at
+/// most `output_cap` V (`crate::instrument`): every tone of a pair at most half of it, every
+/// measurement's levels scaled down (rounded down) to sum to at most it. `None`: the settings'
+/// per-tone limits alone.
+pub(crate) fn design_inner(
+    model: &Model,
+    values: &ModelValues,
+    settings: &DesignSettings,
+    output_cap: Option<f64>,
+    progress: &mut dyn FnMut(DesignStep<'_>),
+) -> Result<(Plan, Evaluation), PlanError> {
     let s = settings;
     check_settings(s)?;
     let num = NumericModel::from_model(model, values)?;
@@ -297,7 +322,7 @@ pub fn design_with_progress(
     let mut base = base_plan(model, &num, s);
     let stages = Stages::new(model, &names, s.max_measurements)?;
     let needed = stages.needed();
-    let instrument = Instrument::new(&num, s, &stages.single)?;
+    let instrument = Instrument::new(&num, s, &stages.single, output_cap)?;
     let target = Target {
         model,
         num: &num,
@@ -320,6 +345,7 @@ pub fn design_with_progress(
         corners: RefCell::new(BTreeMap::new()),
         gains: instrument.gains,
         caps: instrument.caps,
+        output_cap,
     };
     let mut plan_ms = designer.measurements_by_stage(&stages, needed, progress)?;
     for pm in &mut plan_ms {
@@ -373,6 +399,7 @@ fn base_plan(model: &Model, num: &NumericModel, s: &DesignSettings) -> Plan {
             shots: s.shots,
         },
         measurements: Vec::new(),
+        instrument: None,
     }
 }
 
@@ -463,7 +490,12 @@ struct Instrument {
 impl Instrument {
     /// Errors: gains or a voltage limit without a gain for a driven mode, a gain that is not
     /// positive, a grid coarser than two linewidths of a driven mode (no tone pair fits it).
-    fn new(num: &NumericModel, s: &DesignSettings, driven: &[usize]) -> Result<Self, PlanError> {
+    fn new(
+        num: &NumericModel,
+        s: &DesignSettings,
+        driven: &[usize],
+        output_cap: Option<f64>,
+    ) -> Result<Self, PlanError> {
         let names = &num.mode_names;
         let err = |message: String| PlanError::Instrument { message };
         if let Some(k) = s.gains.keys().find(|k| !names.contains(k)) {
@@ -515,11 +547,13 @@ impl Instrument {
             .iter()
             .map(|k| s.gains.get(k).copied().unwrap_or(1.0))
             .collect();
+        // A pair's two tones share a summed output cap.
         let caps = gains
             .iter()
             .map(|g| {
                 s.max_force
                     .min(s.max_voltage.map_or(f64::INFINITY, |v| v * g))
+                    .min(output_cap.map_or(f64::INFINITY, |v| 0.5 * v * g))
             })
             .collect();
         Ok(Self { gains, caps })
@@ -675,6 +709,8 @@ struct Designer<'a> {
     /// per tone (N/kg).
     gains: Vec<f64>,
     caps: Vec<f64>,
+    /// The largest summed drive level of a measurement's tones, V (one output).
+    output_cap: Option<f64>,
     /// The devices of the range checked per set of tones (frequency bits, mode), built when
     /// first needed, with the one that failed last (tried first: a drive too strong for one
     /// device is usually too strong for the same one at the next level).
@@ -761,9 +797,19 @@ impl Designer<'_> {
         Ok(infos)
     }
 
-    /// [`measurement`] with the instrument's gains.
+    /// [`measurement`] with the instrument's gains; with an output cap, the levels scaled to
+    /// sum to at most it and rounded down to 3 digits (rounding up could pass the cap).
     fn measurement(&self, name: &str, tones: &[(f64, usize, f64)]) -> PlanMeasurement {
-        measurement(name, tones, self.names, &self.gains)
+        let Some(cap) = self.output_cap else {
+            return measurement(name, tones, self.names, &self.gains);
+        };
+        let sum: f64 = tones.iter().map(|&(_, n, f)| f / self.gains[n]).sum();
+        let k = if sum > cap { cap / sum } else { 1.0 };
+        let capped: Vec<(f64, usize, f64)> = tones
+            .iter()
+            .map(|&(hz, n, f)| (hz, n, floor3(k * f / self.gains[n]) * self.gains[n]))
+            .collect();
+        measurement(name, &capped, self.names, &self.gains)
     }
 
     /// A candidate measurement simulated once at search fidelity, its lines chosen, its

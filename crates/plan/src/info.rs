@@ -298,6 +298,7 @@ mod tests {
                 shots: 2,
             },
             measurements: Vec::new(),
+            instrument: None,
         };
         let pm = PlanMeasurement {
             name: "couple_q1_q2".into(),

@@ -16,6 +16,7 @@ mod coupled;
 mod design;
 mod evaluate;
 mod info;
+mod instrument;
 mod level;
 mod range;
 mod terms;
@@ -23,6 +24,11 @@ mod terms;
 pub use design::{
     default_ladder, design, design_with_progress, DesignSettings, DesignStep, DEFAULT_DRAWS,
     DEFAULT_LADDER,
+};
+pub use instrument::{
+    attenuation, bandwidth_3db_hz, choose_filter, design_for_instrument, lockin_lines, lockin_plan,
+    lockin_time_s, nearest_hz, nebw_hz, settle_time, InstrumentSettings, LockIn, Profile, LOCKINS,
+    REJECTION, SETTLE_ACCURACY,
 };
 pub use evaluate::{evaluate, robustness, Evaluation, Finding, Robustness};
 pub use range::{

@@ -180,6 +180,7 @@ pub fn simulate_clean(
                 }
             })
             .collect(),
+        instrument: None,
     };
     let mut ds = plan
         .simulate(model, &model_values(model, v), &settings)
