@@ -29,6 +29,7 @@ mod lattice;
 mod linalg;
 mod noise;
 mod numeric;
+mod response;
 pub mod sensitivity;
 mod steady;
 
@@ -39,11 +40,15 @@ pub use excitation::{common_grid, linear_response, Excitation, PumpTone};
 pub use lattice::{choose_lattice, measured_lines, LatticeSettings, LINE_TOL_HZ};
 pub use noise::{lockin_noise_sigma, NoiseGen};
 pub use numeric::{parse_monomial, ModeValues, ModelValues, NumericModel, Term};
+pub use response::{
+    probe_response, LinearResponse, ProbeResponse, MAX_PROBES, MAX_RESPONSE_HARMONIC,
+    MAX_RESPONSE_UNKNOWNS, RESPONSE_DEPTH,
+};
 pub use sensitivity::{Observation, SensParam, Sensitivity};
 pub use steady::{
     backbone, check_stability, convergence_report, limit_cycle, steady_state, steady_state_from,
     stepped_sweep, sweep, sweep_two_tone, ConvergenceReport, Fold, HbSettings, HbSolver, HbStatus,
-    LimitCycle, ModeLine, Stability, SteadyState, SweepPoint, SweepResult, SweepSettings,
+    Hopf, LimitCycle, ModeLine, Stability, SteadyState, SweepPoint, SweepResult, SweepSettings,
     TwoToneCurve, TwoToneJump, TwoTonePoint, TwoToneSettings, TwoToneStatus, TwoToneSweep,
     CONDENSE_SEPARATION, MAX_MODES, MAX_SWEEP_HARMONICS, MAX_SWEEP_HZ, MAX_SWEEP_POINTS,
 };

@@ -33,6 +33,7 @@
 mod aft;
 mod backbone;
 mod convergence;
+mod hopf;
 mod land;
 mod limit_cycle;
 mod newton;
@@ -53,6 +54,7 @@ mod two_tone;
 
 pub use backbone::backbone;
 pub use convergence::{convergence_report, ConvergenceReport};
+pub use hopf::Hopf;
 pub use limit_cycle::{limit_cycle, LimitCycle};
 pub(crate) use solver::variable_spectra;
 pub use solver::{steady_state, steady_state_from, HbSolver, MAX_MODES};

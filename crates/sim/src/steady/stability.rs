@@ -33,6 +33,18 @@ impl HbSolver {
         self.slow_flow_stability(state, true)
     }
 
+    /// The eigenvalues of the linearised slow flow at `state` that [`HbSolver::stability`]
+    /// judges (1/s; the far lines condensed): `Re λ` the growth rates, `Im λ` the angular
+    /// frequencies (rad/s) at which perturbations oscillate about the state, offset from the
+    /// lines they sit on (a driven resonator's probe response peaks there, and a complex pair
+    /// crossing `Re λ = 0` is a Hopf point). Conjugate pairs for a real flow.
+    pub fn slow_flow_eigenvalues(
+        &mut self,
+        state: &SteadyState,
+    ) -> Result<Vec<Complex64>, SimError> {
+        self.slow_flow_spectrum(state, true)
+    }
+
     /// [`HbSolver::stability`], on every line of the lattice when `condense` is false (the
     /// tests compare both).
     pub(super) fn slow_flow_stability(
@@ -40,6 +52,28 @@ impl HbSolver {
         state: &SteadyState,
         condense: bool,
     ) -> Result<Stability, SimError> {
+        let growth = self
+            .slow_flow_spectrum(state, condense)?
+            .iter()
+            .map(|z| z.re)
+            .fold(f64::NEG_INFINITY, f64::max);
+        let decay = (0..self.model.n_modes())
+            .map(|n| 0.5 * self.model.gamma(n))
+            .fold(f64::INFINITY, f64::min);
+        Ok(Stability {
+            stable: growth < 1e-6 * decay,
+            growth_rate: growth,
+            linear_decay_rate: decay,
+        })
+    }
+
+    /// The slow flow's eigenvalues over every coupled part of the modes (see
+    /// [`HbSolver::slow_flow_eigenvalues`]).
+    fn slow_flow_spectrum(
+        &mut self,
+        state: &SteadyState,
+        condense: bool,
+    ) -> Result<Vec<Complex64>, SimError> {
         let nm = self.model.n_modes();
         let nr = self.lattice.len();
         self.load_state(state)?;
@@ -65,7 +99,7 @@ impl HbSolver {
                 p.push(n);
             }
         });
-        let mut growth = f64::NEG_INFINITY;
+        let mut spectrum = Vec::new();
         for part in parts {
             let all: Vec<usize> = part.iter().flat_map(|&n| n * nr..(n + 1) * nr).collect();
             let (near, far) = if condense {
@@ -90,16 +124,9 @@ impl HbSolver {
                 return Err(SimError::NonFiniteState);
             }
             let eig = a.eigenvalues().map_err(|_| SimError::NoEigenvalues)?;
-            growth = eig.iter().map(|z| z.re).fold(growth, f64::max);
+            spectrum.extend(eig.iter().map(|z| Complex64::new(z.re, z.im)));
         }
-        let decay = (0..nm)
-            .map(|n| 0.5 * self.model.gamma(n))
-            .fold(f64::INFINITY, f64::min);
-        Ok(Stability {
-            stable: growth < 1e-6 * decay,
-            growth_rate: growth,
-            linear_decay_rate: decay,
-        })
+        Ok(spectrum)
     }
 
     /// Splits the complex unknowns `unknowns` (`n·R + r`) of a coupled part into the lines the

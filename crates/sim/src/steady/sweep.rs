@@ -11,9 +11,13 @@
 //! Stability: a fold of the branch changes the sign of the Jacobian's determinant, so points are
 //! classified by that sign relative to the small-amplitude (linear, stable) end of the curve.
 //! This detects the saddle-node instability of the middle branch between folds (Duffing-type
-//! responses); it does not detect secondary (Neimark–Sacker) instabilities.
+//! responses). A complex pair of slow-flow eigenvalues ([`crate::HbSolver::slow_flow_eigenvalues`]
+//! at each point) with a positive real part makes a point unstable too, and where that real part
+//! changes sign between two points the curve has a Hopf point ([`Hopf`], located by bisection):
+//! a self-oscillation beside the drive starts or stops there.
 
 use super::aft::Aft;
+use super::hopf::{critical_pair, locate_hopf, Hopf};
 use super::Step;
 use crate::linalg::DenseLu;
 use crate::{NumericModel, SimError};
@@ -79,6 +83,8 @@ pub struct SweepResult {
     pub points: Vec<SweepPoint>,
     /// Turning points in frequency.
     pub folds: Vec<Fold>,
+    /// Hopf points: where a complex pair of slow-flow eigenvalues crosses `Re λ = 0`.
+    pub hopf: Vec<Hopf>,
     /// Whether the curve reached the end of the range (false: stopped, e.g. Newton failed).
     pub complete: bool,
 }
@@ -245,11 +251,21 @@ pub fn sweep(
             Step::Fold { .. } | Step::Jump { .. } | Step::Stuck => break,
         }
     }
-    // Stability: the sign at the start (small amplitude, off resonance, stable) is the stable sign.
+    // Stability: the sign at the start (small amplitude, off resonance, no fold passed) is the
+    // sign without a real eigenvalue past zero; a complex pair growing makes a point unstable.
     let s0 = signs.first().copied().unwrap_or(1.0);
-    for (p, &s) in points.iter_mut().zip(&signs) {
-        p.stable = s == s0;
+    let harm = arc.aft.harm.clone();
+    let pairs: Vec<Option<(f64, f64)>> = points
+        .iter()
+        .map(|p| critical_pair(model, force, &harm, p).ok().flatten())
+        .collect();
+    let decay = (0..nm)
+        .map(|n| 0.5 * model.gamma(n))
+        .fold(f64::INFINITY, f64::min);
+    for ((p, &s), pair) in points.iter_mut().zip(&signs).zip(&pairs) {
+        p.stable = s == s0 && pair.is_none_or(|(re, _)| re < 1e-6 * decay);
     }
+    let hopf = locate_hopf(model, force, &harm, &points, &pairs, settings.tol);
     let mut folds = Vec::new();
     for i in 1..points.len().saturating_sub(1) {
         let (a, b, c) = (points[i - 1].f_hz, points[i].f_hz, points[i + 1].f_hz);
@@ -264,9 +280,10 @@ pub fn sweep(
         }
     }
     Ok(SweepResult {
-        harmonics: arc.aft.harm.clone(),
+        harmonics: harm,
         points,
         folds,
+        hopf,
         complete,
     })
 }

@@ -3,6 +3,8 @@
 
 mod decoupled_modes;
 mod finite_inputs;
+mod hopf;
+mod linear_response;
 mod pumping;
 mod ramp_past_fold;
 mod sensitivity;
