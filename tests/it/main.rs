@@ -27,6 +27,7 @@ mod noise_study;
 mod nonlinear_damping;
 mod parametric_pumping;
 mod plan_cli;
+mod plan_instrument;
 mod plan_closed_loop;
 mod plan_mc_support;
 mod plan_robust_mc;
