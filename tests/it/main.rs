@@ -17,6 +17,7 @@ mod identify_calibration;
 mod identify_cli;
 mod identify_consistency;
 mod identify_shared;
+mod lab_loop;
 mod import_simulated;
 mod long_record;
 mod merge_cli;

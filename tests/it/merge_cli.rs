@@ -1,6 +1,6 @@
 //! `harmonid merge`: two simulated rounds of the nanostring example pooled into one dataset and
 //! identified; datasets that disagree on a key (displacement unit, point shape) refused, naming
-//! the key, with nothing written.
+//! the key, with nothing written; one folder given twice or an output that is a file refused.
 
 use harmonid::data::Dataset;
 use std::path::{Path, PathBuf};
@@ -125,4 +125,19 @@ fn two_rounds_merge_and_identify_and_mismatches_are_refused() {
         assert!(err.contains("merge_mismatch"), "{err}");
         assert!(!out.exists(), "a refused merge wrote {}", out.display());
     }
+
+    // One folder given twice, an output that is a file: said so, nothing written.
+    let st = harmonid(&["merge", path(&r1), path(&r1), "--out", path(&merged)]);
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(!st.status.success() && err.contains("given twice"), "{err}");
+    let file = tmp.path().join("result.json");
+    let st = harmonid(&["merge", path(&r1), path(&r2), "--out", path(&file)]);
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(
+        !st.status.success() && err.contains("output folder"),
+        "{err}"
+    );
+    assert!(std::fs::read_to_string(&file)
+        .expect("kept")
+        .contains("round2"));
 }

@@ -27,6 +27,18 @@ pub enum FileError {
         /// What it is ("a symbolic link", "a folder", "a device node, pipe or socket").
         kind: &'static str,
     },
+    /// An output folder's path exists and is not a plain folder (a file, a link, ...).
+    #[error("{path} is {kind}; an output folder must be a new folder or an existing plain folder", path = path.display())]
+    #[diagnostic(
+        code(harmonid::files::not_a_folder),
+        help("give the path of a new folder (it is created), or of a folder the command wrote before")
+    )]
+    NotAFolder {
+        /// The output folder's path.
+        path: PathBuf,
+        /// What it is ("a file, not a folder", "a symbolic link", ...).
+        kind: &'static str,
+    },
     /// The output folder of a file does not exist.
     #[error("cannot write {path}: the folder {parent} does not exist", path = path.display(), parent = parent.display())]
     #[diagnostic(

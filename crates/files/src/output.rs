@@ -162,13 +162,13 @@ pub fn is_dataset_dir(dir: &Path) -> Result<(), String> {
 pub fn check_output_dir(dir: &Path, opts: DirWrite<'_>) -> Result<(), FileError> {
     match non_regular_kind(dir)? {
         None if dir.exists() => {
-            return Err(FileError::NotRegular {
+            return Err(FileError::NotAFolder {
                 path: dir.to_path_buf(),
                 kind: "a file, not a folder",
             })
         }
         Some(kind) if kind != "a folder" => {
-            return Err(FileError::NotRegular {
+            return Err(FileError::NotAFolder {
                 path: dir.to_path_buf(),
                 kind,
             })

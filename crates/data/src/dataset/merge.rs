@@ -18,8 +18,9 @@
 //! `_` and `.`). When two such inputs have folders of the same name,
 //! the merge is refused ([`DatasetError::MergeNameClash`]) naming both. Sweeps keep their steps;
 //! every file is written as `<name>.csv` (a `file` key of the inputs is not carried over).
-//! `truth.toml` is kept only when identical in all inputs (its forces keyed by the merged
-//! names), else dropped with a note.
+//! `truth.toml` is kept when every input has one describing the same device (modes and
+//! equations of motion), with every input's forces keyed by the merged names; else dropped
+//! with a note.
 
 use super::*;
 use crate::conventions::ImportRecord;
@@ -108,7 +109,7 @@ fn compared_numbers(m: &Manifest) -> Vec<(String, f64)> {
 
 /// The mode whose nominal resonance is spectrally closest to `hz` (the first of equally close
 /// ones: the identification's rule, `harmonid_spectral::nearest_of`).
-fn nearest<'a>(nominal_hz: &'a BTreeMap<String, f64>, hz: f64) -> Option<&'a str> {
+fn nearest(nominal_hz: &BTreeMap<String, f64>, hz: f64) -> Option<&str> {
     nominal_hz
         .iter()
         .min_by(|a, b| (hz - a.1).abs().total_cmp(&(hz - b.1).abs()))
@@ -147,7 +148,6 @@ fn merged_nominal(
                         hz,
                         own: a.unwrap_or_default().to_string(),
                         merged: b.unwrap_or_default().to_string(),
-                        last: manifest_path(last),
                     });
                 }
             }
@@ -167,6 +167,21 @@ fn merged_nominal(
         shown(&inputs[0])
     ));
     Ok(merged)
+}
+
+/// Refuses a folder given twice (by its canonical path; datasets made in memory are not
+/// compared).
+fn check_given_once(inputs: &[Dataset]) -> Result<(), DatasetError> {
+    let mut seen = BTreeSet::new();
+    for ds in inputs.iter().filter(|d| !d.dir.as_os_str().is_empty()) {
+        let real = ds.dir.canonicalize().unwrap_or_else(|_| ds.dir.clone());
+        if !seen.insert(real) {
+            return Err(DatasetError::MergeTwice {
+                path: ds.dir.clone(),
+            });
+        }
+    }
+    Ok(())
 }
 
 /// The first key on which `other` differs from `first`, as a [`DatasetError::MergeMismatch`].
@@ -280,27 +295,38 @@ fn merged_import(inputs: &[Dataset], notes: &mut Vec<String>) -> Option<ImportRe
     })
 }
 
-/// The truth of the merged dataset: kept when every input has the same, its forces keyed by
-/// the merged names; else `None` and a note.
+/// The truth of the merged dataset: kept when every input has one and all describe the same
+/// device (`[modes]` and `[eom]` equal), with every input's forces keyed by the merged names
+/// and the noise kept when all inputs had the same; else `None` and a note.
 fn merged_truth(
     inputs: &[Dataset],
     renamed: &[Vec<(String, String)>],
     notes: &mut Vec<String>,
 ) -> Option<Truth> {
     let first = inputs[0].truth.as_ref();
-    if inputs.iter().any(|d| d.truth.as_ref() != first) {
-        let with = inputs.iter().filter(|d| d.truth.is_some()).count();
+    let same_device = |t: &Truth| first.is_some_and(|f| f.modes == t.modes && f.eom == t.eom);
+    let truths = || inputs.iter().filter_map(|d| d.truth.as_ref());
+    let with = truths().count();
+    if with == 0 {
+        return None;
+    }
+    if with < inputs.len() || !truths().all(same_device) {
         notes.push(format!(
-            "truth.toml dropped: {with} of the {} inputs have one, and they are not all the same",
+            "truth.toml dropped: {with} of the {} inputs have one, and they do not all describe the same device",
             inputs.len()
         ));
         return None;
     }
     let mut truth = first?.clone();
-    let forces = std::mem::take(&mut truth.forces);
-    for pairs in renamed {
+    truth.forces.clear();
+    if truths().any(|t| t.noise != truth.noise) {
+        truth.noise = None;
+        notes.push("truth.toml: the inputs' noise differs; the merged truth has none".into());
+    }
+    for (ds, pairs) in inputs.iter().zip(renamed) {
+        let forces = ds.truth.as_ref().map(|t| &t.forces);
         for (old, new) in pairs {
-            if let Some(f) = forces.get(old) {
+            if let Some(f) = forces.and_then(|f| f.get(old)) {
                 truth.forces.insert(new.clone(), f.clone());
             }
         }
@@ -321,6 +347,7 @@ impl Dataset {
                 message: "merge needs at least one dataset".into(),
             });
         };
+        check_given_once(inputs)?;
         for other in &inputs[1..] {
             check_agree(first, other)?;
         }

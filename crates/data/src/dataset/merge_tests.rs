@@ -122,3 +122,59 @@ fn nominal_frequencies_may_differ_while_every_line_keeps_its_mode() {
         "{text}"
     );
 }
+
+#[test]
+fn a_folder_given_twice_is_refused() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let dir = tmp.path().join("r1");
+    load("lab/r1", MANIFEST).write(&dir).expect("write");
+    let a = Dataset::load(&dir).expect("read");
+    let err = Dataset::merge(&[a.clone(), a]).expect_err("twice");
+    assert!(
+        matches!(err, DatasetError::MergeTwice { .. }) && err.to_string().contains("given twice"),
+        "{err}"
+    );
+}
+
+/// Rounds simulated on one device have the same modes and equations but their own forces: the
+/// merged truth keeps the device and every round's forces under the merged names.
+#[test]
+fn truths_of_one_device_are_merged_with_every_rounds_forces() {
+    let force = |a: f64| {
+        BTreeMap::from([(
+            "q1".to_string(),
+            TruthForce {
+                amplitude: vec![a],
+                phase_rad: vec![0.0],
+            },
+        )])
+    };
+    let truth = |a: f64| Truth {
+        modes: BTreeMap::from([(
+            "q1".to_string(),
+            TruthMode {
+                f_hz: 100.0,
+                q: 1e3,
+            },
+        )]),
+        forces: BTreeMap::from([("single".to_string(), force(a))]),
+        ..Truth::default()
+    };
+    let mut a = load("lab/r1", MANIFEST);
+    let mut b = load("lab/r2", MANIFEST);
+    a.truth = Some(truth(1.0));
+    b.truth = Some(truth(2.0));
+    let m = Dataset::merge(&[a.clone(), b.clone()]).expect("merge");
+    let t = m.truth.as_ref().expect("kept");
+    assert_eq!(t.forces["r1_single"]["q1"].amplitude, [1.0]);
+    assert_eq!(t.forces["r2_single"]["q1"].amplitude, [2.0]);
+    b.truth
+        .as_mut()
+        .expect("truth")
+        .modes
+        .get_mut("q1")
+        .expect("q1")
+        .q = 2e3;
+    let m = Dataset::merge(&[a, b]).expect("merge");
+    assert!(m.truth.is_none());
+}

@@ -144,7 +144,7 @@ pub enum DatasetError {
     },
     /// Under the merged dataset's nominal frequencies (the last input's) a line of an input
     /// would belong to another mode than under the input's own.
-    #[error("{path}: line {hz} Hz of \"{measurement}\" belongs to mode {own} under its own nominal_hz but to {merged} under {last}'s, which the merged dataset keeps")]
+    #[error("{path}: line {hz} Hz of \"{measurement}\" belongs to mode {own} under its own nominal_hz but to {merged} under the last input's, which the merged dataset keeps")]
     #[diagnostic(
         code(harmonid::dataset::merge_attribution),
         help("nominal frequencies decide which mode a line belongs to; give the inputs nominal_hz values that attribute every line alike (edit [nominal_hz] in one dataset.toml), or identify them apart")
@@ -160,8 +160,16 @@ pub enum DatasetError {
         own: String,
         /// Its mode under the merged ones.
         merged: String,
-        /// Manifest of the input whose nominal frequencies the merge keeps.
-        last: PathBuf,
+    },
+    /// One dataset folder given twice: its measurements would count twice.
+    #[error("{path} is given twice; merging a dataset with itself would count every measurement twice")]
+    #[diagnostic(
+        code(harmonid::dataset::merge_twice),
+        help("give each dataset folder once")
+    )]
+    MergeTwice {
+        /// The folder given twice.
+        path: PathBuf,
     },
     /// A name in two inputs whose folders have the same name too: renaming cannot part them.
     #[error("measurement or sweep \"{name}\" is in {first} and in {second}, and both would be renamed \"{renamed}\"")]
