@@ -234,6 +234,54 @@ pub(crate) fn joint_bounds(
             *a += b;
         }
     }
+    bounds_of_sum(model, first, &info, shots)
+}
+
+/// The information of measurements added up as each is computed, keeping only the first's
+/// forward model (for the unknowns' names): a device's bounds over a plan of many
+/// measurements and levels in the memory of one.
+pub(crate) struct InfoSum {
+    first: Option<MeasInfo>,
+    sum: Vec<f64>,
+}
+
+impl InfoSum {
+    /// Nothing added yet.
+    pub(crate) fn new() -> Self {
+        Self {
+            first: None,
+            sum: Vec::new(),
+        }
+    }
+
+    /// Adds one measurement's (or level's) information.
+    pub(crate) fn add(&mut self, m: MeasInfo) {
+        if self.sum.is_empty() {
+            self.sum = m.info.clone();
+        } else {
+            for (a, b) in self.sum.iter_mut().zip(&m.info) {
+                *a += b;
+            }
+        }
+        self.first.get_or_insert(m);
+    }
+
+    /// The joint bounds of what was added ([`joint_bounds`] of the same measurements).
+    pub(crate) fn bounds(&self, model: &Model, shots: usize) -> Result<Evaluation, PlanError> {
+        let first = self.first.as_ref().ok_or(PlanError::EmptyPlan)?;
+        bounds_of_sum(model, first, &self.sum, shots)
+    }
+}
+
+/// The bounds of the summed information `info` (`S × S` on the shared unknowns), named by
+/// `first`'s forward model.
+fn bounds_of_sum(
+    model: &Model,
+    first: &MeasInfo,
+    info: &[f64],
+    shots: usize,
+) -> Result<Evaluation, PlanError> {
+    let s = n_shared(model);
     let free: Vec<usize> = first.fwd.free().into_iter().filter(|&k| k < s).collect();
     let c = free.len();
     let sub: Vec<f64> = (0..c * c)
@@ -287,12 +335,13 @@ pub fn robustness(
                 sigma_m,
                 shots,
             };
-            let mut infos = Vec::with_capacity(plan.measurements.len());
+            // Reduced as it goes: a device holds one sum, not a forward model per level.
+            let mut sum = InfoSum::new();
             let mut lost = Vec::new();
             for pm in &plan.measurements {
                 match ladder_info(&target, &plan, pm, Fidelity::Search) {
                     Ok((i, l)) => {
-                        infos.extend(i);
+                        i.into_iter().for_each(|m| sum.add(m));
                         lost.extend(l.iter().map(|j| format!("draw {k}: {} level {j}", pm.name)));
                     }
                     Err(e) if is_infeasible(&e) || too_large(&e).is_some() => {
@@ -305,8 +354,7 @@ pub fn robustness(
                     Err(e) => return Err(e),
                 }
             }
-            let refs: Vec<&MeasInfo> = infos.iter().collect();
-            let ev = joint_bounds(model, &refs, shots)?;
+            let ev = sum.bounds(model, shots)?;
             Ok(Draw::Scored {
                 rel: ev
                     .bounds

@@ -16,7 +16,8 @@ use num_complex::Complex64;
 pub(crate) struct MeasInfo {
     /// `S × S`, row-major, zero rows for unknowns the model fixes.
     pub info: Vec<f64>,
-    /// The forward model of the one-measurement dataset (labels, γ of fixed-Q modes).
+    /// The forward model of the one-measurement dataset (labels, γ of fixed-Q modes), never
+    /// evaluated: it holds no solver.
     pub fwd: ForwardModel,
     /// `θ` of `fwd`.
     pub theta: Vec<f64>,
@@ -266,6 +267,16 @@ pub(crate) fn info_of(
             info[free[ki] * s + free[kj]] = eff[(i, j)];
         }
     }
+    // The evaluated forward model keeps its harmonic-balance solver (a dense Jacobian and its
+    // factors, tens to hundreds of MB on a large lattice): a plan keeps one `MeasInfo` per
+    // measurement and level, so it keeps a fresh one, which only names the unknowns.
+    drop(fwd);
+    let fwd = ForwardModel::new(
+        model,
+        dataset,
+        ForceModel::Auto,
+        &ForwardSettings::default(),
+    )?;
     Ok(MeasInfo {
         info,
         fwd,
