@@ -114,6 +114,8 @@ def compare(
     models: Sequence[tuple[str, Model]],
     *,
     force_model: Literal["auto", "free", "gain_per_measurement", "gain_per_mode"] = "auto",
+    holdout: Sequence[str] = (),
+    error_floor: bool = False,
 ) -> dict[str, Any]: ...
 def discover(
     model: Model,
@@ -203,6 +205,10 @@ def plan(
     nominal: bool = False,
     draws: int = 10,
     ladder: Optional[Sequence[float]] = None,
+    gains: Optional[Mapping[str, float]] = None,
+    max_voltage: Optional[float] = None,
+    instrument: Optional[str] = None,
+    filter_order: Optional[int] = None,
 ) -> PlanResult: ...
 def evaluate_plan(
     model: Model,

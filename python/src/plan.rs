@@ -102,13 +102,20 @@ fn check_noise(noise_m: f64, shots: usize) -> PyResult<()> {
 /// `ladder`: each measurement's drive ladder, fractions of its forces (`--ladder`; default
 /// `[0.5, 0.75, 1.0]` over a range, none with `nominal=True`; `[1.0]` for none).
 ///
+/// `gains`: actuator gains by mode, N/kg per V (`--gain q1=0.8`): the plan's drive levels are
+/// then volts; `max_voltage` caps them (`--max-voltage`: per tone, or the tones' sum on the
+/// one output with an instrument). `instrument`: `"mfli"`, `"mfli-mf"`, `"hf2li"`, `"uhfli"`,
+/// `"moku"` or `"generic"` (`--instrument`; needs `gains`): the plan held to the lock-in's
+/// oscillators, demodulators and output, with its `[instrument]` settings per level (the
+/// filter order of `filter_order`, `--filter-order`, else the fastest to settle).
+///
 /// Returns a `PlanResult` (`.toml`, `.plan`, `.bounds`, ...). Raises `PlanError` when an
 /// unknown cannot be identified within the limits, the budget is too small or a drive passes a
 /// fold; values the simulation cannot use raise `SimulationError`. Runs without holding the
 /// GIL: a design simulates every candidate (0.2 s for one mode, minutes for the two-mode
 /// nanostring).
 #[pyfunction]
-#[pyo3(signature = (model, values, noise_m, shots = 1, *, max_frequencies = 32, max_measurements = None, bandwidth_hz = 0.5, max_force = None, points = None, nominal = false, draws = harmonid_plan::DEFAULT_DRAWS, ladder = None))]
+#[pyo3(signature = (model, values, noise_m, shots = 1, *, max_frequencies = 32, max_measurements = None, bandwidth_hz = 0.5, max_force = None, points = None, nominal = false, draws = harmonid_plan::DEFAULT_DRAWS, ladder = None, gains = None, max_voltage = None, instrument = None, filter_order = None))]
 #[allow(clippy::too_many_arguments)] // the Python signature, keyword arguments included
 pub fn plan(
     py: Python<'_>,
@@ -124,7 +131,22 @@ pub fn plan(
     nominal: bool,
     draws: usize,
     ladder: Option<Vec<f64>>,
+    gains: Option<BTreeMap<String, f64>>,
+    max_voltage: Option<f64>,
+    instrument: Option<&str>,
+    filter_order: Option<u32>,
 ) -> PyResult<PlanResult> {
+    let lockin: harmonid_plan::LockIn = instrument
+        .unwrap_or("generic")
+        .parse()
+        .map_err(PlanError::new_err)?;
+    let inst = harmonid_plan::InstrumentSettings {
+        lockin,
+        max_voltage,
+        filter_order,
+    };
+    inst.checked()
+        .map_err(|e| PlanError::new_err(e.to_string()))?;
     let (values, range) = guess_range(py, model, values, nominal)?;
     check_noise(noise_m, shots)?;
     let ladder = ladder.unwrap_or_else(|| harmonid_plan::default_ladder(range.is_some()));
@@ -135,8 +157,8 @@ pub fn plan(
         max_measurements,
         grid_hz: bandwidth_hz,
         max_force: max_force.unwrap_or(f64::INFINITY),
-        gains: BTreeMap::new(),
-        max_voltage: None,
+        gains: gains.unwrap_or_default(),
+        max_voltage,
         // Python callers bound the work themselves.
         time_budget_s: None,
         points: points
@@ -154,7 +176,10 @@ pub fn plan(
     };
     let m = std::sync::Arc::clone(&model.inner);
     let (plan, ev) = py
-        .detach(|| harmonid_plan::design(&m, &values, &settings).map_err(|e| e.to_string()))
+        .detach(|| {
+            harmonid_plan::design_for_instrument(&m, &values, &settings, &inst, &mut |_| {})
+                .map_err(|e| e.to_string())
+        })
         .map_err(PlanError::new_err)?;
     PlanResult::new(plan, &ev)
 }

@@ -124,3 +124,34 @@ def test_truth_file_is_a_guess():
     from_truth = harmonid.evaluate_plan(model, truth, PLAN_2, 0.05e-9, 20)
     from_values = harmonid.evaluate_plan(model, VALUES_2, PLAN_2, 0.05e-9, 20)
     assert from_truth.table() == from_values.table()
+
+
+BEAM = "examples/import/beam.hb"
+BEAM_VALUES_TOML = '[modes.q1]\nf_hz = 42.7909\nQ = 1450.0\n[parameters]\nbeta1 = -93.1\neta1 = 0.495\n'
+
+
+def test_instrument_plan_equals_cli(cli, tmp_path):
+    """plan(instrument="mfli-mf") writes the command line's plan, [instrument] included, and
+    is held to the MFLI: the tones' summed volts within --max-voltage, a filter the MFLI has;
+    the MFLI without MF-MD is refused, naming the option."""
+    (tmp_path / "values.toml").write_text(BEAM_VALUES_TOML)
+    cli("plan", BEAM, "--values", tmp_path / "values.toml", "--noise", "0.0418", "--shots", "10",
+        "--grid-hz", "0.001", "--gain", "q1=447", "--max-voltage", "0.45", "--instrument",
+        "mfli-mf", "--nominal", "--out", tmp_path / "plan.toml")
+    model = harmonid.Model.from_file(BEAM)
+    kw = dict(bandwidth_hz=0.001, gains={"q1": 447.0}, max_voltage=0.45, nominal=True)
+    r = harmonid.plan(model, tmp_path / "values.toml", 0.0418, 10, instrument="mfli-mf", **kw)
+    assert r.toml == (tmp_path / "plan.toml").read_text()
+    inst = r.plan["instrument"]
+    assert inst["profile"] == "mfli-mf" and inst["max_output_v"] == 0.45
+    for level in inst["level"]:
+        assert level["output_v"] == pytest.approx(sum(abs(v) for v in level["drives_v"]))
+        assert level["output_v"] <= 0.45 + 1e-12
+        assert 1 <= level["filter_order"] <= 8 and level["demodulators"] <= 4
+    with pytest.raises(harmonid.PlanError, match="MF-MD"):
+        harmonid.plan(model, tmp_path / "values.toml", 0.0418, 10, instrument="mfli", **kw)
+    with pytest.raises(harmonid.PlanError, match="unknown instrument"):
+        harmonid.plan(model, tmp_path / "values.toml", 0.0418, 10, instrument="sr830", **kw)
+    with pytest.raises(harmonid.PlanError, match="max-voltage"):
+        harmonid.plan(model, tmp_path / "values.toml", 0.0418, 10, instrument="mfli-mf",
+                      **{**kw, "max_voltage": float("nan")})
