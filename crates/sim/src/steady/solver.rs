@@ -240,7 +240,8 @@ impl HbSolver {
         2 * self.x.len()
     }
 
-    /// Residual at `x` with drive fraction `s` into `res`; returns `max |R| / max |s F|`.
+    /// Residual at `x` with drive fraction `s` into `res`; returns `max |R| / max |s F|`
+    /// (without a drive force, `max |R| / max |L X|`, `L` the linear operator).
     pub(super) fn residual(&mut self, use_try: bool, s: f64) -> f64 {
         let nm = self.model.n_modes();
         let nr = self.lattice.len();
@@ -254,7 +255,18 @@ impl HbSolver {
         for i in 0..nm * nr {
             self.res[i] = self.lin[i] * x[i] - self.force[i] * s + self.out[i];
         }
-        let fm = (self.force_max * s).max(f64::MIN_POSITIVE);
+        // Relative to the drive; without one (a pump alone sustains the state), relative to
+        // the largest linear force of the state, so that a force-free problem can converge.
+        let fm = if self.force_max > 0.0 {
+            self.force_max * s
+        } else {
+            self.lin
+                .iter()
+                .zip(x)
+                .map(|(l, z)| (l * z).norm())
+                .fold(0.0, f64::max)
+        }
+        .max(f64::MIN_POSITIVE);
         let mut m: f64 = 0.0;
         for r in &self.res {
             let a = r.norm();
