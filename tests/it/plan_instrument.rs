@@ -342,3 +342,80 @@ fn generic_plans_keep_their_per_tone_cap_and_grid_wording() {
     );
     assert!(err.contains("each shot integrates at least"), "{err}");
 }
+
+#[test]
+fn plan_after_a_round_says_what_the_new_data_add() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let dir = tmp.path();
+    let common = [
+        "--noise",
+        "0.0418V",
+        "--instrument",
+        "mfli-mf",
+        "--max-voltage",
+        "0.45",
+    ];
+    let args: Vec<&str> = common.iter().copied().chain(["--out", "a.toml"]).collect();
+    let (ok, _, _, err) = run_plan(dir, &args);
+    assert!(ok, "{err}");
+    let model = root().join("examples/import/beam.hb");
+    let run = |args: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_harmonid"))
+            .args(args)
+            .current_dir(dir)
+            .output()
+            .expect("runs");
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    let m = model.to_str().expect("utf-8 path");
+    run(&[
+        "simulate",
+        m,
+        "--values",
+        "values.toml",
+        "--plan",
+        "a.toml",
+        "--seed",
+        "1",
+        "--out",
+        "d0",
+    ]);
+    run(&["identify", m, "d0", "--out", "r0.json"]);
+    let args: Vec<&str> = common
+        .iter()
+        .copied()
+        .chain(["--after", "r0.json", "--out", "b.toml"])
+        .collect();
+    let (ok, _, stdout, err) = run_plan(dir, &args);
+    assert!(ok, "{err}");
+    // The table's relative bounds, by quantity.
+    let rel: std::collections::BTreeMap<&str, f64> = stdout
+        .lines()
+        .take_while(|l| !l.starts_with('('))
+        .skip(1)
+        .filter_map(|l| {
+            let f: Vec<&str> = l.split_whitespace().collect();
+            Some((*f.first()?, f.get(3)?.parse().ok()?))
+        })
+        .collect();
+    let added: Vec<&str> = stdout
+        .lines()
+        .skip_while(|l| !l.starts_with("what the new data add"))
+        .skip(1)
+        .collect();
+    assert_eq!(added.len(), 4, "{stdout}");
+    for line in added {
+        let f: Vec<&str> = line.split_whitespace().collect();
+        let num = |k: usize| f[k].parse::<f64>().expect("a number");
+        let (before, alone, both) = (num(1), num(2), num(3));
+        // The plan alone is the table's bound; together, independent data add information.
+        assert!((alone / rel[f[0]] - 1.0).abs() < 2e-3, "{line}");
+        let want = (before.powi(-2) + alone.powi(-2)).powf(-0.5);
+        assert!((both / want - 1.0).abs() < 2e-3, "{line}: {want}");
+        assert!(both < before.min(alone), "{line}");
+    }
+}
