@@ -133,6 +133,9 @@ enum Chain {
 #[derive(Debug, Clone)]
 struct MeasFwd {
     name: String,
+    /// Its index in the dataset (the unknowns' layout names its forces and gains by it; a
+    /// [`ForwardModel::subset`] keeps it).
+    index: usize,
     tones_hz: Vec<f64>,
     /// Mode each tone pushes.
     tone_mode: Vec<usize>,
@@ -309,6 +312,7 @@ impl ForwardModel {
             }
             meas.push(MeasFwd {
                 name: m.spec.name.clone(),
+                index: mi,
                 tones_hz: m.spec.drives_hz.clone(),
                 tone_mode,
                 drive_c,
@@ -462,6 +466,63 @@ impl ForwardModel {
     pub fn observations_of(&self, mi: usize) -> std::ops::Range<usize> {
         let m = &self.meas[mi];
         m.offset..m.offset + m.obs.len()
+    }
+
+    /// Number of measurements.
+    pub(crate) fn n_measurements(&self) -> usize {
+        self.meas.len()
+    }
+
+    /// The forward model of the measurements `keep` only (indices into this one's,
+    /// increasing), on the same layout of the unknowns, with their lattices and steady states:
+    /// the output-error fit of a group of measurements before the joint one
+    /// ([`crate::output_error`]'s staged start). A sweep step whose previous step is not kept
+    /// is solved on its own.
+    pub(crate) fn subset(&self, keep: &[usize]) -> ForwardModel {
+        let mut n_obs = 0;
+        let meas = keep
+            .iter()
+            .map(|&mi| {
+                let mut m = self.meas[mi].clone();
+                m.offset = n_obs;
+                m.follows = m.follows.and_then(|p| keep.iter().position(|&k| k == p));
+                n_obs += m.obs.len();
+                m
+            })
+            .collect();
+        ForwardModel {
+            model: self.model.clone(),
+            mode_names: self.mode_names.clone(),
+            table: self.table.clone(),
+            meas,
+            n_obs,
+            settings: self.settings.clone(),
+            at: None,
+        }
+    }
+
+    /// Per measurement, the one before it in its stepped sweep (see `MeasFwd::follows`).
+    pub(crate) fn follows(&self) -> Vec<Option<usize>> {
+        self.meas.iter().map(|m| m.follows).collect()
+    }
+
+    /// Every measurement's name.
+    pub(crate) fn measurement_names(&self) -> Vec<&str> {
+        self.meas.iter().map(|m| m.name.as_str()).collect()
+    }
+
+    /// Takes the lattices and steady states of `sub`'s measurements (made by
+    /// [`ForwardModel::subset`] with `keep`) as these measurements' own: their warm starts for
+    /// the next evaluation.
+    pub(crate) fn adopt(&mut self, sub: &ForwardModel, keep: &[usize]) {
+        for (m, &mi) in sub.meas.iter().zip(keep) {
+            let own = &self.meas[mi];
+            let (offset, follows) = (own.offset, own.follows);
+            self.meas[mi] = m.clone();
+            self.meas[mi].offset = offset;
+            self.meas[mi].follows = follows;
+        }
+        self.at = None;
     }
 
     /// Frequency (Hz) and shapes of every observation of measurement `mi`.
@@ -688,6 +749,8 @@ impl ForwardModel {
     /// The drive of measurement `mi` at `θ`.
     fn excitation(&self, mi: usize, theta: &[f64]) -> Excitation {
         let m = &self.meas[mi];
+        // The measurement's index in the layout (not in a subset).
+        let mi = m.index;
         let nm = self.mode_names.len();
         let mut force = vec![vec![Z; m.tones_hz.len()]; nm];
         let get = |u: Unknown| self.table.index_of(&u).map_or(0.0, |k| theta[k]);

@@ -5,6 +5,7 @@
 //! the noise, a linearised jackknife, drift and cross-measurement consistency checks.
 
 pub mod ml;
+mod staged;
 
 use crate::forward::{ForwardError, ForwardModel, Widened};
 use crate::layout::{Quantity, Unknown};
@@ -42,6 +43,9 @@ const MAX_WIDENINGS: usize = 4;
 /// fit moves the parameters from there.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Start {
+    /// The pooled equation-error estimate refined by output-error group of measurements by
+    /// group ([`staged`]).
+    Staged,
     /// The pooled equation-error estimate.
     PooledLinear,
     /// The same with the model parameters it does not determine (relative standard error
@@ -57,6 +61,7 @@ impl Start {
     /// What the start is, as a note says it.
     fn description(self) -> &'static str {
         match self {
+            Start::Staged => "the pooled linear estimate refined group of measurements by group",
             Start::PooledLinear => "the pooled linear estimate",
             Start::UndeterminedAtZero => {
                 "the model parameters the pooled linear fit does not determine at zero"
@@ -212,8 +217,15 @@ pub(crate) fn fit(
         bounds: prob.table.bounds(),
         e0,
     };
-    let (mut fit, mut notes) =
-        tries.best(fwd, &pooled.mean, &starts(prob, linear, linear_var, poor))?;
+    // The staged start first (it leaves `fwd` at its steady states), then the others.
+    let staged = staged::staged_start(fwd, &pooled.mean, &tries, &prob.table.start_from(linear));
+    let mut all_starts: Vec<(Vec<f64>, Start)> = staged
+        .as_ref()
+        .map(|s| (s.theta.clone(), Start::Staged))
+        .into_iter()
+        .collect();
+    all_starts.extend(starts(prob, linear, linear_var, poor));
+    let (mut fit, mut notes) = tries.best(fwd, &pooled.mean, &all_starts)?;
     let shot_sigma = &sigma[..];
     let mut floor = None;
     let mut sigma_used = sigma.clone();
@@ -261,6 +273,13 @@ pub(crate) fn fit(
             "the output-error fit stopped after {} steps before converging (χ² {:.4e} from {:.4e})",
             fit.steps, fit.chi2, fit.chi2_start
         ));
+    }
+    if !fit.converged || fit.chi2 / fit.dof.max(1) as f64 > GOOD_FIT * e0 {
+        notes.extend(
+            staged
+                .as_ref()
+                .and_then(|s| staged::poor_groups_note(fwd, &s.groups, e0)),
+        );
     }
     let quantity = |k: usize| Quantity::of(&fwd.unknowns()[k]);
     let at_bound = fit.at_bound.iter().filter_map(|&k| quantity(k)).collect();
@@ -549,16 +568,18 @@ impl Tries<'_> {
             {
                 break;
             }
-            // Newton from the data at each start; the drive ramp from rest only at the last.
+            // Newton from the data at each start; the drive ramp from rest only at the last,
+            // and at the staged start (its steady states are the groups', where a measurement
+            // no group fitted may have none).
             if i > 0 {
                 fwd.start_from_data(mean);
             }
             last_run = i;
             let ml_settings = MlSettings {
-                ramp_at_start: i + 1 == starts.len(),
+                ramp_at_start: i + 1 == starts.len() || starts[i].1 == Start::Staged,
                 ..MlSettings::default()
             };
-            match ml::refine(
+            let r = ml::refine(
                 fwd,
                 self.meas,
                 self.sigma,
@@ -566,7 +587,8 @@ impl Tries<'_> {
                 self.cols,
                 self.bounds,
                 &ml_settings,
-            ) {
+            );
+            match r {
                 Ok(f) => {
                     if i == 0 {
                         first_fit_chi2 = Some(reduced(&f));
@@ -595,14 +617,15 @@ impl Tries<'_> {
         }
         let mut notes = Vec::new();
         let start = starts[i].1;
-        if start != Start::PooledLinear {
+        if i != 0 {
+            let first = starts[0].1.description();
             let why = match (first_fit_chi2, first_err) {
                 (Some(c), _) => format!(
-                    "from the pooled linear estimate it ended at χ²/dof = {c:.3e}, {:.3e} from here (a correct model gives about {:.3})",
+                    "from {first} it ended at χ²/dof = {c:.3e}, {:.3e} from here (a correct model gives about {:.3})",
                     reduced(&f),
                     self.e0
                 ),
-                (None, Some(e)) => format!("at the pooled linear estimate {e}"),
+                (None, Some(e)) => format!("at {first}: {e}"),
                 (None, None) => String::new(),
             };
             notes.push(format!(

@@ -1,0 +1,473 @@
+//! The staged start of the output-error fit: the pooled linear estimate refined by
+//! output-error, group of measurements by group, before the joint fit.
+//!
+//! Why: on a many-mode device of high Q, the linear estimate of a poorly measured coupling
+//! can be tens of linewidths of frequency shift off. From there the joint fit either finds no
+//! steady state (a fold) or, started with every parameter at zero, slides into a minimum
+//! where per-measurement gains stand in for a mode's wrong frequency (a ten-mode string with
+//! every Q ≈ 1.3·10⁵: χ²/dof 4.5 to 320 where a correct model gives 1.04). A single
+//! measurement of few modes has few unknowns, and once the modes it shares with others are
+//! fitted, the rest of it is a small, well-started fit.
+//!
+//! The groups: the unknowns each measurement depends on are read from the Jacobian at the
+//! linear start with every model parameter at zero (a linear response, always solvable: a
+//! coupling term of two modes vanishes unless both respond, so a measurement driving one
+//! mode does not depend on that mode's couplings). Measurements are taken by the number of
+//! modes they depend on, one mode first; within a count, those sharing an unknown not yet
+//! fitted (or steps of one sweep) form a group. Each group fits only its new unknowns, the
+//! others held at what earlier groups found, from the current values and, when that fit is
+//! not as good as a correct model's, also from its new model parameters at zero; the better
+//! is kept. The steady states found are the joint fit's warm starts.
+
+use super::ml::{self, MlSettings};
+use super::{Tries, GOOD_FIT};
+use crate::forward::ForwardModel;
+use crate::layout::Unknown;
+use harmonid_data::Dataset;
+use nalgebra::DMatrix;
+use num_complex::Complex64;
+use std::collections::BTreeSet;
+
+/// One group's fit.
+#[derive(Debug, Clone)]
+pub(crate) struct GroupFit {
+    /// Its measurements (indices).
+    pub measurements: Vec<usize>,
+    /// The unknowns fitted in it (those no earlier group fitted).
+    pub unknowns: Vec<usize>,
+    /// `χ²/dof` of its best fit (infinite when no start reached one).
+    pub reduced_chi2: f64,
+}
+
+/// The staged start: the values of every unknown and each group's fit.
+pub(crate) struct Staged {
+    pub theta: Vec<f64>,
+    pub groups: Vec<GroupFit>,
+}
+
+/// `theta` with the model parameters among `which` at zero (or their nearest bound).
+fn params_at_zero(
+    fwd: &ForwardModel,
+    theta: &[f64],
+    which: &[usize],
+    bounds: &[(Option<f64>, Option<f64>)],
+) -> Vec<f64> {
+    let mut t = theta.to_vec();
+    for &k in which {
+        if let Unknown::Param(_) = fwd.unknowns()[k] {
+            let (lo, hi) = bounds[k];
+            t[k] = 0.0_f64
+                .max(lo.unwrap_or(f64::NEG_INFINITY))
+                .min(hi.unwrap_or(f64::INFINITY));
+        }
+    }
+    t
+}
+
+/// `ds` with the measurements `keep` only.
+fn select(ds: &Dataset, keep: &[usize]) -> Dataset {
+    Dataset {
+        dir: ds.dir.clone(),
+        manifest: ds.manifest.clone(),
+        measurements: keep.iter().map(|&i| ds.measurements[i].clone()).collect(),
+        truth: None,
+        notes: Vec::new(),
+    }
+}
+
+/// A measurement depends on an unknown when changing it by its own size (its start value)
+/// moves the measurement's lines by more than this many noise sigmas (root sum of squares);
+/// below, the dependence is the harmonic balance's round-off (a mode no tone drives responds
+/// at 1e-30 of the others).
+const DEPENDS: f64 = 1e-3;
+
+/// Per measurement, the unknowns among `cols` it depends on and the modes it depends on,
+/// from the Jacobian `jac` (every unknown, `nk` columns) at a linear response at `theta`
+/// (scales: a model parameter at zero there is scaled by its value in `theta0`).
+fn dependencies(
+    fwd: &ForwardModel,
+    (jac, sigma): (&[Complex64], &[f64]),
+    theta0: &[f64],
+    cols: &[usize],
+) -> Vec<(BTreeSet<usize>, usize)> {
+    let nk = fwd.unknowns().len();
+    let touches = |mi: usize, k: usize| {
+        // No size to judge by (an unknown the linear fit left at zero): any dependence.
+        let scale = match theta0[k].abs() {
+            s if s > 0.0 => s,
+            _ => f64::INFINITY,
+        };
+        let effect: f64 = fwd
+            .observations_of(mi)
+            .map(|o| (jac[o * nk + k] / sigma[o]).norm_sqr())
+            .sum();
+        effect > 0.0 && effect.sqrt() * scale > DEPENDS
+    };
+    (0..fwd.n_measurements())
+        .map(|mi| {
+            let deps = cols.iter().copied().filter(|&k| touches(mi, k)).collect();
+            let modes = (0..fwd.mode_names().len())
+                .filter(|&n| {
+                    fwd.unknowns().iter().enumerate().any(|(k, u)| {
+                        matches!(*u, Unknown::OmegaSq(m) | Unknown::Gamma(m) if m == n)
+                            && touches(mi, k)
+                    })
+                })
+                .count();
+            (deps, modes)
+        })
+        .collect()
+}
+
+/// The groups of measurements with `modes` modes: those sharing an unknown not in
+/// `settled` (or steps of one sweep, `follows`) together; each with its new unknowns.
+fn groups_of(
+    deps: &[(BTreeSet<usize>, usize)],
+    modes: usize,
+    settled: &BTreeSet<usize>,
+    follows: &[Option<usize>],
+) -> Vec<(Vec<usize>, BTreeSet<usize>)> {
+    let mut groups: Vec<(Vec<usize>, BTreeSet<usize>)> = Vec::new();
+    for (mi, (d, m)) in deps.iter().enumerate() {
+        if *m != modes {
+            continue;
+        }
+        let new: BTreeSet<usize> = d.difference(settled).copied().collect();
+        // Every group this one joins: sharing a new unknown or holding its previous step.
+        let (mut joined, rest): (Vec<_>, Vec<_>) = groups.into_iter().partition(|(ms, u)| {
+            !u.is_disjoint(&new) || follows[mi].is_some_and(|p| ms.contains(&p))
+        });
+        let mut merged = (vec![mi], new);
+        for (ms, u) in joined.drain(..) {
+            merged.0.extend(ms);
+            merged.1.extend(u);
+        }
+        merged.0.sort_unstable();
+        groups = rest;
+        groups.push(merged);
+    }
+    groups.retain(|g| !g.1.is_empty());
+    groups
+}
+
+/// A group's fit ([`fit_group`]).
+struct GroupResult {
+    /// The best fit, over the group's new unknowns or over all it depends on.
+    fit: ml::MlFit,
+    /// The group's forward model at the fit's steady states.
+    sub: ForwardModel,
+    /// Each fitted unknown's precision `1/var` ([`precisions`]).
+    precision: Vec<(usize, f64)>,
+    /// The new unknowns' values fitted with the others held.
+    held: Vec<f64>,
+}
+
+/// Refits the group `keep` over its `new` unknowns from `theta` (the others held there),
+/// Newton from the group's steady states in `fwd`.
+fn refit_held(
+    fwd: &ForwardModel,
+    tries: &Tries,
+    theta: &[f64],
+    (keep, new): (&[usize], &[usize]),
+) -> Option<(ml::MlFit, ForwardModel)> {
+    let (meas, sigma) = observations_of(fwd, keep, tries.meas, tries.sigma);
+    let mut sub = fwd.subset(keep);
+    let f = ml::refine(
+        &mut sub,
+        &meas,
+        &sigma,
+        theta,
+        new,
+        tries.bounds,
+        &MlSettings::default(),
+    )
+    .ok()?;
+    Some((f, sub))
+}
+
+/// The observations of `fwd`'s measurements `keep`, concatenated (the subset's order).
+fn observations_of(
+    fwd: &ForwardModel,
+    keep: &[usize],
+    meas: &[Complex64],
+    sigma: &[f64],
+) -> (Vec<Complex64>, Vec<f64>) {
+    let mut m = Vec::new();
+    let mut s = Vec::new();
+    for &mi in keep {
+        let r = fwd.observations_of(mi);
+        m.extend_from_slice(&meas[r.clone()]);
+        s.extend_from_slice(&sigma[r]);
+    }
+    (m, s)
+}
+
+/// Fits the group `keep` (measurements) over `new` (unknowns) from `theta`, and from `new`'s
+/// model parameters at zero when that is not good enough; when the better is still not good,
+/// refines it over `all` the unknowns the group depends on (a strongly driven measurement
+/// sees its modes more sharply than the measurements that fitted them: held at their values
+/// it can miss by many sigmas). The best fit's values (only `new`'s are the group's
+/// estimates) and its forward model (the subset, at the fit's steady states), or `None` when
+/// neither start reached a fit. With them, the precision of each unknown fitted
+/// ([`precisions`]).
+fn fit_group(
+    fwd: &ForwardModel,
+    mean: &Dataset,
+    tries: &Tries,
+    theta: &[f64],
+    (keep, new, all): (&[usize], &[usize], &[usize]),
+) -> Option<GroupResult> {
+    let sub_ds = select(mean, keep);
+    let (meas, sigma) = observations_of(fwd, keep, tries.meas, tries.sigma);
+    let reduced = |f: &ml::MlFit| f.chi2 / f.dof.max(1) as f64;
+    let mut best: Option<(ml::MlFit, ForwardModel)> = None;
+    let from_zero = params_at_zero(fwd, theta, new, tries.bounds);
+    let starts: &[(&[f64], bool)] = if from_zero == theta {
+        &[(theta, true)]
+    } else {
+        &[(theta, false), (&from_zero, true)]
+    };
+    for &(start, ramp) in starts {
+        if best
+            .as_ref()
+            .is_some_and(|(f, _)| reduced(f) <= GOOD_FIT * tries.e0)
+        {
+            break;
+        }
+        let mut sub = fwd.subset(keep);
+        sub.start_from_data(&sub_ds);
+        let settings = MlSettings {
+            ramp_at_start: ramp,
+            ..MlSettings::default()
+        };
+        let r = ml::refine(&mut sub, &meas, &sigma, start, new, tries.bounds, &settings);
+        let Ok(f) = r else {
+            continue;
+        };
+        if best.as_ref().is_none_or(|(b, _)| f.chi2 < b.chi2) {
+            best = Some((f, sub));
+        }
+    }
+    let (f, sub) = best?;
+    let held: Vec<f64> = new.iter().map(|&k| f.theta[k]).collect();
+    let with_precisions = |fit: ml::MlFit, sub: ForwardModel, cols: &[usize]| {
+        let inflation = (reduced(&fit) / tries.e0).max(1.0);
+        let precision = precisions(&fit.jac, fwd.unknowns().len(), &sigma, cols)
+            .into_iter()
+            .map(|(k, p)| (k, p / inflation))
+            .collect();
+        Some(GroupResult {
+            fit,
+            sub,
+            precision,
+            held: held.clone(),
+        })
+    };
+    if reduced(&f) <= GOOD_FIT * tries.e0 || all.len() == new.len() {
+        return with_precisions(f, sub, new);
+    }
+    // `sub` is at `f`'s steady states: Newton from there.
+    let mut wider = sub.clone();
+    let settings = MlSettings {
+        ramp_at_start: false,
+        ..MlSettings::default()
+    };
+    let r = ml::refine(
+        &mut wider,
+        &meas,
+        &sigma,
+        &f.theta,
+        all,
+        tries.bounds,
+        &settings,
+    );
+    match r {
+        Ok(g) if g.chi2 < f.chi2 => with_precisions(g, wider, all),
+        _ => with_precisions(f, sub, new),
+    }
+}
+
+/// The precision `1/var` of each unknown in `cols` from the information `AᵀA` of the fit
+/// (`A = J/σ`, real and imaginary rows; `jac` with `nk` columns), by its equilibrated
+/// inverse; none when the information is singular.
+fn precisions(jac: &[Complex64], nk: usize, sigma: &[f64], cols: &[usize]) -> Vec<(usize, f64)> {
+    let m = cols.len();
+    let mut a = DMatrix::<f64>::zeros(2 * sigma.len(), m);
+    for (o, s) in sigma.iter().enumerate() {
+        for (j, &k) in cols.iter().enumerate() {
+            let z = jac[o * nk + k] / *s;
+            a[(2 * o, j)] = z.re;
+            a[(2 * o + 1, j)] = z.im;
+        }
+    }
+    let d: Vec<f64> = (0..m)
+        .map(|j| match a.column(j).norm() {
+            n if n > 0.0 && n.is_finite() => 1.0 / n,
+            _ => 0.0,
+        })
+        .collect();
+    for (j, dj) in d.iter().enumerate() {
+        a.column_mut(j).scale_mut(*dj);
+    }
+    let Some(inv) = (a.transpose() * &a).try_inverse() else {
+        return Vec::new();
+    };
+    cols.iter()
+        .enumerate()
+        .filter_map(|(j, &k)| {
+            let var = inv[(j, j)] * d[j] * d[j];
+            (var.is_finite() && var > 0.0).then_some((k, 1.0 / var))
+        })
+        .collect()
+}
+
+/// The staged start from `theta0` (the pooled linear estimate as values of every unknown):
+/// see the module documentation. `fwd` is left at the staged values' steady states (every
+/// measurement's, the warm starts of the joint fit). `None` when the linear response itself
+/// cannot be evaluated; `fwd` is then as it was started from the data.
+pub(crate) fn staged_start(
+    fwd: &mut ForwardModel,
+    mean: &Dataset,
+    tries: &Tries,
+    theta0: &[f64],
+) -> Option<Staged> {
+    let nk = fwd.unknowns().len();
+    let mut x = vec![Complex64::new(0.0, 0.0); fwd.n_observations()];
+    let mut jac = vec![Complex64::new(0.0, 0.0); fwd.n_observations() * nk];
+    let linear = params_at_zero(fwd, theta0, tries.cols, tries.bounds);
+    fwd.start_from_data(mean);
+    if fwd.evaluate(&linear, &mut x, Some(&mut jac)).is_err() {
+        fwd.start_from_data(mean);
+        return None;
+    }
+    let deps = dependencies(fwd, (&jac, tries.sigma), theta0, tries.cols);
+    let follows = fwd.follows();
+    let most = deps.iter().map(|d| d.1).max().unwrap_or(0);
+    let mut theta = theta0.to_vec();
+    let mut settled = BTreeSet::new();
+    let mut groups = Vec::new();
+    let mut fitted = vec![false; fwd.n_measurements()];
+    // Per unknown, the sums of precision and precision × value over the groups that fitted it.
+    let mut combined = vec![(0.0, 0.0); nk];
+    // The groups that share unknowns with earlier ones, with their new unknowns' values
+    // fitted with the shared ones held.
+    let mut held: Vec<(usize, Vec<f64>)> = Vec::new();
+    for modes in 0..=most {
+        let class = groups_of(&deps, modes, &settled, &follows);
+        for (keep, new) in &class {
+            let new: Vec<usize> = new.iter().copied().collect();
+            let all: BTreeSet<usize> = keep
+                .iter()
+                .flat_map(|&mi| deps[mi].0.iter().copied())
+                .collect();
+            let all: Vec<usize> = all.into_iter().collect();
+            let shares = all.len() > new.len();
+            let fit = fit_group(fwd, mean, tries, &theta, (keep, &new, &all));
+            let reduced_chi2 = match fit {
+                Some(GroupResult {
+                    fit: f,
+                    sub,
+                    precision,
+                    held: h,
+                }) => {
+                    for &k in &new {
+                        theta[k] = f.theta[k];
+                    }
+                    for (k, p) in precision {
+                        combined[k].0 += p;
+                        combined[k].1 += p * f.theta[k];
+                    }
+                    fwd.adopt(&sub, keep);
+                    keep.iter().for_each(|&mi| fitted[mi] = true);
+                    if shares {
+                        held.push((groups.len(), h));
+                    }
+                    f.chi2 / f.dof.max(1) as f64
+                }
+                None => f64::INFINITY,
+            };
+            groups.push(GroupFit {
+                measurements: keep.clone(),
+                unknowns: new,
+                reduced_chi2,
+            });
+        }
+        for (_, new) in class {
+            settled.extend(new);
+        }
+    }
+    // Each unknown at the inverse-variance mean of the groups that fitted it: a strongly
+    // driven measurement fits its modes' f, Q and β far more sharply than the measurement
+    // that fitted them first, and at their values its own state may not exist (past a fold).
+    for (t, &(w, wt)) in theta.iter_mut().zip(&combined) {
+        if w > 0.0 && (wt / w).is_finite() {
+            *t = wt / w;
+        }
+    }
+    // There, each group that shares unknowns fits its own again (from the values it had with
+    // the shared ones held: a group's own fit of the shared ones may have moved its own along
+    // a valley the group alone does not close), so every steady state is at the start.
+    for (gi, h) in held {
+        let g = &mut groups[gi];
+        let mut start = theta.clone();
+        for (&k, &v) in g.unknowns.iter().zip(&h) {
+            start[k] = v;
+        }
+        if let Some((f, sub)) = refit_held(fwd, tries, &start, (&g.measurements, &g.unknowns)) {
+            for &k in &g.unknowns {
+                theta[k] = f.theta[k];
+            }
+            fwd.adopt(&sub, &g.measurements);
+            g.reduced_chi2 = f.chi2 / f.dof.max(1) as f64;
+        }
+    }
+    // The measurements no group fitted (nothing new in them, or their fit failed): their
+    // steady states at the staged values, from the data.
+    // One by one: one that fails keeps its start from the data.
+    for mi in (0..fitted.len()).filter(|&mi| !fitted[mi]) {
+        let mut sub = fwd.subset(&[mi]);
+        sub.start_from_data(&select(mean, &[mi]));
+        let mut xs = vec![Complex64::new(0.0, 0.0); sub.n_observations()];
+        if sub.evaluate(&theta, &mut xs, None).is_ok() {
+            fwd.adopt(&sub, &[mi]);
+        }
+    }
+    Some(Staged { theta, groups })
+}
+
+/// The note on the groups whose own fit is far from a correct model's (`χ²/dof` above
+/// [`GOOD_FIT`] times `e0`) when the joint fit failed: which unknowns, in which
+/// measurements, and what measurement would help. `None` when every group fitted.
+pub(crate) fn poor_groups_note(fwd: &ForwardModel, groups: &[GroupFit], e0: f64) -> Option<String> {
+    let poor: Vec<&GroupFit> = groups
+        .iter()
+        .filter(|g| g.reduced_chi2.is_nan() || g.reduced_chi2 > GOOD_FIT * e0)
+        .collect();
+    if poor.is_empty() {
+        return None;
+    }
+    let names = fwd.measurement_names();
+    let items: Vec<String> = poor
+        .iter()
+        .map(|g| {
+            let unknowns: Vec<String> = g.unknowns.iter().map(|&k| fwd.label(k)).collect();
+            let meas: Vec<String> = g
+                .measurements
+                .iter()
+                .map(|&mi| format!("\"{}\"", names[mi]))
+                .collect();
+            format!(
+                "{} in {} (χ²/dof {:.3e})",
+                harmonid_data::text::first_and_more(unknowns, 4).join(", "),
+                harmonid_data::text::first_and_more(meas, 3).join(", "),
+                g.reduced_chi2
+            )
+        })
+        .collect();
+    Some(format!(
+        "output-error fit by groups of measurements: {} of {} groups could not be fitted on their own (a correct model gives χ²/dof about {e0:.3}): {}; the modes they share with the groups fitted before them were held there. A measurement of these unknowns' modes driven alone, or this group's measurement at a lower drive (nearer the linear response, where the linear estimate is a good start), would help",
+        poor.len(),
+        groups.len(),
+        harmonid_data::text::first_and_more(items, 4).join("; ")
+    ))
+}
