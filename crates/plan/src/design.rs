@@ -172,7 +172,8 @@ fn floor3(x: f64) -> f64 {
     }
     let e = 10f64.powi(x.log10().floor() as i32 - 2);
     // Through the decimal form, as `round3`, so the level reads `0.449`.
-    let d = ((x / e) * (1.0 + 1e-12)).floor();
+    // (A level a float step below its 3-digit value, 0.22499999…, keeps 0.225.)
+    let d = ((x / e) * (1.0 + 1e-9)).floor();
     format!("{:.2e}", d * e).parse().unwrap_or(d * e)
 }
 
