@@ -32,6 +32,8 @@ enum Command {
     Simulate(cli::simulate::Args),
     /// Compute a frequency-response curve with continuation through folds.
     Sweep(cli::sweep::Args),
+    /// The linear response to a weak probe tone about a steady state, its idler, and noise spectra.
+    Response(cli::response::Args),
     /// Design a drive-tone plan, or score one, by the Cramér–Rao bounds of the unknowns.
     Plan(cli::plan::Args),
     /// Robustness of the identification to measurement noise (Supplementary Note V).
@@ -52,6 +54,7 @@ fn main() -> miette::Result<()> {
         Command::Discover(args) => cli::discover::run(args),
         Command::Simulate(args) => cli::simulate::run(args),
         Command::Sweep(args) => cli::sweep::run(args),
+        Command::Response(args) => cli::response::run(args),
         Command::NoiseStudy(args) => cli::noise_study::run(args),
         Command::Report(args) => cli::report::run(args),
         Command::Plan(args) => cli::plan::run(args),

@@ -13,6 +13,7 @@ pub mod noise_study;
 pub mod plan;
 pub mod progress;
 pub mod report;
+pub mod response;
 pub mod simulate;
 pub mod sweep;
 pub mod sweep_args;

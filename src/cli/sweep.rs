@@ -104,15 +104,30 @@ pub fn run(args: Args) -> miette::Result<()> {
             let _ = write!(csv, ",{n}_h{h}_re,{n}_h{h}_im,{n}_h{h}_abs");
         }
     }
-    csv.push('\n');
-    for p in &r.points {
+    // A Hopf point between this point and the next: its frequency (empty on other rows).
+    csv.push_str(",hopf_hz\n");
+    for (i, p) in r.points.iter().enumerate() {
         let _ = write!(csv, "{:.9},{}", p.f_hz, p.stable as u8);
         for row in &p.amplitudes {
             for z in row {
                 let _ = write!(csv, ",{:e},{:e},{:e}", z.re, z.im, z.norm());
             }
         }
-        csv.push('\n');
+        match r.hopf.iter().find(|h| h.index == i) {
+            Some(h) => {
+                let _ = writeln!(csv, ",{:.9}", h.f_hz);
+            }
+            None => csv.push_str(",\n"),
+        }
+    }
+    for h in &r.hopf {
+        eprintln!(
+            "Hopf point at {:.6} Hz: the state {} stability through a complex pair (a self-oscillation {:.4} Hz from the drive's lines {})",
+            h.f_hz,
+            if h.gains_stability { "gains" } else { "loses" },
+            h.offset_hz,
+            if h.gains_stability { "stops" } else { "starts" }
+        );
     }
     let (up, down) = r.jumps();
     eprintln!(

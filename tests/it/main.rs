@@ -36,6 +36,7 @@ mod plan_roundtrip_mc;
 mod pumping_cli;
 mod readme_quickstart;
 mod report_cli;
+mod response_cli;
 mod roundtrip;
 mod roundtrip_noise;
 mod sim_cli;

@@ -37,7 +37,7 @@
 //! white noise puts an independent `S_F df` into each. At rest `S_q,n = S_F/|ω_n² − Ω² + iΩγ_n|²`.
 
 use crate::lattice::LINE_TOL_HZ;
-use crate::{common_grid, NumericModel, PumpTone, SimError, SteadyState};
+use crate::{NumericModel, PumpTone, SimError, SteadyState};
 use faer::linalg::solvers::Solve;
 use num_complex::Complex64;
 use std::collections::BTreeSet;
@@ -48,8 +48,12 @@ use std::f64::consts::TAU;
 pub const RESPONSE_DEPTH: usize = 2;
 /// Most complex unknowns (modes × response lines) of one response system.
 pub const MAX_RESPONSE_UNKNOWNS: usize = 2000;
-/// Highest harmonic of the base frequency `f₀` the coefficients may reach (sampling cost).
-pub const MAX_RESPONSE_HARMONIC: usize = 20_000;
+/// Highest harmonic of the base frequency `f₀` the coefficients may reach: one period of `f₀`
+/// is sampled at `2K + 1` points (two tones 0.1 Hz apart near 1 kHz: `K ≈ 2·10⁴`).
+pub const MAX_RESPONSE_HARMONIC: usize = 1_000_000;
+/// Most harmonics of `f₀` where the coefficients may be non-zero (the sums of up to
+/// `degree − 1` of the state's and the pump's lines).
+const MAX_SUPPORT: usize = 20_000;
 /// Most probe frequencies of one call.
 pub const MAX_PROBES: usize = 1_000_000;
 
@@ -63,8 +67,9 @@ pub struct LinearResponse {
     base_hz: f64,
     /// Response lines' offsets, in multiples of `base_hz`; `offsets[0] = 0` (the probe's line).
     offsets: Vec<i64>,
-    /// Highest coefficient harmonic `K`: `a[(d + K)·N² + n·N + m]` is `A_{nm,d}`, `|d| ≤ K`.
-    k_max: i64,
+    /// Harmonics of `f₀` where the coefficients may be non-zero (sorted):
+    /// `a[i·N² + n·N + m]` is `A_{nm,d}` for `d = support[i]`.
+    support: Vec<i64>,
     a: Vec<Complex64>,
     b: Vec<Complex64>,
 }
@@ -135,9 +140,9 @@ impl LinearResponse {
         let base_hz = if freqs.is_empty() {
             0.0
         } else {
-            common_grid(&freqs, LINE_TOL_HZ, top / MAX_RESPONSE_HARMONIC as f64).ok_or_else(
+            base_frequency(&freqs, top / MAX_RESPONSE_HARMONIC as f64).ok_or_else(
                 || SimError::BadValue {
-                    what: "the steady state's lines and pump tones (Hz)".into(),
+                    what: "the highest line of the steady state and the pump (Hz)".into(),
                     value: top,
                     why: format!(
                         "they have no common base frequency above 1/{MAX_RESPONSE_HARMONIC} of the highest, so the state is not periodic within reach: put the tones on a common grid (e.g. whole Hz)"
@@ -152,26 +157,16 @@ impl LinearResponse {
                 0
             }
         };
-        // Highest coefficient harmonic: (degree − 1) factors of the highest line.
-        let deg = model.max_degree().max(1) as i64;
-        let top_idx = freqs.iter().map(|&f| index(f)).max().unwrap_or(0);
-        let k_max = (deg - 1) * top_idx;
-        if k_max > MAX_RESPONSE_HARMONIC as i64 {
-            return Err(SimError::TooLarge {
-                what: "harmonics of the base frequency in the linearised equations",
-                count: k_max as usize,
-                limit: MAX_RESPONSE_HARMONIC,
-                help: "the state's lines share only a fine base frequency: use fewer or commensurate tones, or a model of lower degree",
-            });
-        }
-        let (a, b) = coefficients(model, &lines, &pumps, k_max, &index);
+        let idx: Vec<i64> = freqs.iter().map(|&f| index(f)).collect();
+        let support = coefficient_support(&idx, model.max_degree().max(1) as usize - 1)?;
+        let (a, b) = coefficients(model, &lines, &pumps, &support, &index);
         let mut r = Self {
             nm,
             omega: (0..nm).map(|n| model.omega(n)).collect(),
             gamma: (0..nm).map(|n| model.gamma(n)).collect(),
             base_hz,
             offsets: vec![0],
-            k_max,
+            support,
             a,
             b,
         };
@@ -197,15 +192,17 @@ impl LinearResponse {
             .chain(&self.b)
             .map(|z| z.norm())
             .fold(0.0, f64::max);
-        let support: Vec<i64> = (-self.k_max..=self.k_max)
-            .filter(|&d| {
-                let i = ((d + self.k_max) as usize) * nn;
+        let support: Vec<i64> = (0..self.support.len())
+            .filter(|&i| {
+                let d = self.support[i];
+                let i = i * nn;
                 d != 0
                     && self.a[i..i + nn]
                         .iter()
                         .chain(&self.b[i..i + nn])
                         .any(|z| z.norm() > 1e-13 * scale)
             })
+            .map(|i| self.support[i])
             .collect();
         let mut set: BTreeSet<i64> = BTreeSet::from([0]);
         for _ in 0..RESPONSE_DEPTH {
@@ -230,11 +227,13 @@ impl LinearResponse {
     /// Coefficient `(A, B)` of equation `n`, variable `m` at harmonic `d` of `f₀` (zero beyond
     /// the highest).
     fn coef(&self, n: usize, m: usize, d: i64) -> (Complex64, Complex64) {
-        if d.abs() > self.k_max {
-            return (Complex64::ZERO, Complex64::ZERO);
+        match self.support.binary_search(&d) {
+            Ok(i) => {
+                let i = i * self.nm * self.nm + n * self.nm + m;
+                (self.a[i], self.b[i])
+            }
+            Err(_) => (Complex64::ZERO, Complex64::ZERO),
         }
-        let i = ((d + self.k_max) as usize) * self.nm * self.nm + n * self.nm + m;
-        (self.a[i], self.b[i])
     }
 
     /// The system matrix `M(f_p)` over the unknowns `n·L + k` (`L` response lines).
@@ -297,6 +296,32 @@ impl LinearResponse {
     }
 }
 
+/// The largest frequency `f₀ ≥ min_hz` of which every one of `freqs` (positive, Hz) is a whole
+/// multiple, to `10⁻⁶` of `f₀` (lattice lines are sums of tones, with rounding errors):
+/// Euclid's algorithm, the divisor snapped after each frequency so that the largest so far is
+/// an exact multiple (without it the rounding of the remainders accumulates). `None` below
+/// `min_hz`.
+fn base_frequency(freqs: &[f64], min_hz: f64) -> Option<f64> {
+    let tol = 1e-3 * min_hz;
+    let mut g = 0.0f64;
+    let mut top = 0.0f64;
+    for &f in freqs {
+        let (mut a, mut b) = (g.max(f), g.min(f));
+        while b > tol {
+            let r = a % b;
+            a = b;
+            b = if r > b - tol { 0.0 } else { r };
+            if a < min_hz {
+                return None;
+            }
+        }
+        top = top.max(f);
+        g = top / (top / a).round().max(1.0);
+    }
+    let whole = |f: f64| ((f / g) - (f / g).round()).abs() <= 1e-6;
+    (g >= min_hz && freqs.iter().all(|&f| whole(f))).then_some(g)
+}
+
 /// Checks a frequency: finite and positive.
 fn check_hz(what: &str, f: f64) -> Result<(), SimError> {
     if f.is_finite() && f > 0.0 {
@@ -344,34 +369,71 @@ fn state_lines(
     Ok(out)
 }
 
-/// Fourier coefficients `A_d`, `B_d` (`|d| ≤ k_max`, `[(d + K)·N² + n·N + m]`) of the
-/// linearised forces along the state: the force Jacobian sampled at `2K + 1` points of one
-/// period of `f₀`, which resolves a trigonometric polynomial of degree `K` exactly.
+/// The harmonics of `f₀` where the linearised forces' coefficients may be non-zero: the sums
+/// of up to `order` (the model's degree less one) signed line indices `idx` (sorted). Errors:
+/// more than [`MAX_SUPPORT`], or a harmonic above [`MAX_RESPONSE_HARMONIC`].
+fn coefficient_support(idx: &[i64], order: usize) -> Result<Vec<i64>, SimError> {
+    let mut set: BTreeSet<i64> = BTreeSet::from([0]);
+    for _ in 0..order {
+        let now: Vec<i64> = set.iter().copied().collect();
+        for s in now {
+            for &l in idx {
+                set.insert(s + l);
+                set.insert(s - l);
+            }
+        }
+        if set.len() > MAX_SUPPORT {
+            return Err(SimError::TooLarge {
+                what: "harmonics where the linearised equations' coefficients vary",
+                count: set.len(),
+                limit: MAX_SUPPORT,
+                help: "the state holds too many lines: use fewer tones or a lower lattice order",
+            });
+        }
+    }
+    let top = set.iter().map(|d| d.unsigned_abs()).max().unwrap_or(0) as usize;
+    if top > MAX_RESPONSE_HARMONIC {
+        return Err(SimError::TooLarge {
+            what: "harmonics of the base frequency in the linearised equations",
+            count: top,
+            limit: MAX_RESPONSE_HARMONIC,
+            help: "the state's lines share only a fine base frequency: put the tones on a coarser common grid",
+        });
+    }
+    Ok(set.into_iter().collect())
+}
+
+/// Fourier coefficients `A_d`, `B_d` (`d` in `support`, `[i·N² + n·N + m]`) of the linearised
+/// forces along the state: the force Jacobian sampled at `2K + 1` points of one period of
+/// `f₀` (`K` the highest harmonic of the support), which resolves a trigonometric polynomial
+/// of degree `K` exactly.
 fn coefficients(
     model: &NumericModel,
     lines: &[(f64, Vec<Complex64>)],
     pumps: &[PumpTone],
-    k_max: i64,
+    support: &[i64],
     index: &dyn Fn(f64) -> i64,
 ) -> (Vec<Complex64>, Vec<Complex64>) {
     let nm = model.n_modes();
     let nv = model.n_vars();
     let nn = nm * nm;
+    let k_max = support.iter().map(|d| d.abs()).max().unwrap_or(0);
     let ns = (2 * k_max + 1) as usize;
-    let nk = ns;
-    let mut a = vec![Complex64::ZERO; nk * nn];
-    let mut b = vec![Complex64::ZERO; nk * nn];
+    let roots: Vec<Complex64> = (0..ns)
+        .map(|j| Complex64::from_polar(1.0, TAU * j as f64 / ns as f64))
+        .collect();
+    let root = |k: i64, s: usize| roots[((k.rem_euclid(ns as i64) as usize) * s) % ns];
+    let line_idx: Vec<i64> = lines.iter().map(|l| index(l.0)).collect();
+    let pump_idx: Vec<i64> = pumps.iter().map(|p| index(p.hz)).collect();
+    let mut a = vec![Complex64::ZERO; support.len() * nn];
+    let mut b = vec![Complex64::ZERO; support.len() * nn];
     let mut x = vec![0.0; nv.max(1)];
     let mut pows = vec![0.0; model.pow_len()];
     let mut jac = vec![0.0; nm * nv.max(1)];
     for s in 0..ns {
-        let phase = |f: f64| {
-            let k = index(f).rem_euclid(ns as i64) as f64;
-            Complex64::from_polar(1.0, TAU * k * s as f64 / ns as f64)
-        };
         x.iter_mut().for_each(|v| *v = 0.0);
-        for (f, col) in lines {
-            let e = phase(*f);
+        for ((f, col), &k) in lines.iter().zip(&line_idx) {
+            let e = root(k, s);
             for (n, z) in col.iter().enumerate() {
                 let u = z * e;
                 x[n] += u.re;
@@ -381,20 +443,20 @@ fn coefficients(
             }
         }
         if nv > 2 * nm {
-            x[2 * nm] = pumps.iter().map(|p| (p.amplitude * phase(p.hz)).re).sum();
+            x[2 * nm] = pumps
+                .iter()
+                .zip(&pump_idx)
+                .map(|(p, &k)| (p.amplitude * root(k, s)).re)
+                .sum();
         }
         model.force_jacobian(&x, &mut pows, &mut jac);
-        for d in -k_max..=k_max {
-            let e = Complex64::from_polar(
-                1.0 / ns as f64,
-                -TAU * (d.rem_euclid(ns as i64) as f64) * s as f64 / ns as f64,
-            );
-            let i0 = ((d + k_max) as usize) * nn;
+        for (i, &d) in support.iter().enumerate() {
+            let e = root(-d, s) / ns as f64;
             for n in 0..nm {
                 for m in 0..nm {
-                    a[i0 + n * nm + m] += e * jac[n * nv + m];
+                    a[i * nn + n * nm + m] += e * jac[n * nv + m];
                     if nv > nm {
-                        b[i0 + n * nm + m] += e * jac[n * nv + nm + m];
+                        b[i * nn + n * nm + m] += e * jac[n * nv + nm + m];
                     }
                 }
             }
@@ -499,6 +561,22 @@ mod tests {
                 assert!((psd - l.norm_sqr()).abs() <= 1e-9 * l.norm_sqr());
             }
         }
+    }
+
+    #[test]
+    fn the_base_frequency_of_a_two_tone_lattice() {
+        let lines = [
+            995.3000000000002,
+            996.5000000000005,
+            1000.1,
+            1001.3,
+            1004.8999999999996,
+            2000.0,
+        ];
+        let g = base_frequency(&lines, 1e-3).expect("a grid");
+        assert!((g - 0.1).abs() < 1e-12, "{g}");
+        assert_eq!(base_frequency(&[1000.0, 1000.0 * 2f64.sqrt()], 1e-3), None);
+        assert_eq!(base_frequency(&[1000.0, 3000.0], 1e-3), Some(1000.0));
     }
 
     #[test]
