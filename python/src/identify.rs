@@ -40,8 +40,9 @@ fn estimator(name: &str) -> PyResult<Estimator> {
 ///   `result.crlb`);
 /// - `error_floor`: add an error floor to the shot noise, estimated with the fit
 ///   (`--error-floor`; `result.goodness_of_fit["error_floor"]`, and no p-value);
-/// - `holdout`: measurement names to leave out of the fit; the result's `holdout` says how
-///   well the estimate predicts them (`--holdout`);
+/// - `holdout`: measurement names to leave out of the fit (or a sweep's, or the input file or
+///   label an imported sweep came from); the result's `holdout` says how well the estimate
+///   predicts them (`--holdout`);
 /// - `rank_tol`, `gls`, `gls_iterations`, `sample_covariance`: the library's settings
 ///   (`Settings` in `harmonid_ident`); None keeps the documented default.
 ///
@@ -117,7 +118,7 @@ pub fn identify(
             let result = if held.is_empty() {
                 harmonid_ident::identify(&m, &ds, &settings)
             } else {
-                harmonid_ident::identify_with_holdout(&m, &ds, &held, &settings)
+                harmonid_ident::identify_with_holdout(&m, &ds, &ds.resolve_names(&held), &settings)
             };
             result.map(|r| {
                 let s = r.summary(ds.truth.as_ref());

@@ -51,6 +51,8 @@ pub struct Args {
     pub error_floor: bool,
     /// Fit without these measurements, then report how well the estimate predicts them (RMS
     /// in noise units and relative; their forces or gains are refitted, the model fixed).
+    /// A name is a measurement's or a sweep's, or an imported sweep's source: its input file
+    /// (`Measurements_A=0.32%.txt`) or its label as written.
     #[arg(long, value_delimiter = ',', value_name = "NAME[,NAME...]")]
     pub holdout: Vec<String>,
 }
@@ -124,7 +126,8 @@ pub fn run(args: Args) -> miette::Result<()> {
     let report = if args.holdout.is_empty() {
         identify(&model, &ds, &settings)
     } else {
-        identify_with_holdout(&model, &ds, &args.holdout, &settings)
+        // The names the lab gave (an input file, a sweep label) as the dataset's names.
+        identify_with_holdout(&model, &ds, &ds.resolve_names(&args.holdout), &settings)
     };
     pb.finish_and_clear();
     let mut report = report.map_err(miette::Report::new)?;

@@ -75,6 +75,12 @@ pub struct SweepSpec {
     /// CSV file, relative to the dataset folder and inside it (default `<name>.csv`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub file: Option<String>,
+    /// Where the sweep came from, as the lab named it: the input file's name
+    /// (`Measurements_A=0.32%.txt`) or the sweep label as written in the file (the name may
+    /// differ: an escaped character, a level or an `_up`/`_down` suffix). Written by
+    /// `harmonid import`; `identify --holdout` accepts it as well as the name.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source: Option<String>,
     /// The order the steps were measured in (checked against `drives_hz`).
     pub direction: Direction,
     /// The drive tones of each step, Hz: one list per step, in measurement order.
@@ -122,6 +128,7 @@ impl SweepSpec {
         SweepSpec {
             name: name.into(),
             file: None,
+            source: None,
             direction,
             drives_hz,
             drive_levels_v: None,
@@ -336,4 +343,46 @@ pub(super) fn read_sweep_csv<R: std::io::Read>(
         sw.direction.name()
     );
     Ok((out, Some(note)))
+}
+
+impl Dataset {
+    /// The names `given` (of `--holdout`, say) as this dataset's names: a measurement's or a
+    /// sweep's name is kept; a name the lab gave, a sweep's [`SweepSpec::source`] (its input
+    /// file's name, with or without the folder or extension, or its label as written), becomes
+    /// the name of every sweep from that source (both legs of an up-and-down sweep). Any other
+    /// name is kept as given, so that the caller's error lists the dataset's names.
+    pub fn resolve_names(&self, given: &[String]) -> Vec<String> {
+        let mut out: Vec<String> = Vec::new();
+        for g in given {
+            let known = self.manifest.sweeps.iter().any(|s| &s.name == g)
+                || self.measurements.iter().any(|m| &m.spec.name == g);
+            let from_source: Vec<&String> = if known {
+                Vec::new()
+            } else {
+                self.manifest
+                    .sweeps
+                    .iter()
+                    .filter(|s| s.source.as_deref().is_some_and(|src| same_source(src, g)))
+                    .map(|s| &s.name)
+                    .collect()
+            };
+            if from_source.is_empty() {
+                out.push(g.clone());
+            } else {
+                out.extend(from_source.into_iter().cloned());
+            }
+        }
+        out.dedup();
+        out
+    }
+}
+
+/// Whether `given` names the source `src`: equal, or (for a file) its path or stem.
+fn same_source(src: &str, given: &str) -> bool {
+    let g = Path::new(given);
+    src == given
+        || g.file_name().is_some_and(|n| n.to_string_lossy() == src)
+        || Path::new(src)
+            .file_stem()
+            .is_some_and(|s| s.to_string_lossy() == given)
 }

@@ -11,6 +11,7 @@
 pub mod mat;
 pub mod moku_csv;
 pub mod table;
+mod text_table;
 pub mod zi_csv;
 pub mod zi_hdf5;
 pub mod zi_sweeper;
@@ -152,11 +153,38 @@ pub struct Record {
     pub noise: Option<(f64, u32)>,
 }
 
+/// The sweep name for `original` (a file stem, a sweep label), kept as the lab wrote it but
+/// for the characters a sweep name cannot hold, each replaced by `_`: path separators `/` and
+/// `\` and control characters (the name is also its CSV's file name), `[` `]` (a step is
+/// `name[k]`), `,` (`--holdout` lists names with commas), and `: * ? " < > |` (not in Windows
+/// file names); spaces at either end are dropped. `Measurements_A=0.32%` stays itself. An
+/// empty name, `.` or `..` becomes `sweep`.
+pub fn readable_name(original: &str) -> String {
+    let name: String = original
+        .trim()
+        .chars()
+        .map(|c| {
+            if c.is_control() || "/\\[],:*?\"<>|".contains(c) {
+                '_'
+            } else {
+                c
+            }
+        })
+        .collect();
+    match name.as_str() {
+        "" | "." | ".." => "sweep".into(),
+        _ => name,
+    }
+}
+
 /// How to cut records into sweeps, and what to call them.
 #[derive(Debug, Clone, Default)]
 pub struct Grouping {
     /// A name per group (input file stem, struct element); empty: named by drive level.
     pub group_names: Vec<String>,
+    /// Per group, where it came from as the lab named it (the input file's name, a sweep label
+    /// as written), recorded as each of its sweeps' `source`; empty: none recorded.
+    pub sources: Vec<String>,
     /// Start a new sweep when the drive level changes between steps of one group (for files
     /// that hold several level sweeps one after the other).
     pub split_on_level: bool,
@@ -619,8 +647,26 @@ fn turning_point(fs: &[f64]) -> Option<usize> {
 }
 
 /// The sweeps `sweeps`, each that turns back (a lab's up-and-down sweep per level) cut into
-/// its two legs, named with `_up` and `_down`.
+/// its two legs, named with `_up` and `_down`; when one does, every other sweep one way is
+/// named by its direction too (the top level swept up only is `level_0.6_up`, beside the
+/// others' `_up` and `_down`).
 fn split_turns(steps: &[Step], sweeps: &[(usize, usize)]) -> Vec<Cut> {
+    let mut cuts = split_each(steps, sweeps);
+    if cuts.iter().any(|c| !c.2.is_empty()) {
+        for c in cuts.iter_mut().filter(|c| c.2.is_empty() && c.1 - c.0 >= 2) {
+            let fs: Vec<f64> = steps[c.0..c.1].iter().map(|s| s.drive).collect();
+            if fs.windows(2).all(|w| w[1] > w[0]) {
+                c.2 = "_up";
+            } else if fs.windows(2).all(|w| w[1] < w[0]) {
+                c.2 = "_down";
+            }
+        }
+    }
+    cuts
+}
+
+/// [`split_turns`]'s cut of each sweep that turns back, the others kept whole.
+fn split_each(steps: &[Step], sweeps: &[(usize, usize)]) -> Vec<Cut> {
     let mut cuts = Vec::new();
     for &(a, b) in sweeps {
         let fs: Vec<f64> = steps[a..b].iter().map(|s| s.drive).collect();
@@ -698,7 +744,12 @@ fn sweeps_and_measurements(
     for &(a, b, suffix) in sweeps {
         let part = &steps[a..b];
         let name = sweep_name(part, grouping, suffix, &mut names);
-        let sw = sweep_spec(part, name);
+        let mut sw = sweep_spec(part, name);
+        sw.source = grouping
+            .sources
+            .get(part[0].group)
+            .filter(|s| !s.is_empty())
+            .cloned();
         for (k, s) in part.iter().enumerate() {
             measurements.push(s.measurement(sw.step_spec(k), inputs)?);
         }

@@ -251,6 +251,7 @@ pub fn import(
     let grouping = Grouping {
         group_names: vec!["sweep".into()],
         split_on_level: false,
+        sources: Vec::new(),
     };
     let (mut ds, note) = build("moku-csv", inputs, records, conv, settle, &grouping, out)?;
     record_instrument(

@@ -16,6 +16,8 @@
 //! settle_samples = 40          # or settle_s = 0.5 (needs columns.time_s)
 //! ```
 
+pub use super::text_table::Column;
+use super::text_table::{read_text, Group};
 use super::{
     build, mat, read_input, Conventions, Grouping, ImportError, PhaseUnit, Record, Settle,
 };
@@ -25,31 +27,53 @@ use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// Where each quantity is: a column name (text tables) or a variable path (MAT files).
+/// Where each quantity is: a header name or a 1-based column number (text tables), or a
+/// variable path (MAT files).
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Columns {
     /// The drive (and measured) frequency.
-    pub freq_hz: String,
+    pub freq_hz: Column,
     /// In-phase part (with `y`).
-    pub x: Option<String>,
+    pub x: Option<Column>,
     /// Quadrature part (with `x`).
-    pub y: Option<String>,
+    pub y: Option<Column>,
     /// Magnitude (with `theta`).
-    pub r: Option<String>,
+    pub r: Option<Column>,
     /// Phase (with `r`), in `conventions.phase_unit`.
-    pub theta: Option<String>,
+    pub theta: Option<Column>,
     /// Drive level per row.
-    pub drive_level: Option<String>,
+    pub drive_level: Option<Column>,
     /// Drive phase per row, in `conventions.phase_unit`.
-    pub drive_phase: Option<String>,
+    pub drive_phase: Option<Column>,
     /// Step number per row (else a step is a run of rows at one frequency and level).
-    pub step: Option<String>,
+    pub step: Option<Column>,
     /// Sample time per row, s (for `settle.settle_s`).
-    pub time_s: Option<String>,
+    pub time_s: Option<Column>,
     /// Sweep label per row (else each input file or struct element is a sweep, and a single
     /// one is cut where the drive level changes).
-    pub sweep: Option<String>,
+    pub sweep: Option<Column>,
+}
+
+impl Columns {
+    /// Every mapped column with its mapping key, in a fixed order.
+    fn wanted(&self) -> Vec<(&'static str, &Column)> {
+        [
+            ("freq_hz", Some(&self.freq_hz)),
+            ("x", self.x.as_ref()),
+            ("y", self.y.as_ref()),
+            ("r", self.r.as_ref()),
+            ("theta", self.theta.as_ref()),
+            ("drive_level", self.drive_level.as_ref()),
+            ("drive_phase", self.drive_phase.as_ref()),
+            ("step", self.step.as_ref()),
+            ("time_s", self.time_s.as_ref()),
+            ("sweep", self.sweep.as_ref()),
+        ]
+        .into_iter()
+        .filter_map(|(k, c)| c.map(|c| (k, c)))
+        .collect()
+    }
 }
 
 /// Constants of the drive when the file has no column for them.
@@ -159,7 +183,10 @@ fn check_units(m: &Mapping, origin: &str) -> Result<(), ImportError> {
         origin: origin.to_string(),
         message,
     };
-    if let (Some(x), Some(y)) = (&c.x, &c.y) {
+    if let (Some(x), Some(y)) = (
+        c.x.as_ref().and_then(Column::name),
+        c.y.as_ref().and_then(Column::name),
+    ) {
         if let (Some(ux), Some(uy)) = (unit_tag(x), unit_tag(y)) {
             if ux != uy {
                 return Err(bad(format!(
@@ -171,7 +198,11 @@ fn check_units(m: &Mapping, origin: &str) -> Result<(), ImportError> {
     let Some(declared) = m.conventions.phase_unit else {
         return Ok(());
     };
-    for col in [&c.theta, &c.drive_phase].into_iter().flatten() {
+    for col in [&c.theta, &c.drive_phase]
+        .into_iter()
+        .flatten()
+        .filter_map(Column::name)
+    {
         let Some(tag) = unit_tag(col) else { continue };
         let named = match tag.to_ascii_lowercase().as_str() {
             "deg" | "degree" | "degrees" | "°" => PhaseUnit::Deg,
@@ -194,7 +225,7 @@ fn check_units(m: &Mapping, origin: &str) -> Result<(), ImportError> {
 /// in a text file, for the message.
 fn check_phase_range(
     path: &Path,
-    key: &str,
+    key: &Column,
     values: &[f64],
     unit: PhaseUnit,
     rows: Option<&[usize]>,
@@ -220,7 +251,7 @@ fn check_phase_range(
         path: path.to_path_buf(),
         row: rows.and_then(|r| r.get(i).copied()),
         message: format!(
-            "phase column \"{key}\" reaches {v} (value {}), beyond ±{} for phase_unit = \"{}\": degrees declared as {}? Set phase_unit to the column's unit (a phase unwrapped over several turns must be wrapped first)",
+            "phase column {key} reaches {v} (value {}), beyond ±{} for phase_unit = \"{}\": degrees declared as {}? Set phase_unit to the column's unit (a phase unwrapped over several turns must be wrapped first)",
             i + 1,
             limit / (1.0 + 1e-9),
             unit.name(),
@@ -229,22 +260,32 @@ fn check_phase_range(
     })
 }
 
-/// The columns of one group of an input (a text table is one group; a MAT path with `(*)` one
-/// group per element).
-struct Group {
-    /// The group's name (empty: the input file's stem).
-    name: String,
-    /// The values of every wanted column but the sweep labels.
-    cols: BTreeMap<String, Vec<f64>>,
-    /// The sweep label of each row, as written (text or a number), when a sweep column is
-    /// mapped.
-    labels: Option<Vec<String>>,
-    /// The 1-based line of each value in a text file (comment and blank lines counted), for
-    /// messages; `None` for a MATLAB file.
-    rows: Option<Vec<usize>>,
+type Groups = Vec<Group>;
+
+/// The sweeps' names and sources, gathered as the groups are read: one per group (an input
+/// file, a struct element), and one per distinct sweep label.
+#[derive(Default)]
+struct Names {
+    groups: Vec<String>,
+    sources: Vec<String>,
+    labels: Vec<String>,
+    label_sources: Vec<String>,
 }
 
-type Groups = Vec<Group>;
+impl Names {
+    /// The group of sweep label `label`, a new one the first time it is seen.
+    fn label_group(&mut self, label: &str) -> usize {
+        let name = sweep_label_name(label);
+        match self.labels.iter().position(|l| *l == name) {
+            Some(p) => p,
+            None => {
+                self.labels.push(name);
+                self.label_sources.push(label.trim().to_string());
+                self.labels.len() - 1
+            }
+        }
+    }
+}
 
 /// Imports `inputs` with `mapping` (read from `mapping_path`) into a dataset named `out`.
 pub fn import(
@@ -253,132 +294,37 @@ pub fn import(
     out: &Path,
 ) -> Result<(Dataset, String), ImportError> {
     let c = &mapping.columns;
-    let wanted: Vec<&String> = [
-        Some(&c.freq_hz),
-        c.x.as_ref(),
-        c.y.as_ref(),
-        c.r.as_ref(),
-        c.theta.as_ref(),
-        c.drive_level.as_ref(),
-        c.drive_phase.as_ref(),
-        c.step.as_ref(),
-        c.time_s.as_ref(),
-        c.sweep.as_ref(),
-    ]
-    .into_iter()
-    .flatten()
-    .collect();
-    let unit = mapping.conventions.phase_unit;
+    let wanted = c.wanted();
     let mut records = Vec::new();
-    let mut names = Vec::new();
-    let mut sweep_labels: Vec<String> = Vec::new();
+    let mut names = Names::default();
     for (fi, path) in inputs.iter().enumerate() {
         let groups = if path
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("mat"))
         {
-            read_mat(path, &wanted, c.sweep.as_deref())?
+            read_mat(path, &wanted, c.sweep.as_ref())?
         } else {
             read_text(
                 path,
                 &wanted,
                 mapping.delimiter.as_deref(),
-                c.sweep.as_deref(),
+                c.sweep.as_ref(),
             )?
         };
-        let file_name = path
-            .file_name()
-            .map(|n| n.to_string_lossy().to_string())
-            .unwrap_or_default();
-        let file_level = mapping.files.get(&file_name).and_then(|f| f.drive_level);
-        for Group {
-            name: gname,
-            cols,
-            labels,
-            rows,
-        } in groups
-        {
-            let get = |k: &Option<String>| k.as_ref().and_then(|k| cols.get(k));
-            // A value's line in a text file, its 1-based index in a MATLAB array.
-            let row_of = |i: usize| {
-                rows.as_ref()
-                    .and_then(|r| r.get(i).copied())
-                    .unwrap_or(i + 1)
-            };
-            if let Some(u) = unit {
-                for key in [&c.theta, &c.drive_phase].into_iter().flatten() {
-                    if let Some(v) = cols.get(key) {
-                        check_phase_range(path, key, v, u, rows.as_deref())?;
-                    }
-                }
-            }
-            let f = &cols[&c.freq_hz];
-            let n = f.len();
-            for (key, v) in &cols {
-                if v.len() != n {
-                    return Err(ImportError::Input {
-                        path: path.clone(),
-                        row: None,
-                        message: format!("\"{key}\" has {} values but \"{}\" has {n}; the columns must be as long", v.len(), c.freq_hz),
-                    });
-                }
-            }
-            let group = names.len();
-            names.push(sanitize(&if gname.is_empty() {
-                path.file_stem()
-                    .map(|s| s.to_string_lossy().to_string())
-                    .unwrap_or_default()
-            } else {
-                gname
-            }));
-            for i in 0..n {
-                let z = match (get(&c.x), get(&c.y), get(&c.r), get(&c.theta)) {
-                    (Some(x), Some(y), _, _) => Complex64::new(x[i], y[i]),
-                    (_, _, Some(r), Some(t)) => {
-                        Complex64::from_polar(r[i], unit.map_or(t[i], |u| u.to_rad(t[i])))
-                    }
-                    _ => Complex64::new(f64::NAN, f64::NAN),
-                };
-                let group = match &labels {
-                    Some(s) => {
-                        let name = sweep_label_name(&s[i]);
-                        match sweep_labels.iter().position(|l| *l == name) {
-                            Some(p) => p,
-                            None => {
-                                sweep_labels.push(name);
-                                sweep_labels.len() - 1
-                            }
-                        }
-                    }
-                    None => group,
-                };
-                records.push(Record {
-                    drive: f[i],
-                    line: f[i],
-                    z,
-                    level: get(&c.drive_level)
-                        .map(|v| v[i])
-                        .or(file_level)
-                        .or(mapping.drive.level),
-                    drive_phase_rad: get(&c.drive_phase)
-                        .map(|v| unit.map_or(v[i], |u| u.to_rad(v[i])))
-                        .or(mapping.drive.phase_rad),
-                    group,
-                    step: get(&c.step).map(|v| v[i] as u64),
-                    time_s: get(&c.time_s).map(|v| v[i]),
-                    origin: (fi, row_of(i)),
-                    noise: None,
-                });
-            }
+        for g in groups {
+            group_records(&mut records, g, (fi, path), mapping, &mut names)?;
         }
     }
+    let split_on_level = c.sweep.is_none() && names.groups.len() == 1;
+    let (group_names, sources) = if c.sweep.is_some() {
+        (names.labels, names.label_sources)
+    } else {
+        (names.groups, names.sources)
+    };
     let grouping = Grouping {
-        split_on_level: c.sweep.is_none() && names.len() == 1,
-        group_names: if c.sweep.is_some() {
-            sweep_labels
-        } else {
-            names
-        },
+        split_on_level,
+        group_names,
+        sources,
     };
     let (ds, note) = build(
         "table",
@@ -393,6 +339,114 @@ pub fn import(
         refuse_merged_levels(&ds, inputs)?;
     }
     Ok((ds, note))
+}
+
+/// The records of group `g` of input `fi` (the file `path`), appended to `records`: its
+/// columns checked (phase range, equal lengths), its name and source added to `names`.
+fn group_records(
+    records: &mut Vec<Record>,
+    g: Group,
+    (fi, path): (usize, &PathBuf),
+    mapping: &Mapping,
+    names: &mut Names,
+) -> Result<(), ImportError> {
+    let c = &mapping.columns;
+    let unit = mapping.conventions.phase_unit;
+    let file_name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_default();
+    let file_level = mapping.files.get(&file_name).and_then(|f| f.drive_level);
+    let Group {
+        name: gname,
+        cols,
+        labels,
+        rows,
+    } = g;
+    let get = |k: &Option<Column>| k.as_ref().and_then(|k| cols.get(k));
+    // A value's line in a text file, its 1-based index in a MATLAB array.
+    let row_of = |i: usize| {
+        rows.as_ref()
+            .and_then(|r| r.get(i).copied())
+            .unwrap_or(i + 1)
+    };
+    if let Some(u) = unit {
+        for key in [&c.theta, &c.drive_phase].into_iter().flatten() {
+            if let Some(v) = cols.get(key) {
+                check_phase_range(path, key, v, u, rows.as_deref())?;
+            }
+        }
+    }
+    let Some(f) = cols.get(&c.freq_hz) else {
+        return Err(ImportError::Convention {
+            origin: "[columns]".into(),
+            message: format!(
+                "freq_hz = {} is also the sweep column: map the frequency column",
+                c.freq_hz
+            ),
+        });
+    };
+    let n = f.len();
+    for (key, v) in &cols {
+        if v.len() != n {
+            return Err(ImportError::Input {
+                path: path.clone(),
+                row: None,
+                message: format!(
+                    "{key} has {} values but {} has {n}; the columns must be as long",
+                    v.len(),
+                    c.freq_hz
+                ),
+            });
+        }
+    }
+    let group = names.groups.len();
+    // A file is its sweep: named by its stem, its name recorded as the source.
+    names
+        .groups
+        .push(super::readable_name(&if gname.is_empty() {
+            path.file_stem()
+                .map(|s| s.to_string_lossy().to_string())
+                .unwrap_or_default()
+        } else {
+            gname.clone()
+        }));
+    names.sources.push(if gname.is_empty() {
+        file_name.clone()
+    } else {
+        String::new()
+    });
+    for i in 0..n {
+        let z = match (get(&c.x), get(&c.y), get(&c.r), get(&c.theta)) {
+            (Some(x), Some(y), _, _) => Complex64::new(x[i], y[i]),
+            (_, _, Some(r), Some(t)) => {
+                Complex64::from_polar(r[i], unit.map_or(t[i], |u| u.to_rad(t[i])))
+            }
+            _ => Complex64::new(f64::NAN, f64::NAN),
+        };
+        let group = match &labels {
+            Some(s) => names.label_group(&s[i]),
+            None => group,
+        };
+        records.push(Record {
+            drive: f[i],
+            line: f[i],
+            z,
+            level: get(&c.drive_level)
+                .map(|v| v[i])
+                .or(file_level)
+                .or(mapping.drive.level),
+            drive_phase_rad: get(&c.drive_phase)
+                .map(|v| unit.map_or(v[i], |u| u.to_rad(v[i])))
+                .or(mapping.drive.phase_rad),
+            group,
+            step: get(&c.step).map(|v| v[i] as u64),
+            time_s: get(&c.time_s).map(|v| v[i]),
+            origin: (fi, row_of(i)),
+            noise: None,
+        });
+    }
+    Ok(())
 }
 
 /// Without a drive level column, a sweep that comes back to a drive frequency (after a sweep
@@ -422,33 +476,34 @@ fn refuse_merged_levels(ds: &Dataset, inputs: &[PathBuf]) -> Result<(), ImportEr
 }
 
 /// The sweep name of a sweep column's label: `sweep_<n>` for a number (`1` and `1.0` are one
-/// sweep, `sweep_1`), the label itself, sanitized, for text (`s00`).
+/// sweep, `sweep_1`), the label itself for text (`s00`), but for the characters a sweep name
+/// cannot hold ([`super::readable_name`]).
 fn sweep_label_name(label: &str) -> String {
     match label.trim().parse::<f64>() {
         Ok(v) => format!("sweep_{v}"),
-        Err(_) => sanitize(label.trim()),
+        Err(_) => super::readable_name(label),
     }
-}
-
-/// A name usable as a sweep name and file stem: letters, digits, `-`, `_` and `.` kept.
-fn sanitize(name: &str) -> String {
-    name.chars()
-        .map(|c| {
-            if c.is_alphanumeric() || "-_.".contains(c) {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect()
 }
 
 /// The groups of a MATLAB file: every wanted column read as numbers, the sweep column's
 /// numbers then also kept as its labels.
-fn read_mat(path: &Path, wanted: &[&String], sweep: Option<&str>) -> Result<Groups, ImportError> {
+fn read_mat(
+    path: &Path,
+    wanted: &[(&str, &Column)],
+    sweep: Option<&Column>,
+) -> Result<Groups, ImportError> {
     let file = mat::load(path)?;
     let mut groups: Groups = Vec::new();
-    for key in wanted {
+    for &(mkey, col) in wanted {
+        let Column::Name(key) = col else {
+            return Err(ImportError::Input {
+                path: path.to_path_buf(),
+                row: None,
+                message: format!(
+                    "{mkey} = {col}: a MATLAB file's columns are variable paths, not numbers; write {mkey} = \"struct.field.data\""
+                ),
+            });
+        };
         let per_group = mat::column(&file, key).map_err(|message| ImportError::Input {
             path: path.to_path_buf(),
             row: None,
@@ -490,7 +545,7 @@ fn read_mat(path: &Path, wanted: &[&String], sweep: Option<&str>) -> Result<Grou
                 .or(per_group.first())
                 .cloned()
                 .unwrap_or_default();
-            g.cols.insert((*key).clone(), v);
+            g.cols.insert(col.clone(), v);
         }
     }
     if let Some(key) = sweep {
@@ -500,110 +555,4 @@ fn read_mat(path: &Path, wanted: &[&String], sweep: Option<&str>) -> Result<Grou
         }
     }
     Ok(groups)
-}
-
-/// The one group of a text table: every wanted column read as numbers but the sweep column
-/// (`sweep`), kept as written (`s00`, `1`); an empty label is refused with its row.
-fn read_text(
-    path: &Path,
-    wanted: &[&String],
-    delimiter: Option<&str>,
-    sweep: Option<&str>,
-) -> Result<Groups, ImportError> {
-    let text = read_input(path)?;
-    let bad = |row: Option<usize>, message: String| ImportError::Input {
-        path: path.to_path_buf(),
-        row,
-        message,
-    };
-    let delim = match delimiter {
-        Some(d) => d.to_string(),
-        None if path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("csv")) =>
-        {
-            ",".into()
-        }
-        None => " ".into(),
-    };
-    let split = |line: &str| -> Vec<String> {
-        if delim == " " {
-            line.split_whitespace().map(str::to_string).collect()
-        } else {
-            line.split(delim.as_str())
-                .map(|s| s.trim().to_string())
-                .collect()
-        }
-    };
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty());
-    let (header_at, header) = lines
-        .next()
-        .ok_or_else(|| bad(None, "the file is empty".into()))?;
-    let header = split(header.trim_start().trim_start_matches(['%', '#']));
-    let mut idx = Vec::new();
-    for key in wanted {
-        let i = header.iter().position(|h| h == *key).ok_or_else(|| {
-            bad(
-                Some(header_at + 1),
-                format!(
-                    "no column \"{key}\" in the header (found: {})",
-                    crate::text::header_names(header.iter().map(String::as_str))
-                ),
-            )
-        })?;
-        idx.push(((*key).clone(), i));
-    }
-    let mut cols: BTreeMap<String, Vec<f64>> = idx
-        .iter()
-        .filter(|(k, _)| Some(k.as_str()) != sweep)
-        .map(|(k, _)| (k.clone(), Vec::new()))
-        .collect();
-    let mut labels = sweep.map(|_| Vec::new());
-    let mut rows = Vec::new();
-    for (n, line) in lines {
-        let t = line.trim_start();
-        if t.starts_with('%') || t.starts_with('#') {
-            continue;
-        }
-        let fields = split(line);
-        for (key, i) in &idx {
-            let cell = fields.get(*i).ok_or_else(|| {
-                bad(
-                    Some(n + 1),
-                    format!(
-                        "{} fields, but column \"{key}\" is field {}",
-                        fields.len(),
-                        i + 1
-                    ),
-                )
-            })?;
-            if let (Some(l), true) = (labels.as_mut(), Some(key.as_str()) == sweep) {
-                if cell.is_empty() {
-                    return Err(bad(
-                        Some(n + 1),
-                        format!("column \"{key}\": empty sweep label"),
-                    ));
-                }
-                l.push(cell.clone());
-                continue;
-            }
-            let v: f64 = cell.parse().map_err(|_| {
-                bad(
-                    Some(n + 1),
-                    format!("column \"{key}\": \"{cell}\" is not a number"),
-                )
-            })?;
-            cols.get_mut(key).expect("every wanted column").push(v);
-        }
-        rows.push(n + 1);
-    }
-    Ok(vec![Group {
-        name: String::new(),
-        cols,
-        labels,
-        rows: Some(rows),
-    }])
 }

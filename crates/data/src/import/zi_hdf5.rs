@@ -143,6 +143,7 @@ pub fn import(
     let grouping = Grouping {
         group_names: names,
         split_on_level: false,
+        sources: Vec::new(),
     };
     let (mut ds, note) = build("zi-hdf5", inputs, records, conv, settle, &grouping, out)?;
     record_instrument(

@@ -201,17 +201,30 @@ pub fn import(
             }
         })
     });
+    // A bidirectional sweep's legs are named by their direction (`sweep_up`, `sweep_down`,
+    // then `sweep_up_2`, ... when it repeats); a sweep one way is `sweep`.
+    let leg_dir = |l: usize| {
+        let mut g = (0..drive.len())
+            .filter(|&i| leg[i] == l)
+            .map(|i| drive[i].grid);
+        let (a, b) = (g.next(), g.next());
+        match (a, b) {
+            (Some(a), Some(b)) if b < a => "sweep_down",
+            _ => "sweep_up",
+        }
+    };
     let grouping = Grouping {
         group_names: (0..legs)
             .map(|l| {
-                if l == 0 {
-                    "sweep".to_string()
+                if legs == 1 {
+                    "sweep".into()
                 } else {
-                    format!("sweep_{}", l + 1)
+                    leg_dir(l).to_string()
                 }
             })
             .collect(),
         split_on_level: false,
+        sources: Vec::new(),
     };
     build(
         "zi-sweeper",

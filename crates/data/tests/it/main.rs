@@ -1,4 +1,5 @@
 //! The integration tests of `harmonid-data`, one test binary (`cargo test --release -p harmonid-data --test it`):
 //! one module per subject, built and linked once.
 
+mod import_headerless;
 mod import_roundtrip;
