@@ -14,6 +14,7 @@
 
 mod coupled;
 mod design;
+mod devices;
 mod evaluate;
 mod info;
 mod instrument;
