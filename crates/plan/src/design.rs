@@ -7,6 +7,7 @@
 //! resonance, at most `max_frequencies`; every tone on the instrument grid, so every line is.
 
 use crate::coupled::{coupled_variants, preference_order, Tones, Variant, COMPARABLE};
+use crate::devices::{feasible_on, SolverPool};
 use crate::evaluate::{joint_bounds, robustness, Evaluation};
 use crate::info::{
     info_of, is_infeasible, ladder_info, restrict_lines, simulate, too_large, truncation_unchecked,
@@ -920,19 +921,21 @@ impl Designer<'_> {
             .filter(|&k| k < corners.len())
             .collect();
         let batch = rayon::current_num_threads().max(1);
-        let (devices, base): (&[(String, NumericModel)], &Plan) = (&corners, self.base);
+        let devices: &[(String, NumericModel)] = &corners;
         let fidelities: &[Fidelity] = if lattice_lines > SCREEN_ABOVE_LINES {
             &[Fidelity::Screen, Fidelity::Search]
         } else {
             &[Fidelity::Search]
         };
+        // The devices share the tones: a solver planned on a lattice serves every device with it.
+        let pool = SolverPool::new(batch);
         for &fidelity in fidelities {
             for ks in std::iter::once(&order[..order.len().min(1)])
                 .chain(order[1.min(order.len())..].chunks(batch))
             {
                 let outcomes: Vec<Result<(), PlanError>> = ks
                     .par_iter()
-                    .map(|&k| simulate(&devices[k].1, base, pm, fidelity).map(|_| ()))
+                    .map(|&k| feasible_on(&devices[k].1, pm, fidelity, &pool))
                     .collect();
                 for (&k, outcome) in ks.iter().zip(outcomes) {
                     match outcome {
