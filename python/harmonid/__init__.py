@@ -41,6 +41,7 @@ from ._harmonid import (
     simulate,
     sweep,
     response,
+    linear_response,
 )
 
 from . import io  # noqa: E402  (after _harmonid, which it re-exports)
@@ -68,6 +69,7 @@ __all__ = [
     "simulate",
     "sweep",
     "response",
+    "linear_response",
 ]
 
 

@@ -19,6 +19,7 @@ from ._harmonid import (
     simulate as simulate,
     sweep as sweep,
     response as response,
+    linear_response as linear_response,
 )
 
 from . import io as io

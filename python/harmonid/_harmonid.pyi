@@ -160,6 +160,25 @@ def response(
     the curve through its folds, `f_hz`, `x`, `amplitude`, `phase_rad`, `stable`, `force`
     (N/kg per mode), `harmonics`."""
     ...
+def linear_response(
+    model: Model,
+    values: Union[Mapping[str, Any], IdentifyResult, _Path],
+    probe: str,
+    probe_hz: Sequence[float],
+    *,
+    drives: Mapping[str, Sequence[float]] = ...,
+    force: Mapping[str, float] = ...,
+    pumps: Sequence[Sequence[float]] = ...,
+    probe_force: float = 1.0,
+    noise_psd: Optional[float] = None,
+) -> dict[str, Any]:
+    """The linear response of every mode to a weak probe tone on `probe` at each of `probe_hz`
+    about the drive ramp's steady state under `drives` ({mode: [Hz]}) with `force` ({mode: N/kg})
+    and `pumps` ([(Hz, level[, phase_rad])]), or about rest: `probe_hz`, `offsets_hz` (the
+    response lines at f_p + offset; negative totals are idlers), `amplitudes` (N, modes, lines;
+    complex, m), `idler_offset_hz`, `modes`, `stable`, and with `noise_psd=S_F` ((N/kg)^2/Hz)
+    `noise_psd` (N, modes; m^2/Hz)."""
+    ...
 def simulate(
     model: Model,
     values: Union[Mapping[str, Any], IdentifyResult, _Path],

@@ -17,6 +17,7 @@ mod errors;
 mod identify;
 mod io;
 mod judge;
+mod linear_response;
 mod mix;
 mod model;
 mod plan;
@@ -41,6 +42,7 @@ fn _harmonid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(judge::discover, m)?)?;
     m.add_function(wrap_pyfunction!(sweep::sweep, m)?)?;
     m.add_function(wrap_pyfunction!(response::response, m)?)?;
+    m.add_function(wrap_pyfunction!(linear_response::linear_response, m)?)?;
     m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;
     m.add_class::<plan::PlanResult>()?;
     m.add_function(wrap_pyfunction!(plan::plan, m)?)?;

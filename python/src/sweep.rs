@@ -88,7 +88,9 @@ fn put_curve<'py, 'a>(
 /// Single tone (default): the tone is swept from `f_from_hz` to `f_to_hz` by pseudo-arclength
 /// continuation; returns numpy arrays `f_hz` (N,), `stable` (N,) and `amplitudes` (N, modes,
 /// harmonics; complex, m, `Re[X e^{i2πkft}]`), with `modes`, `harmonics`, `folds_hz`,
-/// `jumps_up_hz`, `jumps_down_hz` (where an up or down sweep jumps) and `complete`.
+/// `jumps_up_hz`, `jumps_down_hz` (where an up or down sweep jumps), `hopf` (per Hopf point
+/// `(f_hz, offset_hz, gains_stability)`: a complex pair of slow-flow eigenvalues crosses zero,
+/// a self-oscillation `offset_hz` from the drive's lines stops or starts) and `complete`.
 ///
 /// `two_tone_spacing_hz=Δ`: a pair of tones at `c ± Δ/2` (each with `force`) whose centre `c`
 /// is swept up and down; returns `up` and `down`, each with `centre_hz`, `stable`,
@@ -153,6 +155,15 @@ pub fn sweep<'py>(
         r.folds.iter().map(|f| f.f_hz).collect::<Vec<_>>(),
     )?;
     d.set_item("complete", r.complete)?;
+    // Hopf points: (Hz, offset of the self-oscillation from the drive's lines in Hz, whether
+    // the state gains stability there along the curve).
+    d.set_item(
+        "hopf",
+        r.hopf
+            .iter()
+            .map(|h| (h.f_hz, h.offset_hz, h.gains_stability))
+            .collect::<Vec<_>>(),
+    )?;
     Ok(d)
 }
 
