@@ -196,6 +196,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         );
     }
     let (sigma, unit) = parse_sigma(&args.noise)?;
+    check_noise_unit(&results, &args.after, &args.noise, unit)?;
     if args.shots == 0 {
         return Err(miette!("--shots must be at least 1"));
     }
@@ -389,6 +390,42 @@ fn design_plan(
         );
     }
     Ok((plan, ev))
+}
+
+/// Refuses a `--noise` in metres for data in volts, or the reverse: the plan's σ is in the unit
+/// of the data the `--after` results were identified from (their dataset's `dataset.toml`,
+/// when it can be read from here; a result whose dataset cannot is not checked).
+fn check_noise_unit(
+    results: &[harmonid_data::result::Report],
+    paths: &[PathBuf],
+    noise: &str,
+    unit: &str,
+) -> miette::Result<()> {
+    let volts = harmonid_data::units::VOLTS;
+    for (r, path) in results.iter().zip(paths) {
+        let manifest = std::path::Path::new(&r.dataset).join("dataset.toml");
+        let Ok(text) = std::fs::read_to_string(&manifest) else {
+            continue;
+        };
+        let Some(data_unit) = text
+            .parse::<toml::Table>()
+            .ok()
+            .and_then(|t| t.get("displacement_unit")?.as_str().map(String::from))
+        else {
+            continue;
+        };
+        if (data_unit == volts) != (unit == volts) {
+            let example = if data_unit == volts { "2uV" } else { "0.05nm" };
+            return Err(miette!(
+                "--noise {}: a σ in {}, but {} was identified from {} whose amplitudes are in {data_unit}: give the noise in the data's unit (e.g. --noise {example})",
+                noise.chars().take(40).collect::<String>(),
+                if unit == volts { "volts" } else { "metres" },
+                path.display(),
+                manifest.display()
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// With `--after` results: per quantity, the relative standard error of the existing data

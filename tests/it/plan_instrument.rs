@@ -392,6 +392,24 @@ fn plan_after_a_round_says_what_the_new_data_add() {
         .collect();
     let (ok, _, stdout, err) = run_plan(dir, &args);
     assert!(ok, "{err}");
+    // The data are in volts: a σ in metres is refused, naming the data's unit.
+    let args: Vec<&str> = [
+        "--noise",
+        "0.05nm",
+        "--instrument",
+        "mfli-mf",
+        "--after",
+        "r0.json",
+    ]
+    .into_iter()
+    .chain(["--out", "c.toml"])
+    .collect();
+    let (ok, code, _, refused) = run_plan(dir, &args);
+    assert!(!ok && code == Some(1), "{refused}");
+    assert!(
+        refused.contains("whose amplitudes are in V") && refused.contains("--noise 2uV"),
+        "{refused}"
+    );
     // The table's relative bounds, by quantity.
     let rel: std::collections::BTreeMap<&str, f64> = stdout
         .lines()
