@@ -15,6 +15,12 @@
 //! (issue 35): a softening Duffing mode with nonlinear damping, 12 drive levels each swept up
 //! and down through its folds (48 or 417 steps a sweep, 5 samples a step, 0.02 nm), the whole
 //! identification with the error floor, one gain for the dataset.
+//! `ten_mode_uniform_q`, `twenty_mode_string` (issue 40): the ten-mode string with every
+//! Q = 1.3e5 (`harmonid_testgen::ten_mode_uniform_q`) and the twenty-mode string (20 + 190
+//! unknown parameters, `harmonid_testgen::string_model(20)`), each from its committed
+//! `harmonid plan --nominal --noise 0.1nm --shots 30` plan (`tests/it/data/`), 30 shots at
+//! 0.1 nm; the whole default identification. `HARMONID_BENCH_SKIP_20=1` leaves the twenty-mode
+//! one out (a sample is most of a minute).
 //! `long_record_1m_rows`: one Duffing mode driven by two tones (the nanostring's `single_q1`),
 //! 125 000 shots of its 8 lines at 0.05 nm, 1 million rows, as a long lock-in record gives;
 //! the whole default identification.
@@ -121,11 +127,51 @@ fn bench_long_record(c: &mut Criterion) {
     group.finish();
 }
 
+/// The committed nominal plan `tests/it/data/{name}`.
+fn committed_plan(name: &str) -> harmonid_experiment::Plan {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/it/data")
+        .join(name);
+    let text = std::fs::read_to_string(&path).expect("plan");
+    harmonid_experiment::Plan::from_toml(&text, &path.display().to_string()).expect("plan parses")
+}
+
+fn bench_many_modes(c: &mut Criterion) {
+    let settings = Settings::default();
+    let mut group = c.benchmark_group("identify/many_modes");
+    group.sample_size(10);
+    let model = harmonid_model::load(
+        &PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples/nanostring_10mode/model.hb"),
+    )
+    .expect("example model");
+    let v = gen::ten_mode_uniform_q();
+    let clean = gen::simulate_plan(
+        &model,
+        &committed_plan("ten_mode_uniform_q_plan.toml"),
+        &v,
+        30,
+    );
+    let ds = gen::add_noise(&clean, 1e-10, 11);
+    group.bench_function("ten_mode_uniform_q", |b| {
+        b.iter(|| black_box(identify(&model, black_box(&ds), &settings).expect("identify")))
+    });
+    if std::env::var_os("HARMONID_BENCH_SKIP_20").is_none() {
+        let (model, v) = gen::string_model(20);
+        let clean = gen::simulate_plan(&model, &committed_plan("string_20mode_plan.toml"), &v, 30);
+        let ds = gen::add_noise(&clean, 1e-10, 20);
+        group.bench_function("twenty_mode_string", |b| {
+            b.iter(|| black_box(identify(&model, black_box(&ds), &settings).expect("identify")))
+        });
+    }
+    group.finish();
+}
+
 criterion_group!(
     benches,
     bench_identify,
     bench_stepped_sweep,
     bench_hysteretic_sweeps,
-    bench_long_record
+    bench_long_record,
+    bench_many_modes
 );
 criterion_main!(benches);
