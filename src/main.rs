@@ -32,6 +32,10 @@ enum Command {
     Simulate(cli::simulate::Args),
     /// Compute a frequency-response curve with continuation through folds.
     Sweep(cli::sweep::Args),
+    /// Every steady state at one drive and pump, with stability (homotopy continuation).
+    States(cli::states::Args),
+    /// Count the stable and unstable steady states over a grid of two parameters.
+    PhaseDiagram(cli::phase_diagram::Args),
     /// The linear response to a weak probe tone about a steady state, its idler, and noise spectra.
     Response(cli::response::Args),
     /// Design a drive-tone plan, or score one, by the Cramér–Rao bounds of the unknowns.
@@ -54,6 +58,8 @@ fn main() -> miette::Result<()> {
         Command::Discover(args) => cli::discover::run(args),
         Command::Simulate(args) => cli::simulate::run(args),
         Command::Sweep(args) => cli::sweep::run(args),
+        Command::States(args) => cli::states::run(args),
+        Command::PhaseDiagram(args) => cli::phase_diagram::run(args),
         Command::Response(args) => cli::response::run(args),
         Command::NoiseStudy(args) => cli::noise_study::run(args),
         Command::Report(args) => cli::report::run(args),

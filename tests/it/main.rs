@@ -9,6 +9,7 @@ mod data_format_docs;
 mod discover;
 mod drive_ladder;
 mod error_floor;
+mod explore_cli;
 mod given_noise;
 mod goodness_of_fit;
 mod guess_support;

@@ -27,11 +27,13 @@ pub struct StatesSettings {
 }
 
 impl Default for StatesSettings {
+    /// The lattice keeps, besides the lines near resonances, every combination up to the
+    /// model's degree wherever it falls (`3Ω` of a cubic model, the offset and `2Ω` of a
+    /// quadratic one): the harmonics the single-harmonic system leaves out.
     fn default() -> Self {
-        Self {
-            lattice: true,
-            hb: HbSettings::default(),
-        }
+        let mut hb = HbSettings::default();
+        hb.lattice.harmonics = true;
+        Self { lattice: true, hb }
     }
 }
 

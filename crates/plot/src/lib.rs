@@ -43,6 +43,7 @@
 mod frequency_response;
 mod histogram;
 mod noise;
+mod phase_map;
 mod plan;
 mod potential;
 mod response;
@@ -57,6 +58,7 @@ pub use frequency_response::{
 };
 pub use histogram::Histogram;
 pub use noise::{NoisePanel, NoiseStudy};
+pub use phase_map::PhaseMap;
 pub use plan::{ModeResponse, PlanFigure, PlannedMeasurement};
 pub use potential::{PotentialCell, PotentialMatrix};
 pub use response::{Branch, Jump, ResponseCurve};
