@@ -690,7 +690,8 @@ fn split_each(steps: &[Step], sweeps: &[(usize, usize)]) -> Vec<Cut> {
 /// `suffix`, with `_2`, `_3`, ... appended when `names` (the sweeps named so far) already has it.
 fn sweep_name(part: &[Step], grouping: &Grouping, suffix: &str, names: &mut Vec<String>) -> String {
     let base = match grouping.group_names.get(part[0].group) {
-        Some(n) if !grouping.split_on_level => n.clone(),
+        // A sweep cut by level is named by it; a single input without levels by the input.
+        Some(n) if !grouping.split_on_level || part[0].level.is_none() => n.clone(),
         _ => format!(
             "level_{}",
             part[0].level.map_or("none".into(), |l| format!("{l}"))

@@ -3,3 +3,4 @@
 
 mod import_headerless;
 mod import_roundtrip;
+mod import_turns;
