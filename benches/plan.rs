@@ -4,10 +4,16 @@
 //! measurements, one point). `design/nanostring_5mode`: the shipped
 //! `examples/nanostring_5mode/plan.toml` (0.1 nm, 30 shots, one point, 15 measurements).
 //! Few samples: one five-mode design takes seconds.
+//!
+//! `design_range/nanostring_10mode`: the ten-mode example's own command, `harmonid plan
+//! examples/nanostring_10mode/model.hb --values … --noise 0.1nm --shots 30`: designed over the
+//! guess's default range (f ± 2 linewidths, Q ± 30 %, ×/÷ 2), the default ladder, 10 draws, the
+//! command line's 120 s search budget (issue 40, item 4). Minutes per design: ten samples take
+//! most of an hour; run it alone (`cargo bench --bench plan -- design_range`).
 #![allow(missing_docs)] // criterion_group! generates an undocumented pub fn
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use harmonid_plan::{design, DesignSettings};
+use harmonid_plan::{default_ladder, design, DesignSettings, GuessRange};
 use std::hint::black_box;
 use std::path::PathBuf;
 
@@ -52,5 +58,27 @@ fn bench_design(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_design);
+fn bench_design_range(c: &mut Criterion) {
+    let mut group = c.benchmark_group("design_range");
+    group.sample_size(10);
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples/nanostring_10mode");
+    let model = harmonid_model::load(&dir.join("model.hb")).expect("example model");
+    let values =
+        harmonid_experiment::read_values(&dir.join("values.toml")).expect("example values");
+    let range = GuessRange::new(&model, &values, &Default::default()).expect("range");
+    let s = DesignSettings {
+        sigma_m: 1e-10,
+        shots: 30,
+        time_budget_s: Some(120.0),
+        ladder: default_ladder(true),
+        range: Some(range),
+        ..DesignSettings::default()
+    };
+    group.bench_function("nanostring_10mode", |b| {
+        b.iter(|| black_box(design(&model, &values, &s).expect("design")))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench_design, bench_design_range);
 criterion_main!(benches);
