@@ -101,17 +101,25 @@ def mix(model, drives, *, sidebands=None, window_hz=None, nominal_hz=None):
 
 
 
-def compare(dataset, models, *, force_model="auto"):
+def compare(dataset, models, *, force_model="auto", holdout=(), error_floor=False):
     """Fits ``dataset`` by every model and says which one the data support.
 
     ``models`` maps a name to each ``Model`` (or is a list of ``(name, Model)`` pairs). Returns
     the dict ``harmonid compare DATASET MODEL... --json`` prints: ``observations``, ``models``
     (per model ``unknowns``, ``chi2``, ``chi2_per_dof``, ``fits``, ``p_value``,
-    ``log_likelihood``, ``aic``, ``bic``, ``delta_aic``, ``delta_bic``), ``nested``
-    (likelihood-ratio tests of nested pairs), ``best`` and ``verdict``.
+    ``log_likelihood``, ``aic``, ``bic``, ``delta_aic``, ``delta_bic``, and with ``holdout``
+    ``holdout_relative_rms`` and ``holdout_rms_sigma``), ``nested`` (likelihood-ratio tests of
+    nested pairs), ``best``, ``ranked_by`` and ``verdict``. ``holdout`` (names of measurements
+    or sweeps) fits every model without them and reports how well each predicts them;
+    ``error_floor=True`` adds a fitted error floor to every model's noise and ranks the models
+    by that prediction (``holdout`` is then required).
     """
     if isinstance(models, Mapping):
         models = list(models.items())
     return _harmonid.compare(
-        dataset, [(str(n), m) for n, m in models], force_model=force_model
+        dataset,
+        [(str(n), m) for n, m in models],
+        force_model=force_model,
+        holdout=[str(h) for h in holdout],
+        error_floor=bool(error_floor),
     )

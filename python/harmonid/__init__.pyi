@@ -39,4 +39,6 @@ def compare(
     models: Union[Mapping[str, Model], Sequence[tuple[str, Model]]],
     *,
     force_model: Literal["auto", "free", "gain_per_measurement", "gain_per_mode"] = "auto",
+    holdout: Sequence[str] = (),
+    error_floor: bool = False,
 ) -> dict[str, Any]: ...

@@ -54,10 +54,13 @@ class Dataset:
     def merge(datasets: Sequence[Dataset]) -> Dataset:
         """Pools datasets of one device into one (in memory; write it with `to_folder`).
 
-        They must agree on displacement_unit, points and shapes, nominal_hz and import
-        conventions (else `DatasetError` naming the file, key and both values). A name in several
-        datasets becomes `<folder>_<name>` in each; sweeps keep their steps; `truth` is kept only
-        when identical in all; `notes` says what was renamed or dropped.
+        They must agree on displacement_unit, points and shapes, the modes of nominal_hz and
+        import conventions (else `DatasetError` naming the file, key and both values); nominal
+        frequencies may differ (each round's plan writes its guess): the last dataset's are kept
+        if every line keeps its mode. A folder given twice is refused. A name in several
+        datasets becomes `<folder>_<name>` in each; sweeps keep their steps; `truth` is kept when
+        all describe the same device (every round's forces); `notes` says what was renamed or
+        dropped.
         """
     def to_folder(self, path: _Path) -> None: ...
     @property

@@ -19,18 +19,25 @@ fn parse(json: &str) -> PyResult<Value> {
 /// Fits `dataset` by every model of `models` (pairs `(name, Model)`, or a dict name → Model)
 /// and compares them, as `harmonid compare DATASET MODEL...` does: a dict equal to its
 /// `--json` (`observations`, `models` with `unknowns`, `chi2`, `chi2_per_dof`, `fits`,
-/// `p_value`, `log_likelihood`, `aic`, `bic`, `delta_aic`, `delta_bic`; `nested` likelihood-ratio
-/// tests; `best`; `verdict`). `force_model` as for `identify`.
+/// `p_value`, `log_likelihood`, `aic`, `bic`, `delta_aic`, `delta_bic`, with `holdout` also
+/// `holdout_relative_rms`, `holdout_rms_sigma`; `nested` likelihood-ratio tests; `best`;
+/// `ranked_by`; `verdict`). `force_model` as for `identify`; `holdout` (names of measurements or
+/// sweeps) fits every model without them and reports how well each predicts them;
+/// `error_floor=True` fits a floor to every model and ranks by that prediction (it needs
+/// `holdout`).
 #[pyfunction]
-#[pyo3(signature = (dataset, models, *, force_model = "auto"))]
+#[pyo3(signature = (dataset, models, *, force_model = "auto", holdout = Vec::new(), error_floor = false))]
 pub fn compare<'py>(
     py: Python<'py>,
     dataset: &Dataset,
     models: Vec<(String, PyRef<'py, Model>)>,
     force_model: &str,
+    holdout: Vec<String>,
+    error_floor: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
     let settings = Settings {
         force_model: self::force_model(force_model)?,
+        error_floor,
         ..Settings::default()
     };
     let models: Vec<(String, harmonid_model::Model)> = models
@@ -39,7 +46,10 @@ pub fn compare<'py>(
         .collect();
     let ds = std::sync::Arc::clone(&dataset.inner);
     let json = py
-        .detach(|| harmonid_ident::compare(&models, &ds, &settings).map(|c| c.to_json()))
+        .detach(|| {
+            harmonid_ident::compare_with_holdout(&models, &ds, &holdout, &settings)
+                .map(|c| c.to_json())
+        })
         .map_err(|e| HarmonidError::new_err(e.to_string()))?;
     json_to_py(py, &parse(&json)?)
 }

@@ -1,9 +1,10 @@
 //! `harmonid compare DATASET MODEL_A MODEL_B [...]`: the same data fitted by each model, ranked
-//! by information criteria, with a likelihood-ratio test for every nested pair
-//! (`harmonid_ident::compare`).
+//! by information criteria, with a likelihood-ratio test for every nested pair; with
+//! `--holdout`, each model's prediction of the held-out data beside; with `--error-floor`,
+//! ranked by that prediction (`harmonid_ident::compare_with_holdout`).
 
 use crate::cli::common::{check_outputs, print_out, write_output, ForceArgs};
-use harmonid_ident::{compare, Settings};
+use harmonid_ident::{compare_with_holdout, Settings};
 use std::path::PathBuf;
 
 /// Arguments of `harmonid compare`.
@@ -22,6 +23,16 @@ pub struct Args {
     pub out: Option<PathBuf>,
     #[command(flatten)]
     pub forces: ForceArgs,
+    /// Fit every model with an error floor added to the shot noise (as `identify
+    /// --error-floor`): for measured sweeps whose steps scatter more than their own samples
+    /// say. Every χ² then equals its expectation, so the models are ranked by how well they
+    /// predict the --holdout data, which this needs.
+    #[arg(long)]
+    pub error_floor: bool,
+    /// Fit every model without these measurements or sweeps, then report how well each
+    /// predicts them (relative RMS and noise sigmas).
+    #[arg(long, value_delimiter = ',', value_name = "NAME[,NAME...]")]
+    pub holdout: Vec<String>,
 }
 
 /// Runs the subcommand.
@@ -41,10 +52,11 @@ pub fn run(args: Args) -> miette::Result<()> {
     }
     let settings = Settings {
         force_model: args.forces.force_model(),
+        error_floor: args.error_floor,
         ..Settings::default()
     };
     let pb = super::progress::spinner(&format!("fitting {} models", models.len()));
-    let c = compare(&models, &ds, &settings);
+    let c = compare_with_holdout(&models, &ds, &args.holdout, &settings);
     pb.finish_and_clear();
     let c = c.map_err(miette::Report::new)?;
     let json = c.to_json();

@@ -76,7 +76,7 @@ fn worst_ratio(ev: &Evaluation, reference: &Evaluation) -> (f64, String) {
             .iter()
             .find(|x| x.name == b.name)
             .map_or(f64::INFINITY, |x| b.rel / x.rel);
-        if !(r <= worst.0) {
+        if r > worst.0 || r.is_nan() {
             worst = (r, b.name.clone());
         }
     }

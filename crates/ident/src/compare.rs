@@ -20,8 +20,17 @@
 //! noise's, [`crate::GoodnessOfFit::expected_chi2_per_dof`]) is `χ²` with `Δk` degrees of
 //! freedom if A is right, which gives the p-value: a small one says the data need B's extra
 //! terms.
+//!
+//! **Held-out prediction.** With measurements held out ([`compare_with_holdout`]), every model
+//! is fitted without them and predicts them ([`identify_with_holdout`]); each model's
+//! prediction error is reported beside its criteria. With an error floor
+//! ([`Settings::error_floor`]) every fit's `χ²` is brought to its expectation by the floor, so
+//! `χ²`, AIC and BIC no longer tell the models apart: the models are then ranked by their
+//! held-out prediction error (relative RMS), and a comparison with a floor and nothing held out
+//! is refused.
 
 use crate::finalize::Report;
+use crate::holdout::{identify_with_holdout, HeldOut};
 use crate::identify::identify;
 use crate::problem::IdentError;
 use crate::settings::Settings;
@@ -59,6 +68,15 @@ pub struct ModelFit {
     pub delta_aic: f64,
     /// BIC minus the smallest BIC.
     pub delta_bic: f64,
+    /// With measurements held out: the prediction's relative RMS over them, `√(Σ nᵢ rᵢ² / Σ nᵢ)`
+    /// over each held-out measurement's (or sweep's) relative RMS `rᵢ` and lines `nᵢ`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub holdout_relative_rms: Option<f64>,
+    /// With measurements held out and shot noise: the prediction's RMS standardized residual
+    /// per quadrature over their lines, in noise sigmas (with the error floor added when the
+    /// fit has one; about 1 for a model that predicts as well as it fits).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub holdout_rms_sigma: Option<f64>,
     /// The full result of the model's identification.
     #[serde(skip)]
     pub result: Report,
@@ -88,8 +106,14 @@ pub struct ModelComparison {
     pub models: Vec<ModelFit>,
     /// Every nested pair's likelihood-ratio test.
     pub nested: Vec<NestedTest>,
-    /// Index of the model the data support (smallest BIC).
+    /// Index of the model the data support (smallest BIC; with an error floor, the smallest
+    /// held-out prediction error).
     pub best: usize,
+    /// What ranks the models: `"bic"`, or `"holdout"` (with an error floor).
+    pub ranked_by: String,
+    /// The measurements held out (none: every model fitted to everything).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub held_out: Vec<String>,
     /// The verdict in words.
     pub verdict: String,
 }
@@ -117,6 +141,13 @@ pub enum CompareError {
         #[source]
         source: Box<IdentError>,
     },
+    /// An error floor makes every fit's `χ²` its expectation: nothing left to rank by.
+    #[error("with an error floor every model's χ² is brought to its expectation, so χ², AIC and BIC cannot rank the models: hold out measurements or sweeps for them to predict (--holdout NAME; Python holdout=[...])")]
+    #[diagnostic(
+        code(harmonid::compare::floor_without_holdout),
+        help("name measurements or sweeps the models must predict: --holdout NAME (repeatable; e.g. the strongest drive level's sweep)")
+    )]
+    FloorWithoutHoldout,
     /// A model's output-error fit failed, so it has no likelihood to compare.
     #[error("{model}: no output-error fit to compare ({why})")]
     #[diagnostic(
@@ -152,10 +183,25 @@ pub fn compare(
     ds: &Dataset,
     settings: &Settings,
 ) -> Result<ModelComparison, CompareError> {
+    compare_with_holdout(models, ds, &[], settings)
+}
+
+/// [`compare`], every model fitted without the measurements or sweeps named in `held` and
+/// judged by how well it predicts them too; with [`Settings::error_floor`], ranked by that
+/// prediction (see the module documentation).
+pub fn compare_with_holdout(
+    models: &[(String, Model)],
+    ds: &Dataset,
+    held: &[String],
+    settings: &Settings,
+) -> Result<ModelComparison, CompareError> {
     if models.len() < 2 {
         return Err(CompareError::TooFew {
             found: models.len(),
         });
+    }
+    if settings.error_floor && held.is_empty() {
+        return Err(CompareError::FloorWithoutHoldout);
     }
     let settings = Settings {
         estimator: crate::Estimator::Ml,
@@ -164,7 +210,12 @@ pub fn compare(
     let mut fits = Vec::with_capacity(models.len());
     let mut observations = None;
     for (name, model) in models {
-        let result = identify(model, ds, &settings).map_err(|source| CompareError::Model {
+        let result = if held.is_empty() {
+            identify(model, ds, &settings)
+        } else {
+            identify_with_holdout(model, ds, held, &settings)
+        }
+        .map_err(|source| CompareError::Model {
             model: name.clone(),
             source: Box::new(source),
         })?;
@@ -209,6 +260,8 @@ pub fn compare(
             bic: chi2 + k as f64 * (n as f64).ln(),
             delta_aic: 0.0,
             delta_bic: 0.0,
+            holdout_relative_rms: pooled_holdout(&result, |h| Some(h.relative_rms)),
+            holdout_rms_sigma: pooled_holdout(&result, |h| h.rms_sigma_floor.or(h.rms_sigma)),
             result,
         });
     }
@@ -237,17 +290,76 @@ pub fn compare(
         }
     }
     let models = fits;
+    let by_holdout = settings.error_floor;
+    let key = |m: &ModelFit| {
+        if by_holdout {
+            m.holdout_relative_rms.unwrap_or(f64::INFINITY)
+        } else {
+            m.bic
+        }
+    };
     let best = (0..models.len())
-        .min_by(|&a, &b| models[a].bic.total_cmp(&models[b].bic))
+        .min_by(|&a, &b| key(&models[a]).total_cmp(&key(&models[b])))
         .unwrap_or(0);
-    let verdict = verdict(&models, best);
+    let verdict = if by_holdout {
+        holdout_verdict(&models, best)
+    } else {
+        verdict(&models, best)
+    };
     Ok(ModelComparison {
         observations: n,
         models,
         nested,
         best,
+        ranked_by: if by_holdout { "holdout" } else { "bic" }.into(),
+        held_out: held.to_vec(),
         verdict,
     })
+}
+
+/// A held-out RMS pooled over the held-out measurements and sweeps (each step of a held-out
+/// sweep is in its sweep's entry): `√(Σ nᵢ xᵢ² / Σ nᵢ)` with `nᵢ` the entry's lines; `None`
+/// when nothing is held out or an entry lacks the value.
+fn pooled_holdout(r: &Report, value: impl Fn(&HeldOut) -> Option<f64>) -> Option<f64> {
+    let entries: Vec<&HeldOut> = r.holdout.iter().filter(|h| h.sweep.is_none()).collect();
+    if entries.is_empty() {
+        return None;
+    }
+    let (mut sum, mut lines) = (0.0, 0usize);
+    for h in entries {
+        sum += h.lines as f64 * value(h)?.powi(2);
+        lines += h.lines;
+    }
+    (lines > 0).then(|| (sum / lines as f64).sqrt())
+}
+
+/// Which model predicts the held-out data best, by how much, and how that compares with its fit.
+fn holdout_verdict(models: &[ModelFit], best: usize) -> String {
+    let b = &models[best];
+    let pct = |x: Option<f64>| x.map_or("–".to_string(), |x| format!("{:.2} %", 100.0 * x));
+    let runner_up = models
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i != best)
+        .map(|(_, m)| m)
+        .min_by(|x, y| {
+            let k = |m: &ModelFit| m.holdout_relative_rms.unwrap_or(f64::INFINITY);
+            k(x).total_cmp(&k(y))
+        });
+    let mut s = format!(
+        "{} predicts the held-out data best ({} RMS of their amplitudes",
+        b.model,
+        pct(b.holdout_relative_rms)
+    );
+    if let Some(r) = runner_up {
+        s.push_str(&format!(
+            ", against {} for {}",
+            pct(r.holdout_relative_rms),
+            r.model
+        ));
+    }
+    s.push_str("; ranked by prediction because the error floor makes every χ² its expectation)");
+    s
 }
 
 /// Every (equation, monomial) of a result's model.
@@ -379,6 +491,24 @@ impl ModelComparison {
                     } else {
                         ": the extra terms are not needed"
                     }
+                );
+            }
+        }
+        if !self.held_out.is_empty() {
+            let _ = writeln!(
+                s,
+                "\nheld out ({}), predicted by the fit of the rest:",
+                self.held_out.join(", ")
+            );
+            for m in &self.models {
+                let _ = writeln!(
+                    s,
+                    "  {:<w$} {} RMS of the amplitudes{}",
+                    m.model,
+                    m.holdout_relative_rms
+                        .map_or("–".into(), |x| format!("{:.2} %", 100.0 * x)),
+                    m.holdout_rms_sigma
+                        .map_or(String::new(), |x| format!(", {x:.3} noise sigmas")),
                 );
             }
         }

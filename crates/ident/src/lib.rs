@@ -58,7 +58,9 @@ mod shots;
 mod solve;
 mod uncertainty;
 
-pub use compare::{compare, CompareError, ModelComparison, ModelFit, NestedTest};
+pub use compare::{
+    compare, compare_with_holdout, CompareError, ModelComparison, ModelFit, NestedTest,
+};
 pub use discover::{
     discover, DiscoverError, DiscoverSettings, Discovery, DiscoveryStep, Library, LibraryForm,
     MAX_CANDIDATES,
