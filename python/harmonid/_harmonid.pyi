@@ -129,6 +129,7 @@ def discover(
     alpha: float = 0.01,
     max_terms: int = 10,
     force_model: Literal["auto", "free", "gain_per_measurement", "gain_per_mode"] = "auto",
+    velocities: bool = False,
 ) -> dict[str, Any]: ...
 def mix(
     model: Model,

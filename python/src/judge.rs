@@ -56,12 +56,13 @@ pub fn compare<'py>(
 
 /// Which candidate terms the data support, as `harmonid discover DATASET MODEL --degrees ...`
 /// does: from `model`, the library of every monomial of the equation degrees `degrees`, per
-/// equation or (`potential=True`) as potential terms; `alpha` the family-wise error per step,
+/// equation or (`potential=True`) as potential terms, with (`velocities=True`) every monomial
+/// holding a velocity per equation (nonlinear damping); `alpha` the family-wise error per step,
 /// `max_terms` the most additions. Returns a dict: `candidates`, `steps` (each `action`,
 /// `parameter`, `term`, `delta_chi2`, `p_value`, `among`, `value`), `fits`, `model` (the selected
 /// `Model`), `source` (its model file's text) and `result` (its `IdentifyResult`).
 #[pyfunction]
-#[pyo3(signature = (model, dataset, degrees, *, potential = false, alpha = 0.01, max_terms = 10, force_model = "auto"))]
+#[pyo3(signature = (model, dataset, degrees, *, potential = false, alpha = 0.01, max_terms = 10, force_model = "auto", velocities = false))]
 #[allow(clippy::too_many_arguments)]
 pub fn discover<'py>(
     py: Python<'py>,
@@ -72,6 +73,7 @@ pub fn discover<'py>(
     alpha: f64,
     max_terms: usize,
     force_model: &str,
+    velocities: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let settings = DiscoverSettings {
         identify: Settings {
@@ -89,6 +91,7 @@ pub fn discover<'py>(
         } else {
             LibraryForm::Equation
         },
+        velocities,
     };
     let (m, ds) = (
         std::sync::Arc::clone(&model.inner),

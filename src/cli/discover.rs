@@ -21,6 +21,10 @@ pub struct Args {
     /// derivatives in every equation) instead of one parameter per equation and monomial.
     #[arg(long)]
     pub potential: bool,
+    /// Also every monomial of those degrees that holds a velocity (`q1^2*d(q1)`, `d(q1)^3`,
+    /// `q2^2*d(q1)`: nonlinear damping, own and cross), per equation even with --potential.
+    #[arg(long)]
+    pub velocities: bool,
     /// Family-wise error per step: a term is added when its likelihood-ratio p-value times
     /// the number of candidates tried is below this.
     #[arg(long, default_value_t = 0.01)]
@@ -71,6 +75,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         } else {
             LibraryForm::Equation
         },
+        velocities: args.velocities,
     };
     let pb = super::progress::bar(0, "discover: identifications", false);
     let found = discover(&model, &ds, &library, &settings, |done, total| {

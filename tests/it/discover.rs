@@ -47,6 +47,7 @@ fn run(example: &str, seed: u64) -> (usize, usize, usize, String) {
     let library = Library {
         degrees: vec![2, 3],
         form: LibraryForm::Potential,
+        velocities: false,
     };
     let found = discover(
         &start,
@@ -108,6 +109,7 @@ fn discovery_over_many_realisations() {
             let library = Library {
                 degrees: vec![2, 3],
                 form: LibraryForm::Potential,
+                velocities: false,
             };
             let found = discover(
                 &modes_only(example),
@@ -254,4 +256,55 @@ fn the_command_writes_the_selected_model_and_refuses_bad_libraries() {
 /// Terms written per equation in a model (the selected model has no `potential` statement).
 fn potential_terms_of_eom(m: &Model) -> usize {
     m.eom.iter().map(|e| e.terms().count()).sum()
+}
+
+/// The velocity library (issue 36, item 4): on the softened, nonlinearly damped mode's stepped
+/// sweeps (four levels up and down, 3 shots, 0.02 nm), started from the Duffing term alone,
+/// discover adds `q1^2*d(q1)` (the truth's damping) and no other term.
+#[test]
+fn velocity_library_finds_the_nonlinear_damping() {
+    let damped = harmonid::model::parse_str(gen::DAMPED_DUFFING, "damped.hb").expect("model");
+    let (v, sweeps) = gen::hysteretic_sweeps(4, 24);
+    let clean = gen::simulate_sweeps_clean(&damped, &v, &sweeps, &[1.0], 3);
+    let ds = gen::add_noise(&clean, 2e-11, 5);
+    let start = harmonid::model::parse_str(
+        "mode q1 at 1 MHz\nparam beta1\npotential: beta1/4*q1^4\n",
+        "duffing.hb",
+    )
+    .expect("model");
+    let library = Library {
+        degrees: vec![3],
+        form: LibraryForm::Equation,
+        velocities: true,
+    };
+    let mut settings = DiscoverSettings::default();
+    settings.identify.force_model = harmonid::ident::ForceModel::GainPerMode;
+    let found = discover(&start, &ds, &library, &settings, |_, _| {}).expect("discover");
+    let steps: Vec<String> = found
+        .steps
+        .iter()
+        .map(|s| {
+            format!(
+                "{} {} (Δχ² {:.1}, p {:.1e})",
+                s.action, s.term, s.delta_chi2, s.p_value
+            )
+        })
+        .collect();
+    eprintln!("{} candidates: {}", found.candidates, steps.join("; "));
+    assert_eq!(found.candidates, 3);
+    let added: Vec<&str> = found
+        .steps
+        .iter()
+        .filter(|s| s.action == "added")
+        .map(|s| s.term.as_str())
+        .collect();
+    assert_eq!(added, ["q1^2*d(q1) in the equation of q1"], "{steps:?}");
+    let e = &found.result.parameters[&found.steps[0].parameter];
+    let eta = v.params["eta1"];
+    assert!(
+        (e.value - eta).abs() < 4.0 * e.stderr,
+        "{} ± {} against {eta}",
+        e.value,
+        e.stderr
+    );
 }

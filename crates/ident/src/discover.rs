@@ -8,7 +8,9 @@
 //! `b1_011` is `q2·q3` in the equation of q1) or as potential terms (one parameter `u_{exponents}`
 //! per monomial `M` of degree `d + 1`, whose derivatives `∂M/∂q_n` enter every equation:
 //! conservative couplings, tied as the method's paper ties them). Terms the model already has
-//! are left out.
+//! are left out. With [`Library::velocities`], also every monomial of the positions and
+//! velocities that holds a velocity, per equation (`b1_2_1` is `q1²·d(q1)` in the equation of
+//! q1, one mode): nonlinear damping and velocity couplings.
 //!
 //! **Test.** Adding a candidate to the current model lowers the fit's `χ²` by `Δ`. With the
 //! noise from the shots, `Δ/E₀` (`E₀` a correct model's `χ²/dof`) is `χ²₁` when the candidate
@@ -55,6 +57,10 @@ pub struct Library {
     pub degrees: Vec<u32>,
     /// Per equation or as potentials.
     pub form: LibraryForm,
+    /// Also every monomial of those degrees that holds a velocity (`q1^2*d(q1)`,
+    /// `d(q1)^3`, `q2^2*d(q1)`: nonlinear damping, own and cross), always per equation (a
+    /// potential has no velocities): `b{n}_{position exponents}_{velocity exponents}`.
+    pub velocities: bool,
 }
 
 /// Settings of a discovery.
@@ -469,6 +475,9 @@ fn candidates(model: &Model, library: &Library) -> Vec<Candidate> {
         }
     }
     for d in degrees {
+        if library.velocities {
+            velocity_candidates(model, d, &vars, &unique, &mut out);
+        }
         match library.form {
             LibraryForm::Equation => {
                 for m in monomials(nm, d) {
@@ -518,6 +527,42 @@ fn candidates(model: &Model, library: &Library) -> Vec<Candidate> {
         }
     }
     out
+}
+
+/// The per-equation candidates of degree `d` that hold a velocity (variables `nm..2nm`).
+fn velocity_candidates(
+    model: &Model,
+    d: u32,
+    vars: &[String],
+    unique: &dyn Fn(String) -> String,
+    out: &mut Vec<Candidate>,
+) {
+    let nm = model.modes.len();
+    let digits = |m: &PowerProduct, from: usize| -> String {
+        (from..from + nm)
+            .map(|v| m.exponent(VarId(v as u32)).to_string())
+            .collect()
+    };
+    for m in monomials(2 * nm, d) {
+        if (nm..2 * nm).all(|v| m.exponent(VarId(v as u32)) == 0) {
+            continue;
+        }
+        for n in 0..nm {
+            if model.eom[n].coeff(&m).is_some() {
+                continue;
+            }
+            out.push(Candidate {
+                name: unique(format!("b{}_{}_{}", n + 1, digits(&m, 0), digits(&m, nm))),
+                words: format!(
+                    "{} in the equation of {}",
+                    m.name(vars),
+                    model.modes[n].name
+                ),
+                terms: vec![(n, m.clone(), Rational::from_integer(1))],
+                potential: None,
+            });
+        }
+    }
 }
 
 /// Every monomial of degree `d` in `nm` variables, lexicographic.
@@ -693,6 +738,7 @@ mod tests {
             &Library {
                 degrees: vec![3],
                 form: LibraryForm::Equation,
+                velocities: false,
             },
         );
         // 4 cubic monomials × 2 equations, less q1^3 in the equation of q1.
@@ -701,6 +747,7 @@ mod tests {
         let repeated = Library {
             degrees: vec![3, 3, 3],
             form: LibraryForm::Equation,
+            velocities: false,
         };
         let names = |c: &[Candidate]| c.iter().map(|c| c.name.clone()).collect::<Vec<_>>();
         assert_eq!(names(&candidates(&m, &repeated)), names(&per_eq));
@@ -712,6 +759,7 @@ mod tests {
             &Library {
                 degrees: vec![3],
                 form: LibraryForm::Potential,
+                velocities: false,
             },
         );
         // 5 quartic monomials; q1^4 would only give q1^3 in q1's equation, which it has.
@@ -735,6 +783,43 @@ mod tests {
                 (1, "q1^2*q2".to_string(), Rational::from_integer(2))
             ]
         );
+    }
+
+    #[test]
+    fn velocity_libraries_hold_damping_terms_per_equation() {
+        let lib = |form| Library {
+            degrees: vec![3],
+            form,
+            velocities: true,
+        };
+        let one = model("mode q1 at 1 MHz\nparam b\npotential: b/4*q1^4\n");
+        let c = candidates(&one, &lib(LibraryForm::Potential));
+        let got: Vec<(&str, &str)> = c
+            .iter()
+            .map(|c| (c.name.as_str(), c.words.as_str()))
+            .collect();
+        assert_eq!(
+            got,
+            [
+                ("b1_2_1", "q1^2*d(q1) in the equation of q1"),
+                ("b1_1_2", "q1*d(q1)^2 in the equation of q1"),
+                ("b1_0_3", "d(q1)^3 in the equation of q1"),
+            ]
+        );
+        // Two modes: 20 cubic monomials of (q1, q2, d(q1), d(q2)), 16 with a velocity, in
+        // each of 2 equations; plus the 8 position monomials per equation.
+        let two = model("mode q1 at 1 MHz\nmode q2 at 2 MHz\nparam b\neom q1 += b*q1^2*d(q1)\n");
+        let c = candidates(&two, &lib(LibraryForm::Equation));
+        assert_eq!(
+            c.iter()
+                .filter(|c| c.name.matches('_').count() == 2)
+                .count(),
+            31
+        );
+        assert_eq!(c.len(), 31 + 8);
+        assert!(c
+            .iter()
+            .any(|c| c.name == "b2_20_10" && c.words == "q1^2*d(q1) in the equation of q2"));
     }
 
     #[test]
