@@ -29,7 +29,9 @@ pub struct Args {
     /// `--nominal q1=207.58e3` (Hz). Repeatable.
     #[arg(long, value_name = "MODE=HZ")]
     pub nominal: Vec<String>,
-    /// A drive tone must lie within this relative distance of a nominal resonance.
+    /// A drive tone must lie within this relative distance of a nominal resonance, or (a step
+    /// of a sweep) of its sweep's own resonance: the step of largest response, a peak inside
+    /// the sweep.
     #[arg(long, default_value_t = 0.05)]
     pub near_rel: f64,
     /// Do not weight rows by the noise estimated from the scatter across shots (per-shot and

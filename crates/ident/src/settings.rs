@@ -122,7 +122,10 @@ pub struct Settings {
     /// Nominal resonance frequencies, Hz, that override the dataset's and the model's.
     pub nominal_hz: BTreeMap<String, f64>,
     /// A drive tone is "near" a resonance when `|f − f_nominal| ≤ near_rel · f_nominal`
-    /// (default 0.05).
+    /// (default 0.05), or, in a stepped sweep, when `|f − f_sweep| ≤ near_rel · f_sweep` where
+    /// `f_sweep` is the sweep's own resonance (the step of largest response, inside the sweep)
+    /// and that mode's is the nearest nominal one: a low-Q resonance swept wide, or one its
+    /// nonlinearity shifted (the sloshing tank's peaks at 0.94 of its linear frequency).
     pub near_rel: f64,
     /// Take the noise of each measured amplitude from the scatter across shots when there are
     /// at least this many shots (default 5; 0: assume equal noise on every amplitude).

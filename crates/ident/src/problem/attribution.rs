@@ -177,6 +177,36 @@ pub(crate) fn nearest_mode(nominal_hz: &[f64], f: f64) -> usize {
     harmonid_spectral::nearest_of(f, nominal_hz.iter().copied().map(Some)).map_or(0, |(n, _)| n)
 }
 
+/// The resonance measurement `mi`'s stepped sweep shows, Hz: the first drive tone of the step
+/// whose response there (mean magnitude over its shots, first point) is the largest, when it
+/// is a peak inside the sweep (not at its lowest or highest drive: a sweep in a resonance's
+/// wing rises to its end). `None` for a measurement of no sweep, or a sweep without a peak.
+fn sweep_resonance_hz(ds: &Dataset, mi: usize) -> Option<f64> {
+    let sweep = &ds.measurements[mi].spec.sweep.as_ref()?.sweep;
+    let steps = || {
+        ds.measurements
+            .iter()
+            .filter(|m| m.spec.sweep.as_ref().is_some_and(|s| &s.sweep == sweep))
+    };
+    let drives = steps().filter_map(|m| m.spec.drives_hz.first().copied());
+    let (lo, hi) = drives.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), f| {
+        (a.min(f), b.max(f))
+    });
+    let peak = steps()
+        .filter(|m| m.spec.sweep.as_ref().is_some_and(|s| &s.sweep == sweep))
+        .filter_map(|m| {
+            let d = *m.spec.drives_hz.first()?;
+            let i = m.freq_index(d)?;
+            let size = (0..m.n_shots)
+                .map(|s| m.amplitude(s, i, 0).norm())
+                .sum::<f64>();
+            Some((d, size / m.n_shots.max(1) as f64))
+        })
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(d, _)| d)?;
+    (lo < peak && peak < hi).then_some(peak)
+}
+
 /// Attribution, drive tones, modal conversion weights and the products plan of measurement `mi`.
 /// `pump_terms` names the model's pump terms, if it has any: the measurement must then have a
 /// pump, whose tones become inputs of the products.
@@ -204,7 +234,14 @@ pub(super) fn prepare_measurement(
     for &d in &m.spec.drives_hz {
         let n = nearest_mode(nominal_hz, d);
         let rel = (d - nominal_hz[n]).abs() / nominal_hz[n];
-        if rel > settings.near_rel {
+        // A low-Q resonance swept wide, or one its nonlinearity shifted: a tone near its
+        // sweep's own resonance (a peak inside the sweep) is near the mode nearest that peak.
+        let near_own = || {
+            sweep_resonance_hz(ds, mi).is_some_and(|fp| {
+                nearest_mode(nominal_hz, fp) == n && (d - fp).abs() <= settings.near_rel * fp
+            })
+        };
+        if rel > settings.near_rel && !near_own() {
             return Err(IdentError::ToneNearNoResonance {
                 file: manifest_path.to_string(),
                 measurement: m.spec.name.clone(),

@@ -45,7 +45,7 @@ pub enum IdentError {
     #[error("{file}: measurement \"{measurement}\": drive tone {drive_hz} Hz is near no resonance (nearest: {mode} at {nominal_hz} Hz, {rel:.3} relative away; limit {limit}); check drives_hz and the nominal frequencies")]
     #[diagnostic(
         code(harmonid::ident::tone_near_no_resonance),
-        help("a wider --near-rel accepts tones further from a resonance")
+        help("a wider --near-rel accepts tones further from a resonance (a stepped sweep's tone is also near within --near-rel of the sweep's own resonance: its largest response, a peak inside the sweep)")
     )]
     ToneNearNoResonance {
         /// Manifest path.

@@ -4,4 +4,5 @@
 mod crlb;
 mod finite_inputs;
 mod ml_fallback;
+mod near_resonance;
 mod shared_dataset;
