@@ -224,7 +224,10 @@ fn with_an_error_floor_the_held_out_prediction_ranks_the_models() {
     let (v, sweeps) = gen::hysteretic_sweeps(4, 24);
     let clean = gen::simulate_sweeps_clean(&damped, &v, &sweeps, &[1.0], 3);
     let ds = gen::add_noise(&clean, 2e-11, 5);
-    let models = vec![("duffing".to_string(), duffing), ("damped".to_string(), damped)];
+    let models = vec![
+        ("duffing".to_string(), duffing),
+        ("damped".to_string(), damped),
+    ];
     let settings = Settings {
         force_model: harmonid_ident::ForceModel::GainPerMode,
         error_floor: true,
@@ -243,5 +246,9 @@ fn with_an_error_floor_the_held_out_prediction_ranks_the_models() {
     // The true model predicts its held-out level to about the noise.
     let sigma = c.models[1].holdout_rms_sigma.expect("shot noise");
     assert!(sigma < 2.0, "{sigma}");
-    assert!(c.verdict.contains("predicts the held-out data best"), "{}", c.verdict);
+    assert!(
+        c.verdict.contains("predicts the held-out data best"),
+        "{}",
+        c.verdict
+    );
 }

@@ -26,12 +26,12 @@ pub use design::{
     default_ladder, design, design_with_progress, DesignSettings, DesignStep, DEFAULT_DRAWS,
     DEFAULT_LADDER,
 };
+pub use evaluate::{evaluate, robustness, Evaluation, Finding, Robustness};
 pub use instrument::{
     attenuation, bandwidth_3db_hz, choose_filter, design_for_instrument, lockin_lines, lockin_plan,
     lockin_time_s, nearest_hz, nebw_hz, settle_time, InstrumentSettings, LockIn, Profile, LOCKINS,
     REJECTION, SETTLE_ACCURACY,
 };
-pub use evaluate::{evaluate, robustness, Evaluation, Finding, Robustness};
 pub use range::{
     GuessRange, RangeEntry, DEFAULT_F_LINEWIDTHS, DEFAULT_PARAM_FACTOR, DEFAULT_Q_REL,
 };

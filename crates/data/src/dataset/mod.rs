@@ -162,7 +162,9 @@ pub enum DatasetError {
         merged: String,
     },
     /// One dataset folder given twice: its measurements would count twice.
-    #[error("{path} is given twice; merging a dataset with itself would count every measurement twice")]
+    #[error(
+        "{path} is given twice; merging a dataset with itself would count every measurement twice"
+    )]
     #[diagnostic(
         code(harmonid::dataset::merge_twice),
         help("give each dataset folder once")
