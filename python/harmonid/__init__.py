@@ -42,6 +42,7 @@ from ._harmonid import (
     sweep,
     response,
     linear_response,
+    states,
 )
 
 from . import io  # noqa: E402  (after _harmonid, which it re-exports)
@@ -70,6 +71,7 @@ __all__ = [
     "sweep",
     "response",
     "linear_response",
+    "states",
 ]
 
 

@@ -20,6 +20,7 @@ from ._harmonid import (
     sweep as sweep,
     response as response,
     linear_response as linear_response,
+    states as states,
 )
 
 from . import io as io

@@ -164,6 +164,21 @@ def response(
     the curve through its folds, `f_hz`, `x`, `amplitude`, `phase_rad`, `stable`, `force`
     (N/kg per mode), `harmonics`."""
     ...
+def states(
+    model: Model,
+    values: Union[Mapping[str, Any], IdentifyResult, _Path],
+    *,
+    drives: Mapping[str, Sequence[float]] = ...,
+    force: Mapping[str, float] = ...,
+    pumps: Sequence[Sequence[float]] = ...,
+    lattice: bool = True,
+) -> dict[str, Any]:
+    """Every steady state under one drive tone (`drives` {mode: [Hz]}, `force` {mode: N/kg})
+    and/or a pump (`pumps` [(Hz, level[, phase_rad])]), as `harmonid states --json`: `tone_hz`,
+    `paths`, `complex_solutions`, `at_infinity`, `failed`, and `states`, each with `amplitudes`
+    (complex, m, per mode), `stable`, `eigenvalues` (slow flow, 1/s) and, with `lattice`,
+    `lattice` (`continued`, `stable`, `growth_rate`, `shift`, `same_as` or `why`)."""
+    ...
 def linear_response(
     model: Model,
     values: Union[Mapping[str, Any], IdentifyResult, _Path],

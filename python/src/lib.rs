@@ -14,6 +14,7 @@
 mod convert;
 mod dataset;
 mod errors;
+mod explore;
 mod identify;
 mod io;
 mod judge;
@@ -43,6 +44,7 @@ fn _harmonid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sweep::sweep, m)?)?;
     m.add_function(wrap_pyfunction!(response::response, m)?)?;
     m.add_function(wrap_pyfunction!(linear_response::linear_response, m)?)?;
+    m.add_function(wrap_pyfunction!(explore::states, m)?)?;
     m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;
     m.add_class::<plan::PlanResult>()?;
     m.add_function(wrap_pyfunction!(plan::plan, m)?)?;

@@ -22,8 +22,8 @@ fn mode_index(nm: &NumericModel, name: &str, what: &str) -> PyResult<usize> {
 }
 
 /// The drive of `drives` (`{mode: [Hz, ...]}`) with `force` (`{mode: N/kg}`) and the pumps;
-/// `None` without drives.
-fn excitation(
+/// `None` without drives. `harmonid.states` reads its drive the same way.
+pub(crate) fn excitation(
     nm: &NumericModel,
     drives: &BTreeMap<String, Vec<f64>>,
     force: &BTreeMap<String, f64>,
@@ -119,22 +119,7 @@ pub fn linear_response<'py>(
             )));
         }
     }
-    let pumps = pumps
-        .iter()
-        .map(|t| match t.as_slice() {
-            [hz, level] => Ok(PumpTone {
-                hz: *hz,
-                amplitude: Complex64::new(*level, 0.0),
-            }),
-            [hz, level, phase] => Ok(PumpTone {
-                hz: *hz,
-                amplitude: Complex64::from_polar(*level, *phase),
-            }),
-            _ => Err(SimulationError::new_err(
-                "pumps: each is (Hz, level) or (Hz, level, phase_rad)",
-            )),
-        })
-        .collect::<PyResult<Vec<_>>>()?;
+    let pumps = pump_tones(&pumps)?;
     let drive = excitation(&nm, &drives, &force, &pumps)?;
     let run = || -> Result<_, String> {
         let (state, stable) = match &drive {
@@ -188,4 +173,24 @@ pub fn linear_response<'py>(
         d.set_item("noise_psd", v.into_pyarray(py).reshape([n, m])?)?;
     }
     Ok(d)
+}
+
+/// `pumps=[(Hz, level), (Hz, level, phase_rad), ...]` as pump tones.
+pub(crate) fn pump_tones(pumps: &[Vec<f64>]) -> PyResult<Vec<PumpTone>> {
+    pumps
+        .iter()
+        .map(|t| match t.as_slice() {
+            [hz, level] => Ok(PumpTone {
+                hz: *hz,
+                amplitude: Complex64::new(*level, 0.0),
+            }),
+            [hz, level, phase] => Ok(PumpTone {
+                hz: *hz,
+                amplitude: Complex64::from_polar(*level, *phase),
+            }),
+            _ => Err(SimulationError::new_err(
+                "pumps: each is (Hz, level) or (Hz, level, phase_rad)",
+            )),
+        })
+        .collect()
 }
