@@ -43,6 +43,7 @@ from ._harmonid import (
     response,
     linear_response,
     states,
+    phase_diagram,
 )
 
 from . import io  # noqa: E402  (after _harmonid, which it re-exports)
@@ -72,6 +73,7 @@ __all__ = [
     "response",
     "linear_response",
     "states",
+    "phase_diagram",
 ]
 
 

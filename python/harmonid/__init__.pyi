@@ -21,6 +21,7 @@ from ._harmonid import (
     response as response,
     linear_response as linear_response,
     states as states,
+    phase_diagram as phase_diagram,
 )
 
 from . import io as io

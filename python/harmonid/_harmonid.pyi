@@ -179,6 +179,23 @@ def states(
     (complex, m, per mode), `stable`, `eigenvalues` (slow flow, 1/s) and, with `lattice`,
     `lattice` (`continued`, `stable`, `growth_rate`, `shift`, `same_as` or `why`)."""
     ...
+def phase_diagram(
+    model: Model,
+    values: Union[Mapping[str, Any], IdentifyResult, _Path],
+    x: tuple[str, float, float, int],
+    y: tuple[str, float, float, int],
+    *,
+    drives: Mapping[str, Sequence[float]] = ...,
+    force: Mapping[str, float] = ...,
+    pumps: Sequence[Sequence[float]] = ...,
+    time_budget: Optional[float] = None,
+) -> dict[str, Any]:
+    """The count of stable and unstable single-harmonic steady states over a plane, as
+    `harmonid phase-diagram`: `x`, `y` each `(axis, from, to, n)` with axis "freq", "force:q1",
+    "pump_hz", "pump_level" or a parameter; returns `x`, `y`, `stable`, `unstable` (int arrays
+    of shape (len(y), len(x)), -1 where the time budget left a row out), `generic_count`,
+    `complete`."""
+    ...
 def linear_response(
     model: Model,
     values: Union[Mapping[str, Any], IdentifyResult, _Path],

@@ -1,5 +1,6 @@
 //! `harmonid.states`: every steady state of a model at one drive or pump (`harmonid states`),
-//! by the total-degree homotopy of `harmonid_explore`, each continued onto the full lattice.
+//! by the total-degree homotopy of `harmonid_explore`, each continued onto the full lattice;
+//! `harmonid.phase_diagram`: their counts over a plane (`harmonid phase-diagram`).
 
 use crate::errors::SimulationError;
 use crate::linear_response::{excitation, pump_tones};
@@ -7,7 +8,7 @@ use crate::model::Model;
 use crate::sweep::numeric_model;
 use harmonid_explore::{Continued, StatesSettings};
 use harmonid_sim::Excitation;
-use numpy::IntoPyArray;
+use numpy::{IntoPyArray, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::collections::BTreeMap;
@@ -92,5 +93,88 @@ pub fn states<'py>(
         list.append(d)?;
     }
     out.set_item("states", list)?;
+    Ok(out)
+}
+
+/// `(axis, from, to, n)` of `phase_diagram`'s `x` or `y`.
+fn axis_range(t: &(String, f64, f64, usize)) -> harmonid_explore::AxisRange {
+    harmonid_explore::AxisRange {
+        axis: t
+            .0
+            .parse()
+            .unwrap_or_else(|e: std::convert::Infallible| match e {}),
+        from: t.1,
+        to: t.2,
+        n: t.3,
+    }
+}
+
+/// The phase diagram of `model` with `values` over `x` and `y`, each `(axis, from, to, n)`
+/// with axis `"freq"` (the drive tone), `"force:q1"`, `"pump_hz"`, `"pump_level"` or a
+/// parameter's name, under the drive and pumps given as for [`states`], as `harmonid
+/// phase-diagram` computes it: a dict with `x` and `y` (numpy), `stable` and `unstable`
+/// (numpy int arrays of shape `(len(y), len(x))`, -1 where `time_budget` (s) left a row out),
+/// `generic_count` and `complete`. Counts are of the single-harmonic states.
+#[pyfunction]
+#[pyo3(signature = (model, values, x, y, *, drives = BTreeMap::new(), force = BTreeMap::new(), pumps = Vec::new(), time_budget = None))]
+#[allow(clippy::too_many_arguments)] // the Python signature, keyword arguments included
+pub fn phase_diagram<'py>(
+    py: Python<'py>,
+    model: &Model,
+    values: &Bound<'py, PyAny>,
+    x: (String, f64, f64, usize),
+    y: (String, f64, f64, usize),
+    drives: BTreeMap<String, Vec<f64>>,
+    force: BTreeMap<String, f64>,
+    pumps: Vec<Vec<f64>>,
+    time_budget: Option<f64>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let mv = crate::values::model_values(py, values)?;
+    let nm = numeric_model(model, values)?;
+    let pumps = pump_tones(&pumps)?;
+    let drive = match excitation(&nm, &drives, &force, &pumps)? {
+        Some(d) => d,
+        None => Excitation {
+            tones_hz: vec![],
+            force: vec![vec![]; nm.n_modes()],
+            pumps,
+        },
+    };
+    let (xr, yr) = (axis_range(&x), axis_range(&y));
+    let settings = harmonid_explore::PhaseSettings {
+        time_budget_s: time_budget,
+        ..harmonid_explore::PhaseSettings::default()
+    };
+    let inner = &model.inner;
+    let d = py
+        .detach(|| {
+            let problem = harmonid_explore::Problem {
+                model: inner,
+                values: &mv,
+                drive: &drive,
+            };
+            harmonid_explore::phase_diagram(&problem, &xr, &yr, &settings, &|_| {})
+        })
+        .map_err(|e| SimulationError::new_err(e.to_string()))?;
+    let (nx, ny) = (d.x.len(), d.y.len());
+    let count = |f: fn(&harmonid_explore::Count) -> u32| -> Vec<i64> {
+        d.counts
+            .iter()
+            .map(|c| c.as_ref().map_or(-1, |c| i64::from(f(c))))
+            .collect()
+    };
+    let out = PyDict::new(py);
+    out.set_item("x", d.x.clone().into_pyarray(py))?;
+    out.set_item("y", d.y.clone().into_pyarray(py))?;
+    out.set_item(
+        "stable",
+        count(|c| c.stable).into_pyarray(py).reshape([ny, nx])?,
+    )?;
+    out.set_item(
+        "unstable",
+        count(|c| c.unstable).into_pyarray(py).reshape([ny, nx])?,
+    )?;
+    out.set_item("generic_count", d.generic_count)?;
+    out.set_item("complete", d.complete)?;
     Ok(out)
 }

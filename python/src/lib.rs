@@ -45,6 +45,7 @@ fn _harmonid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(response::response, m)?)?;
     m.add_function(wrap_pyfunction!(linear_response::linear_response, m)?)?;
     m.add_function(wrap_pyfunction!(explore::states, m)?)?;
+    m.add_function(wrap_pyfunction!(explore::phase_diagram, m)?)?;
     m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;
     m.add_class::<plan::PlanResult>()?;
     m.add_function(wrap_pyfunction!(plan::plan, m)?)?;

@@ -35,3 +35,21 @@ def test_no_excitation_is_refused():
         assert "no excitation" in str(e)
     else:
         raise AssertionError("states without drive or pump was accepted")
+
+
+def test_phase_diagram_equals_the_command_line_map(cli, tmp_path):
+    out = tmp_path / "map.csv"
+    cli("phase-diagram", MODEL, "--values", VALUES, "--pump", "2000:1e5",
+        "--x", "pump_hz:1990:2010:21", "--y", "pump_level:1e3:4e5:11", "--out", out)
+    want = np.loadtxt(out, delimiter=",", skiprows=1)
+    model = harmonid.Model.from_file(REPO / MODEL)
+    got = harmonid.phase_diagram(model, REPO / VALUES, ("pump_hz", 1990, 2010, 21),
+                                 ("pump_level", 1e3, 4e5, 11), pumps=[(2000.0, 1e5)])
+    assert got["stable"].shape == (11, 21)
+    assert got["complete"]
+    # map.csv rows run over x within y: x, y, stable, unstable.
+    assert np.array_equal(got["stable"].ravel(), want[:, 2].astype(int))
+    assert np.array_equal(got["unstable"].ravel(), want[:, 3].astype(int))
+    assert np.allclose(np.repeat(got["y"], 21), want[:, 1])
+    # Inside the tongue at the top level: two stable phase states and the unstable rest state.
+    assert got["stable"][-1, 10] == 2 and got["unstable"][-1, 10] == 1
