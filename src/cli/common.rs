@@ -70,3 +70,47 @@ pub fn load_dataset(dir: &Path) -> miette::Result<harmonid_data::Dataset> {
     }
     Ok(ds)
 }
+
+/// One `--force MODE=AMPLITUDE` (N/kg, peak): the mode's index in `model` and the amplitude,
+/// or an error naming the option's text and what to write. `sweep`, `states` and `response`
+/// read their forces with it.
+pub fn force_entry(
+    model: &harmonid_sim::NumericModel,
+    given: &str,
+) -> miette::Result<(usize, f64)> {
+    let (m, v) = given
+        .split_once('=')
+        .ok_or_else(|| miette::miette!("--force {given}: expected MODE=AMPLITUDE, e.g. q1=3.5"))?;
+    let n = model
+        .mode_names
+        .iter()
+        .position(|x| x == m.trim())
+        .ok_or_else(|| {
+            miette::miette!(
+                "--force {given}: `{}` is not a mode ({})",
+                m.trim(),
+                model.mode_names.join(", ")
+            )
+        })?;
+    let a: f64 = v
+        .trim()
+        .parse()
+        .ok()
+        .filter(|a: &f64| a.is_finite())
+        .ok_or_else(|| miette::miette!("--force {given}: `{v}` is not a finite number of N/kg"))?;
+    Ok((n, a))
+}
+
+/// Every `--force MODE=AMPLITUDE` as a force per mode (N/kg, phase 0; zero for modes not
+/// named).
+pub fn forces(
+    model: &harmonid_sim::NumericModel,
+    given: &[String],
+) -> miette::Result<Vec<num_complex::Complex64>> {
+    let mut force = vec![num_complex::Complex64::new(0.0, 0.0); model.n_modes()];
+    for f in given {
+        let (n, a) = force_entry(model, f)?;
+        force[n] = num_complex::Complex64::new(a, 0.0);
+    }
+    Ok(force)
+}

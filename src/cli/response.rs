@@ -174,16 +174,7 @@ fn excitation(
     let nm = model.n_modes();
     let mut force = vec![None; nm];
     for s in &args.force {
-        let (m, v) = s
-            .split_once('=')
-            .ok_or_else(|| miette!("--force {s}: expected MODE=AMPLITUDE, e.g. q1=3.5"))?;
-        let n = mode_index(model, m, "--force")?;
-        let a: f64 = v
-            .trim()
-            .parse()
-            .ok()
-            .filter(|a: &f64| a.is_finite())
-            .ok_or_else(|| miette!("--force {s}: `{v}` is not a finite number of N/kg"))?;
+        let (n, a) = super::common::force_entry(model, s)?;
         force[n] = Some(a);
     }
     let mut tones: Vec<f64> = Vec::new();

@@ -6,7 +6,6 @@ use super::simulate::numeric_model;
 use harmonid_explore::{Continued, States, StatesSettings};
 use harmonid_sim::{Excitation, NumericModel};
 use miette::miette;
-use num_complex::Complex64;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
@@ -37,34 +36,6 @@ pub struct Args {
     pub single_harmonic: bool,
 }
 
-/// `--force q1=3.5` per mode, N/kg (zero for modes not named).
-pub fn parse_forces(model: &NumericModel, given: &[String]) -> miette::Result<Vec<Complex64>> {
-    let mut force = vec![Complex64::new(0.0, 0.0); model.n_modes()];
-    for f in given {
-        let (m, v) = f
-            .split_once('=')
-            .ok_or_else(|| miette!("--force {f}: expected MODE=AMPLITUDE, e.g. q1=3.5"))?;
-        let n = model
-            .mode_names
-            .iter()
-            .position(|x| x == m.trim())
-            .ok_or_else(|| {
-                miette!(
-                    "--force {f}: `{m}` is not a mode ({})",
-                    model.mode_names.join(", ")
-                )
-            })?;
-        let a: f64 = v
-            .trim()
-            .parse()
-            .ok()
-            .filter(|a: &f64| a.is_finite())
-            .ok_or_else(|| miette!("--force {f}: `{v}` is not a finite number of N/kg"))?;
-        force[n] = Complex64::new(a, 0.0);
-    }
-    Ok(force)
-}
-
 /// The excitation of `--drive`, `--force`, `--pump`: a tone with its forces, a pump, or both.
 pub fn excitation(
     model: &NumericModel,
@@ -72,7 +43,7 @@ pub fn excitation(
     force: &[String],
     pump: Option<&str>,
 ) -> miette::Result<Excitation> {
-    let forces = parse_forces(model, force)?;
+    let forces = super::common::forces(model, force)?;
     let pumps = match pump {
         Some(p) => vec![super::sweep_pumped::parse_pump(p)?],
         None => Vec::new(),

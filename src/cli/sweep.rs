@@ -24,29 +24,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         super::figure::check(p, &inputs)?;
     }
     let model = numeric_model(&args.model, &args.values)?;
-    let mut force = vec![Complex64::new(0.0, 0.0); model.n_modes()];
-    for f in &args.force {
-        let (m, v) = f
-            .split_once('=')
-            .ok_or_else(|| miette!("--force {f}: expected MODE=AMPLITUDE, e.g. q1=3.5"))?;
-        let n = model
-            .mode_names
-            .iter()
-            .position(|x| x == m.trim())
-            .ok_or_else(|| {
-                miette!(
-                    "--force {f}: `{m}` is not a mode ({})",
-                    model.mode_names.join(", ")
-                )
-            })?;
-        let a: f64 = v
-            .trim()
-            .parse()
-            .ok()
-            .filter(|a: &f64| a.is_finite())
-            .ok_or_else(|| miette!("--force {f}: `{v}` is not a finite number of N/kg"))?;
-        force[n] = Complex64::new(a, 0.0);
-    }
+    let force = super::common::forces(&model, &args.force)?;
     if !args.pump.is_empty() {
         let pumps = args
             .pump
