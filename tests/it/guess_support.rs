@@ -1,6 +1,7 @@
 //! The two-mode nanostring's guess off the device, shared by the tests of planning from an
 //! uncertain guess (`plan_robust_mc`, `plan_closed_loop`, `plan_cli`), and the measurement
-//! point of the planner's Monte Carlo (`plan_mc_support`).
+//! point of the planner's Monte Carlo (`plan_mc_support`), and the ratio of two plans' bounds
+//! (`plan_closed_loop`, `lab_loop`).
 
 // Each test file uses part of it.
 #![allow(dead_code)]
@@ -40,4 +41,30 @@ pub fn two_mode_settings() -> DesignSettings {
         points: point(&[0.309, 0.588]),
         ..DesignSettings::default()
     }
+}
+
+/// The largest ratio of `ev`'s relative bounds to `reference`'s, and its quantity.
+pub fn worst_ratio(
+    ev: &harmonid_plan::Evaluation,
+    reference: &harmonid_plan::Evaluation,
+) -> (f64, String) {
+    ev.bounds
+        .quantities
+        .iter()
+        .map(|b| {
+            let r = reference
+                .bounds
+                .quantities
+                .iter()
+                .find(|x| x.name == b.name)
+                .map_or(f64::NAN, |x| b.rel / x.rel);
+            (r, b.name.clone())
+        })
+        .fold((0.0, String::new()), |a, b| {
+            if b.0 > a.0 || b.0.is_nan() {
+                b
+            } else {
+                a
+            }
+        })
 }

@@ -11,12 +11,13 @@
 //!
 //!     cargo test --release --test it -- lab_loop:: --nocapture
 
+use crate::guess_support::worst_ratio;
 use harmonid::data::Dataset;
 use harmonid_experiment::{guess_from_reports, values_from_toml, Guess, Settings};
 use harmonid_ident::identify;
 use harmonid_ident::Report;
 use harmonid_model::Model;
-use harmonid_plan::{design, evaluate, DesignSettings, Evaluation, GuessRange};
+use harmonid_plan::{design, evaluate, DesignSettings, GuessRange};
 use harmonid_sim::ModelValues;
 use std::path::Path;
 
@@ -64,23 +65,6 @@ fn plan_after(
     };
     let (plan, _) = design(model, range.guess(), &s).expect("design");
     (plan, range)
-}
-
-/// The largest ratio of `ev`'s relative bounds to `reference`'s, with its quantity.
-fn worst_ratio(ev: &Evaluation, reference: &Evaluation) -> (f64, String) {
-    let mut worst = (0.0, String::new());
-    for b in &ev.bounds.quantities {
-        let r = reference
-            .bounds
-            .quantities
-            .iter()
-            .find(|x| x.name == b.name)
-            .map_or(f64::INFINITY, |x| b.rel / x.rel);
-        if r > worst.0 || r.is_nan() {
-            worst = (r, b.name.clone());
-        }
-    }
-    worst
 }
 
 /// Every identified unknown's distance from the truth in standard errors, the largest first.

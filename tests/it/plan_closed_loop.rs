@@ -8,33 +8,10 @@
 
 use crate::guess_support;
 
-use guess_support::{two_mode_settings, TWO_MODE_GUESS};
+use guess_support::{two_mode_settings, worst_ratio, TWO_MODE_GUESS};
 use harmonid_experiment::{guess_from_reports, values_from_toml, Guess, Settings};
 use harmonid_ident::identify;
 use harmonid_plan::{design, evaluate, DesignSettings, Evaluation, GuessRange};
-
-/// The largest ratio of `ev`'s relative bounds to `reference`'s, and its quantity.
-fn worst_ratio(ev: &Evaluation, reference: &Evaluation) -> (f64, String) {
-    ev.bounds
-        .quantities
-        .iter()
-        .map(|b| {
-            let r = reference
-                .bounds
-                .quantities
-                .iter()
-                .find(|x| x.name == b.name)
-                .map_or(f64::NAN, |x| b.rel / x.rel);
-            (r, b.name.clone())
-        })
-        .fold((0.0, String::new()), |a, b| {
-            if b.0 > a.0 || b.0.is_nan() {
-                b
-            } else {
-                a
-            }
-        })
-}
 
 #[test]
 fn plan_after_rounds_reach_the_bounds_of_a_plan_designed_from_the_truth() {
