@@ -76,6 +76,10 @@ pub enum Code {
     VelocityInPotential,
     /// A declaration of a built-in name (`pump`).
     ReservedName,
+    /// A non-smooth factor (`abs`, `sign`, `tanh`) that is not of one mode or one velocity, a
+    /// `tanh` scale that is not a positive number, or one in a potential or dissipation
+    /// function.
+    BadNonSmooth,
 }
 
 impl Code {
@@ -100,6 +104,7 @@ impl Code {
             Code::BadVelocity => "model::bad-velocity",
             Code::VelocityInPotential => "model::velocity-in-potential",
             Code::ReservedName => "model::reserved-name",
+            Code::BadNonSmooth => "model::bad-nonsmooth",
         }
     }
 }

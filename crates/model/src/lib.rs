@@ -38,6 +38,7 @@
 mod ast;
 mod error;
 mod model;
+mod nonsmooth;
 mod output;
 mod sema;
 mod syntax;
@@ -46,6 +47,7 @@ pub use error::{Code, ModelDiagnostic, ModelErrors, Span};
 pub use model::{
     velocity_name, Bounds, Linear, Mode, Model, NonAffineTerm, ParamKind, Parameter, PUMP_NAME,
 };
+pub use nonsmooth::{format_scale, sign, NonSmooth};
 pub use output::latex_name;
 pub use sema::equations_from_potential;
 
@@ -156,5 +158,7 @@ pub fn parse_bytes(bytes: &[u8], origin: &str) -> Result<Model, ModelErrors> {
     }
 }
 
+#[cfg(test)]
+mod test_nonsmooth;
 #[cfg(test)]
 mod tests;

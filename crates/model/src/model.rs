@@ -11,6 +11,7 @@
 //! where `eom[n]` is a [`Poly`] in the modal coordinates (variable `VarId(m)` is `modes[m]`) whose
 //! coefficients are polynomials in the parameters (variable `VarId(p)` is `params[p]`).
 
+use crate::nonsmooth::NonSmooth;
 use harmonid_poly::{Poly, PowerProduct, VarId};
 
 /// A linear modal quantity (resonance frequency or quality factor): identified, or given.
@@ -98,6 +99,15 @@ pub struct Model {
     /// The total dissipation function `D(q, q̇)` written in the file, if any (zero otherwise);
     /// its derivatives `∂D/∂q̇_n` are in `eom` already.
     pub dissipation: Poly,
+    /// `nonsmooth[n]`: the terms of mode `n`'s equation that hold a non-smooth factor
+    /// (`kappa1*abs(q1)*q1`), beside the polynomial `eom[n]` (which never holds one). Variables
+    /// as in `eom`, plus `VarId(2N + 1 + k)` for `nonsmooth_factors[k]` (see
+    /// [`Model::nonsmooth_var`], [`Model::split_nonsmooth`]); coefficients are polynomials in
+    /// the parameters as in `eom`. Empty polynomials when the model has none.
+    pub nonsmooth: Vec<Poly>,
+    /// The distinct non-smooth factors of the model (`abs(q1)`, `sign(d(q1))`,
+    /// `tanh(d(q1)/0.001)`), in order of first appearance in the file.
+    pub nonsmooth_factors: Vec<NonSmooth>,
 }
 
 impl Model {
@@ -169,36 +179,60 @@ impl Model {
         out
     }
 
+    /// Whether a factor of any term satisfies `pred`; a non-smooth factor counts as the
+    /// variable it is applied to (`sign(d(q1))` holds the velocity `d(q1)`).
     fn any_factor(&self, pred: impl Fn(VarId) -> bool) -> bool {
-        self.eom.iter().any(|eq| {
+        let first = 2 * self.modes.len() + 1;
+        let resolve = |v: VarId| match v.index().checked_sub(first) {
+            Some(k) => self.nonsmooth_factors.get(k).map_or(v, NonSmooth::var),
+            None => v,
+        };
+        self.eom.iter().chain(&self.nonsmooth).any(|eq| {
             eq.terms()
-                .any(|(m, _)| m.factors().iter().any(|&(v, _)| pred(v)))
+                .any(|(m, _)| m.factors().iter().any(|&(v, _)| pred(resolve(v))))
         })
     }
 
     /// The canonical name (`DATA_FORMAT.md`) of a monomial in the modal coordinates and
-    /// velocities (`q1^2*d(q1)`).
+    /// velocities (`q1^2*d(q1)`); a monomial of `nonsmooth` puts its non-smooth factors first
+    /// (`abs(q1)*q1`, `tanh(d(q1)/0.001)`).
     pub fn monomial_name(&self, m: &PowerProduct) -> String {
+        let first = 2 * self.modes.len() + 1;
+        if m.factors().iter().any(|&(v, _)| v.index() >= first) {
+            let (pp, names) = self.display_order(m, false);
+            return pp.name(&names);
+        }
         m.name(&self.variable_names())
+    }
+
+    /// Every equation term with its equation: the polynomial terms of `eom`, then those of
+    /// `nonsmooth` (`(n, monomial, coefficient)`).
+    pub fn all_terms(&self) -> impl Iterator<Item = (usize, &PowerProduct, &harmonid_poly::Coeff)> {
+        let poly = self
+            .eom
+            .iter()
+            .enumerate()
+            .flat_map(|(n, eq)| eq.terms().map(move |(m, c)| (n, m, c)));
+        let ns = self
+            .nonsmooth
+            .iter()
+            .enumerate()
+            .flat_map(|(n, eq)| eq.terms().map(move |(m, c)| (n, m, c)));
+        poly.chain(ns)
     }
 
     /// Every term whose coefficient is not affine in the parameters; empty when the model can
     /// be identified by linear least squares.
     pub fn non_affine_terms(&self) -> Vec<NonAffineTerm> {
         let modes = self.mode_names();
-        let vars = self.variable_names();
         let params = self.param_names();
         let mut out = Vec::new();
-        for (n, eq) in self.eom.iter().enumerate() {
-            for m in eq.non_affine_terms() {
-                let coefficient = eq
-                    .coeff(m)
-                    .map(|c| c.to_string_with(&params))
-                    .unwrap_or_default();
+        for (n, m, c) in self.all_terms() {
+            if c.affine().is_none() {
                 out.push(NonAffineTerm {
                     mode: modes[n].to_string(),
-                    monomial: m.name(&vars),
-                    coefficient,
+                    monomial: self.monomial_name(m),
+                    coefficient: c.to_string_with(&params),
                 });
             }
         }
@@ -229,15 +263,18 @@ impl Model {
             .collect()
     }
 
-    /// Largest total degree of any equation term (0 for a linear model).
+    /// Largest total degree of any polynomial equation term (0 for a linear model; the terms
+    /// of `nonsmooth` are not polynomials and not counted).
     pub fn max_degree(&self) -> u32 {
         self.eom.iter().map(Poly::degree).max().unwrap_or(0)
     }
 
     /// The parameters that appear in the equation of mode `n`.
     pub fn params_in_equation(&self, n: usize) -> Vec<VarId> {
+        let ns = self.nonsmooth.get(n).into_iter().flat_map(|p| p.terms());
         let mut v: Vec<VarId> = self.eom[n]
             .terms()
+            .chain(ns)
             .flat_map(|(_, c)| c.variables())
             .collect();
         v.sort_unstable();
@@ -255,4 +292,98 @@ pub const PUMP_NAME: &str = "pump";
 /// The name of the velocity of mode `mode` in the language and in monomial names: `d(q1)`.
 pub fn velocity_name(mode: &str) -> String {
     format!("d({mode})")
+}
+
+/// Non-smooth terms (issue 36): see [`NonSmooth`] for the numbering of their variables.
+impl Model {
+    /// The variable that stands for `nonsmooth_factors[k]` in `nonsmooth[n]`: after the modes,
+    /// velocities and pump.
+    pub fn nonsmooth_var(&self, k: usize) -> VarId {
+        VarId((2 * self.modes.len() + 1 + k) as u32)
+    }
+
+    /// Whether any equation holds a non-smooth factor.
+    pub fn has_nonsmooth(&self) -> bool {
+        self.nonsmooth.iter().any(|p| !p.is_zero())
+    }
+
+    /// A monomial of `nonsmooth[n]` split into its polynomial part (modes, velocities, pump)
+    /// and its non-smooth factors `(k, exponent)` (`k` indexes `nonsmooth_factors`).
+    pub fn split_nonsmooth(&self, m: &PowerProduct) -> (PowerProduct, Vec<(usize, u32)>) {
+        let first = 2 * self.modes.len() + 1;
+        let mut poly = Vec::new();
+        let mut factors = Vec::new();
+        for &(v, k) in m.factors() {
+            match v.index().checked_sub(first) {
+                Some(f) => factors.push((f, k)),
+                None => poly.push((v, k)),
+            }
+        }
+        // The factors come sorted from a valid monomial; a failure cannot happen.
+        let poly = PowerProduct::from_factors(poly).unwrap_or_else(|_| PowerProduct::one());
+        (poly, factors)
+    }
+
+    /// The terms with a non-smooth factor, as `monomial in the equation of mode` (for messages
+    /// of the places that cannot handle them yet).
+    pub fn nonsmooth_term_names(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        for (n, eq) in self.nonsmooth.iter().enumerate() {
+            for (m, _) in eq.terms() {
+                out.push(format!(
+                    "{} in the equation of {}",
+                    self.monomial_name(m),
+                    self.modes[n].name
+                ));
+            }
+        }
+        out
+    }
+
+    /// The monomial with its variables renumbered so that the non-smooth factors come first
+    /// (their canonical place in names), and the names in that numbering.
+    pub(crate) fn display_order(
+        &self,
+        m: &PowerProduct,
+        latex: bool,
+    ) -> (PowerProduct, Vec<String>) {
+        let first = 2 * self.modes.len() + 1;
+        let k = self.nonsmooth_factors.len();
+        let vars = if latex {
+            self.variable_latex_names()
+        } else {
+            self.variable_names()
+        };
+        let mut names: Vec<String> = self
+            .nonsmooth_factors
+            .iter()
+            .map(|f| if latex { f.latex(&vars) } else { f.name(&vars) })
+            .collect();
+        names.extend(vars);
+        let pairs: Vec<(VarId, u32)> = m
+            .factors()
+            .iter()
+            .map(|&(v, e)| match v.index().checked_sub(first) {
+                Some(f) => (VarId(f as u32), e),
+                None => (VarId((v.index() + k) as u32), e),
+            })
+            .collect();
+        let mut sorted = pairs;
+        sorted.sort_by_key(|&(v, _)| v);
+        let pp = PowerProduct::from_factors(sorted).unwrap_or_else(|_| PowerProduct::one());
+        (pp, names)
+    }
+
+    /// `nonsmooth[n]` renumbered as [`Model::display_order`] does, with its names, for text.
+    pub(crate) fn nonsmooth_display(&self, n: usize, latex: bool) -> Option<(Poly, Vec<String>)> {
+        let eq = self.nonsmooth.get(n).filter(|p| !p.is_zero())?;
+        let mut b = harmonid_poly::PolyBuilder::new();
+        let mut names = Vec::new();
+        for (m, c) in eq.terms() {
+            let (pp, nm) = self.display_order(m, latex);
+            names = nm;
+            b.push(pp, c.clone());
+        }
+        b.finish().ok().map(|p| (p, names))
+    }
 }

@@ -114,6 +114,10 @@ impl Model {
             ),
             _ => lhs,
         };
+        let lhs = match self.nonsmooth_display(n, false) {
+            Some((p, names)) => join_sum(&lhs, &p.to_string_with(&names, &self.param_names())),
+            None => lhs,
+        };
         format!("{lhs} = F{s}(t)")
     }
 
@@ -152,6 +156,10 @@ impl Model {
         let lhs = match self.eom.get(n) {
             Some(p) if !p.is_zero() => join_sum(&lhs, &p.to_latex_with(&modes, &params)),
             _ => lhs,
+        };
+        let lhs = match self.nonsmooth_display(n, true) {
+            Some((p, names)) => join_sum(&lhs, &p.to_latex_with(&names, &params)),
+            None => lhs,
         };
         format!("{lhs} &= F_{{{s}}}(t)")
     }
@@ -213,18 +221,15 @@ impl Model {
             }
             let _ = writeln!(out, "{decl}");
         }
-        let vars = self.variable_names();
         let params = self.param_names();
-        for (n, eq) in self.eom.iter().enumerate() {
-            for (m, c) in eq.terms() {
-                let _ = writeln!(
-                    out,
-                    "eom {} += ({}) * {}",
-                    self.modes[n].name,
-                    c.to_string_with(&params),
-                    m.name(&vars)
-                );
-            }
+        for (n, m, c) in self.all_terms() {
+            let _ = writeln!(
+                out,
+                "eom {} += ({}) * {}",
+                self.modes[n].name,
+                c.to_string_with(&params),
+                self.monomial_name(m)
+            );
         }
         out
     }
@@ -232,12 +237,10 @@ impl Model {
     /// The parameters that appear in no equation (their identification column would be zero).
     pub fn unused_params(&self) -> Vec<&str> {
         let mut used = vec![false; self.params.len()];
-        for eq in &self.eom {
-            for (_, c) in eq.terms() {
-                for v in c.variables() {
-                    if let Some(u) = used.get_mut(v.index()) {
-                        *u = true;
-                    }
+        for (_, _, c) in self.all_terms() {
+            for v in c.variables() {
+                if let Some(u) = used.get_mut(v.index()) {
+                    *u = true;
                 }
             }
         }
@@ -305,6 +308,19 @@ impl Model {
         );
         for n in 0..self.modes.len() {
             let _ = writeln!(out, "  {}", self.equation_text(n));
+        }
+        if !self.nonsmooth_factors.is_empty() {
+            let vars = self.variable_names();
+            let names: Vec<String> = self
+                .nonsmooth_factors
+                .iter()
+                .map(|f| f.name(&vars))
+                .collect();
+            let _ = writeln!(
+                out,
+                "\nnon-smooth factors: {} (harmonic balance samples them in time: alternating frequency-time)",
+                names.join(", ")
+            );
         }
         let unused = self.unused_params();
         if !unused.is_empty() {
@@ -392,7 +408,6 @@ impl Model {
         });
         out.push_str("  \"eom\": {");
         let modes = self.mode_names();
-        let vars = self.variable_names();
         let params = self.param_names();
         for (n, eq) in self.eom.iter().enumerate() {
             let _ = write!(
@@ -401,16 +416,20 @@ impl Model {
                 if n == 0 { "" } else { "," },
                 json_str(modes.get(n).copied().unwrap_or(""))
             );
-            for (i, (m, c)) in eq.terms().enumerate() {
+            // The polynomial terms, then those with a non-smooth factor (`abs(q1)*q1`).
+            let ns = self.nonsmooth.get(n).into_iter().flat_map(|p| p.terms());
+            let mut empty = true;
+            for (i, (m, c)) in eq.terms().chain(ns).enumerate() {
+                empty = false;
                 let _ = write!(
                     out,
                     "{}\n      {}: {}",
                     if i == 0 { "" } else { "," },
-                    json_str(&m.name(&vars)),
+                    json_str(&self.monomial_name(m)),
                     coeff_json(c, &params)
                 );
             }
-            out.push_str(if eq.is_zero() { "}" } else { "\n    }" });
+            out.push_str(if empty { "}" } else { "\n    }" });
         }
         out.push_str(if self.eom.is_empty() {
             "}\n"
@@ -423,7 +442,7 @@ impl Model {
 
     /// The number of terms in all equations together.
     pub fn term_count(&self) -> usize {
-        self.eom.iter().map(Poly::len).sum()
+        self.eom.iter().chain(&self.nonsmooth).map(Poly::len).sum()
     }
 }
 

@@ -4,9 +4,13 @@
 use crate::ast::{Expr, Family, File, Index, IndexRel, ModeDecl, Name, ParamDecl, Stmt};
 use crate::error::{Code, ModelDiagnostic, Span};
 use crate::model::{Bounds, Linear, Mode, Model, ParamKind, Parameter, PUMP_NAME};
+use crate::nonsmooth::NonSmooth;
 use crate::{MAX_DEGREE, MAX_FAMILY_INSTANCES, MAX_PRODUCT_WORK, MAX_TERMS};
 use harmonid_poly::{Coeff, Overflow, Poly, PolyBuilder, Rational, Ring, VarId};
 use std::collections::HashMap;
+
+mod nonsmooth_args;
+use nonsmooth_args::NONSMOOTH_FUNCTIONS;
 
 /// Values of the index variables in scope.
 type Env = Vec<(String, i64)>;
@@ -191,6 +195,8 @@ pub(crate) fn lower(
         table: &table,
         style: &param_style,
         n_modes: modes.len() as u32,
+        fixed: params.iter().map(fixed_value).collect(),
+        factors: std::cell::RefCell::new(Vec::new()),
     };
     // Terms are collected in builders and sorted once: a family can add 10^5 statements in
     // any order, and inserting each into a sorted polynomial would be quadratic.
@@ -218,6 +224,9 @@ pub(crate) fn lower(
             Target::Potential | Target::Dissipation => None,
         };
         let Some(p) = ev.eval(u.expr) else { continue };
+        if nonsmooth_in_potential(&mut sink, u, &p, n_modes) {
+            continue;
+        }
         let (builder, negate) = match (u.target, target) {
             (_, Some((n, negate))) => (&mut eom_terms[n as usize], negate),
             (Target::Dissipation, None) => {
@@ -276,6 +285,7 @@ pub(crate) fn lower(
     if !sink.list.is_empty() {
         return Err(sink.finish());
     }
+    let (eom, nonsmooth) = split_nonsmooth_terms(eom, n_modes);
     Ok(Model {
         source: origin.to_string(),
         modes,
@@ -283,6 +293,8 @@ pub(crate) fn lower(
         eom,
         potential,
         dissipation,
+        nonsmooth,
+        nonsmooth_factors: names.factors.into_inner(),
     })
 }
 
@@ -639,6 +651,11 @@ struct Names<'t> {
     style: &'t Styles,
     /// Modes: the velocity of mode `m` is the variable `n_modes + m`.
     n_modes: u32,
+    /// The value of each fixed parameter (a `tanh` scale may be one).
+    fixed: Vec<Option<f64>>,
+    /// The distinct non-smooth factors met so far: `factors[k]` is the variable
+    /// `2 n_modes + 1 + k` (shared by every statement, so equal factors are one variable).
+    factors: std::cell::RefCell<Vec<NonSmooth>>,
 }
 
 struct Eval<'n, 'e, 's, 'src> {
@@ -772,6 +789,9 @@ impl Eval<'_, '_, '_, '_> {
             Expr::Num(r, _) => Some(Poly::constant(Coeff::constant(*r))),
             Expr::Name(n) => self.name(n),
             Expr::Call(f, args, sp) if f == "d" => self.velocity(args, *sp),
+            Expr::Call(f, args, sp) if NONSMOOTH_FUNCTIONS.contains(&f.as_str()) => {
+                self.nonsmooth(f, args, *sp)
+            }
             Expr::Call(f, _, sp) => {
                 let help = if self.names.table.contains_key(f.as_str()) {
                     format!("to multiply, write the `*`: `{f}*(...)`")
@@ -1095,6 +1115,66 @@ impl Eval<'_, '_, '_, '_> {
             ),
         }
     }
+}
+
+/// Whether `p` holds a non-smooth factor (a variable after the pump's `2 n_modes`).
+fn has_nonsmooth(p: &Poly, n_modes: usize) -> bool {
+    p.terms()
+        .any(|(m, _)| m.factors().iter().any(|&(v, _)| v.index() > 2 * n_modes))
+}
+
+/// Moves the terms with a non-smooth factor out of the polynomial equations: `(eom, nonsmooth)`.
+fn split_nonsmooth_terms(eom: Vec<Poly>, n_modes: usize) -> (Vec<Poly>, Vec<Poly>) {
+    let mut smooth = Vec::with_capacity(eom.len());
+    let mut rough = Vec::with_capacity(eom.len());
+    for eq in eom {
+        if !has_nonsmooth(&eq, n_modes) {
+            smooth.push(eq);
+            rough.push(Poly::zero());
+            continue;
+        }
+        let mut a = PolyBuilder::new();
+        let mut b = PolyBuilder::new();
+        for (m, c) in eq.terms() {
+            let is_rough = m.factors().iter().any(|&(v, _)| v.index() > 2 * n_modes);
+            if is_rough { &mut b } else { &mut a }.push(m.clone(), c.clone());
+        }
+        // Splitting a sorted polynomial into two keeps each sorted and free of repeats, so
+        // finishing cannot overflow.
+        smooth.push(a.finish().unwrap_or_else(|Overflow| Poly::zero()));
+        rough.push(b.finish().unwrap_or_else(|Overflow| Poly::zero()));
+    }
+    (smooth, rough)
+}
+
+/// The value of a fixed parameter.
+fn fixed_value(p: &Parameter) -> Option<f64> {
+    match p.kind {
+        ParamKind::Fixed(v) => Some(v),
+        ParamKind::Unknown => None,
+    }
+}
+
+/// Refuses a non-smooth factor in a potential or dissipation function `p` (returns whether it
+/// did).
+fn nonsmooth_in_potential(sink: &mut Sink<'_>, u: &Use<'_>, p: &Poly, n_modes: usize) -> bool {
+    if matches!(u.target, Target::Eom(..)) || !has_nonsmooth(p, n_modes) {
+        return false;
+    }
+    let span = u.expr.span();
+    let (what, example) = if matches!(u.target, Target::Dissipation) {
+        ("a dissipation function", "eom q1 += drag1*abs(d(q1))*d(q1)")
+    } else {
+        ("a potential", "eom q1 += kappa1*abs(q1)*q1")
+    };
+    sink.push(ModelDiagnostic::new(
+        Code::BadNonSmooth,
+        span,
+        format!("{what} cannot hold `abs`, `sign` or `tanh`: harmonid differentiates it, and these functions have no polynomial derivative"),
+        "non-smooth factor here",
+        format!("write the force in the equation instead, as in `{example}`"),
+    ));
+    true
 }
 
 /// Whether `p` holds a velocity (a variable from `n_modes` on, before the pump's `2 n_modes`).
