@@ -2,7 +2,7 @@
 //! measured dataset (sequential stages by default), print a summary table, write the result.
 
 use crate::cli::common::{check_outputs, print_out, write_output, ForceArgs};
-use harmonid_ident::{identify, identify_with_holdout, Estimator, Settings};
+use harmonid_ident::{identify, identify_with_holdout, Background, Estimator, Settings};
 use miette::miette;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -51,6 +51,14 @@ pub struct Args {
     /// their own samples does not see. The χ² verdict is then not a test; judge by --holdout.
     #[arg(long)]
     pub error_floor: bool,
+    /// Fit a measurement background with the model, per mode on every measured line at a
+    /// drive tone (shared by all measurements; in the data's unit): `drive` a complex
+    /// feedthrough B times the drive level V e^{iφ}, `slope` a complex S times the drive times
+    /// (f − f_mode) in Hz from the mode's nominal resonance, `constant` a complex offset C
+    /// independent of the drive. Reported with standard errors (`background` in the result);
+    /// drive and slope need the dataset's drive levels. Output-error estimator only.
+    #[arg(long, value_name = "drive[,slope][,constant]", value_parser = background_parser)]
+    pub background: Option<Background>,
     /// Fit without these measurements, then report how well the estimate predicts them (RMS
     /// in noise units and relative; their forces or gains are refitted, the model fixed).
     /// A name is a measurement's or a sweep's, or an imported sweep's source: its input file
@@ -67,6 +75,11 @@ fn estimator_parser() -> impl clap::builder::TypedValueParser<Value = Estimator>
     )
     // Only the names above pass the parser, and each reads back.
     .map(|name| name.parse::<Estimator>().unwrap_or_default())
+}
+
+/// `--background`: the library's words, refusing an unknown one with the valid ones.
+pub fn background_parser(s: &str) -> Result<Background, String> {
+    s.parse::<Background>().map_err(|e| e.to_string())
 }
 
 /// Runs the subcommand.
@@ -118,6 +131,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         estimator: args.estimator,
         crlb: args.crlb,
         error_floor: args.error_floor,
+        background: args.background.unwrap_or_default(),
         ..Settings::default()
     };
     let pb = super::progress::spinner(&format!(

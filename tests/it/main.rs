@@ -2,6 +2,7 @@
 //! each module was a test file of its own, and each of those was a statically linked release binary
 //! of the whole tree to build and link. Run one module with `cargo test --release --test it -- NAME::`.
 
+mod background;
 mod broken_inputs;
 mod check_cli;
 mod compare_models;

@@ -33,6 +33,7 @@
 //! transient from there), so up- and down-sweeps stay on their branches through a bistable
 //! range and jump where the model's fold is; it is never ramped from rest.
 
+use crate::background::BackgroundLine;
 use crate::layout::{Unknown, UnknownTable};
 use crate::problem::{nearest_mode, nominal_frequencies, IdentError};
 use crate::settings::ForceModel;
@@ -146,6 +147,9 @@ struct MeasFwd {
     obs: Vec<Observation>,
     /// Global index of the first observation.
     offset: usize,
+    /// The measurement background on its observations ([`crate::background`]; empty
+    /// without one).
+    background: Vec<BackgroundLine>,
     sens_params: Vec<SensParam>,
     chains: Vec<Chain>,
     lattice: Option<Vec<f64>>,
@@ -310,7 +314,10 @@ impl ForwardModel {
                     obs.push(Observation { f_hz: f, shape });
                 }
             }
+            let background =
+                crate::background::lines(&table, &m.spec.drives_hz, drive_c.as_deref(), &obs);
             meas.push(MeasFwd {
+                background,
                 name: m.spec.name.clone(),
                 index: mi,
                 tones_hz: m.spec.drives_hz.clone(),
@@ -557,6 +564,12 @@ impl ForwardModel {
                 self.mode_names[*mode],
                 meas.map(|m| format!(" in \"{}\"", self.meas[m].name))
                     .unwrap_or_default(),
+                if *quad == 0 { "re" } else { "im" }
+            ),
+            Unknown::Background { mode, term, quad } => format!(
+                "background {} of {} ({})",
+                term.name(),
+                self.mode_names[*mode],
                 if *quad == 0 { "re" } else { "im" }
             ),
         }
@@ -843,6 +856,10 @@ impl ForwardModel {
         for mi in 0..self.meas.len() {
             let drive = self.excitation(mi, theta);
             self.solve_measurement(mi, &numeric, &drive, out_x, ramp)?;
+            let m = &self.meas[mi];
+            for b in &m.background {
+                out_x[m.offset + b.obs] += Complex64::new(theta[b.re], theta[b.im]) * b.factor;
+            }
         }
         self.at = Some(theta.to_vec());
         Ok(())
@@ -901,6 +918,12 @@ impl ForwardModel {
                         }
                     }
                 }
+            }
+            // The background is linear: ∂X/∂re = factor, ∂X/∂im = i·factor.
+            for b in &m.background {
+                let row = (m.offset + b.obs) * nk;
+                out_jac[row + b.re] += b.factor;
+                out_jac[row + b.im] += b.factor * Complex64::i();
             }
         }
         Ok(())

@@ -8,6 +8,7 @@
 //! A mode whose `Q` is fixed while its `f` is identified has `γ` fixed at `2π f_nominal/Q`
 //! in the table, and both fits derive it from the fitted `ω²` (`γ = √ω²/Q`).
 
+use crate::background::BackgroundTerm;
 use crate::settings::ForceModel;
 use harmonid_model::{Linear, Model, ParamKind};
 use std::f64::consts::TAU;
@@ -41,6 +42,17 @@ pub enum Unknown {
         /// 0 real, 1 imaginary.
         quad: u8,
     },
+    /// Real/imaginary part of a measurement background term of mode `mode`
+    /// ([`crate::background`]), shared by every measurement: the data's unit per drive-level
+    /// unit (`Drive`), per drive-level unit per Hz (`Slope`), or the data's unit (`Constant`).
+    Background {
+        /// Mode index (of the measured lines attributed to it).
+        mode: usize,
+        /// Which term.
+        term: BackgroundTerm,
+        /// 0 real, 1 imaginary.
+        quad: u8,
+    },
 }
 
 /// A reported quantity: what a result, a bound, a jackknife or a warning is about. Its
@@ -54,6 +66,15 @@ pub enum Quantity {
     Q(usize),
     /// Model parameter `p`.
     Param(usize),
+    /// Real/imaginary part of a background term of a mode ([`Unknown::Background`]).
+    Background {
+        /// Mode index.
+        mode: usize,
+        /// Which term.
+        term: BackgroundTerm,
+        /// 0 real, 1 imaginary.
+        quad: u8,
+    },
 }
 
 impl Quantity {
@@ -64,6 +85,9 @@ impl Quantity {
             Unknown::OmegaSq(n) => Some(Quantity::Frequency(n)),
             Unknown::Gamma(n) => Some(Quantity::Q(n)),
             Unknown::Param(p) => Some(Quantity::Param(p)),
+            Unknown::Background { mode, term, quad } => {
+                Some(Quantity::Background { mode, term, quad })
+            }
             Unknown::Force { .. } | Unknown::Gain { .. } => None,
         }
     }
@@ -75,6 +99,12 @@ impl Quantity {
             Quantity::Frequency(n) => format!("f_hz:{}", mode_names[n]),
             Quantity::Q(n) => format!("Q:{}", mode_names[n]),
             Quantity::Param(p) => param_names[p].clone(),
+            Quantity::Background { mode, term, quad } => format!(
+                "background_{}:{}:{}",
+                term.name(),
+                mode_names[mode],
+                if quad == 0 { "re" } else { "im" }
+            ),
         }
     }
 }
@@ -184,6 +214,21 @@ impl UnknownTable {
                 }
             }
         }
+    }
+
+    /// This table with the background unknowns of `terms` appended (real then imaginary
+    /// part of each term, for each of `modes` in turn): free, unbounded, after every other
+    /// unknown, so the indices of the others do not move.
+    pub(crate) fn with_background(&self, terms: &[BackgroundTerm], modes: &[usize]) -> Self {
+        let mut t = self.clone();
+        for &mode in modes {
+            for &term in terms {
+                for quad in 0..2 {
+                    t.push(Unknown::Background { mode, term, quad }, None, (None, None));
+                }
+            }
+        }
+        t
     }
 
     /// The unknowns, in the order of `θ`.

@@ -44,6 +44,7 @@
 
 #![warn(missing_docs)]
 
+pub mod background;
 mod compare;
 mod discover;
 pub mod finalize;
@@ -58,6 +59,7 @@ mod shots;
 mod solve;
 mod uncertainty;
 
+pub use background::{Background, BackgroundTerm, UnknownBackground};
 pub use compare::{
     compare, compare_with_holdout, CompareError, ModelComparison, ModelFit, NestedTest,
 };

@@ -2,6 +2,7 @@
 //! option with one spelling ([`FromStr`](std::str::FromStr), `Display`, serde) that the command
 //! line, Python and the result file share.
 
+use crate::background::Background;
 use std::collections::BTreeMap;
 
 pub use harmonid_data::result::{Estimator, UnknownEstimator};
@@ -161,6 +162,11 @@ pub struct Settings {
     /// by a noise they do not have. With a floor fitted to the residuals, `χ²` no longer
     /// tests the model (no p-value); a held-out prediction (`holdout`) does.
     pub error_floor: bool,
+    /// The measurement background fitted with the model (default none; `--background`):
+    /// per mode, on every measured line at a drive tone, a complex feedthrough times the
+    /// drive level, a slope times drive × (f − f_mode) and a drive-independent offset, as
+    /// chosen ([`crate::background`]). Output-error estimator only.
+    pub background: Background,
 }
 
 impl Default for Settings {
@@ -179,6 +185,7 @@ impl Default for Settings {
             crlb: false,
             jackknife: true,
             error_floor: false,
+            background: Background::default(),
         }
     }
 }

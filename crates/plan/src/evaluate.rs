@@ -213,7 +213,7 @@ pub(crate) fn suggestion(model: &Model, u: &Unknown) -> String {
                 )
             }
         }
-        Unknown::Force { .. } | Unknown::Gain { .. } => {
+        Unknown::Force { .. } | Unknown::Gain { .. } | Unknown::Background { .. } => {
             "give the measurement drive levels and phases (the gains are then common to its tones)"
                 .into()
         }

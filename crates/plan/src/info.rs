@@ -237,7 +237,7 @@ pub(crate) fn info_of(
     let (keep, nuis): (Vec<usize>, Vec<usize>) = (0..c).partition(|&i| {
         !matches!(
             fwd.unknowns()[free[i]],
-            Unknown::Gain { .. } | Unknown::Force { .. }
+            Unknown::Gain { .. } | Unknown::Force { .. } | Unknown::Background { .. }
         )
     });
     let a = DMatrix::from_fn(keep.len(), keep.len(), |i, j| full[keep[i] * c + keep[j]]);

@@ -2,10 +2,12 @@
 //! identification"): its types, read and written here so that every crate reads results
 //! through the data layer; `harmonid_ident` computes them.
 
+mod background;
 mod estimator;
 mod goodness;
 mod summary;
 
+pub use background::{BackgroundResult, ComplexEstimate};
 pub use estimator::{Estimator, UnknownEstimator};
 pub use goodness::{
     p_text, sig3, GoodnessOfFit, LineResidual, MeasurementFit, SweepFit, P_DOES_NOT_FIT,
@@ -210,6 +212,10 @@ pub struct Report {
     /// Actuator gains per measurement (or "all") and mode, for the drive-level force model.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub gains: BTreeMap<String, BTreeMap<String, GainResult>>,
+    /// The measurement background per mode (`identify --background`; [`BackgroundResult`]):
+    /// absent when none was fitted.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub background: BTreeMap<String, BackgroundResult>,
     /// The fits, in order.
     #[serde(default)]
     pub fits: Vec<FitReport>,
@@ -413,6 +419,7 @@ mod tests {
                 .into(),
             )]
             .into(),
+            background: BTreeMap::new(),
             fits: vec![FitReport {
                 stage: 1,
                 measurements: vec!["single_q1".into()],

@@ -141,7 +141,7 @@ impl Report {
                 }
             }
         }
-
+        self.write_background(&mut s);
         for n in &self.notes {
             let _ = writeln!(s, "note: {n}");
         }
@@ -209,6 +209,41 @@ impl Report {
                 h.rms_sigma
                     .map_or(String::new(), |r| format!(", {r:.3} shot-noise sigmas RMS")),
             );
+        }
+    }
+
+    /// The measurement background, one line per mode and term: the real and imaginary parts
+    /// with their standard errors, and the unit.
+    fn write_background(&self, s: &mut String) {
+        if self.background.is_empty() {
+            return;
+        }
+        let _ = writeln!(
+            s,
+            "\nmeasurement background (added to the model on each measured drive line: B·D + S·D·(f − f_ref) + C, D the drive level):"
+        );
+        for (mode, b) in &self.background {
+            for (term, unit, c) in b.terms() {
+                let part = |e: &Estimate| {
+                    let flag = if e.identifiable {
+                        ""
+                    } else {
+                        " (not determined)"
+                    };
+                    format!("{:+.6e} ± {:.3e}{flag}", e.value, e.stderr)
+                };
+                let _ = writeln!(
+                    s,
+                    "  {mode} {term:<8} re {}, im {} [{unit}]{}",
+                    part(&c.re),
+                    part(&c.im),
+                    if term == "slope" {
+                        format!(", f_ref {} Hz", b.f_ref_hz)
+                    } else {
+                        String::new()
+                    }
+                );
+            }
         }
     }
 

@@ -3,6 +3,7 @@
 //! per-shot spread), the per-shot spread as a diagnostic, the tables, and the warnings, all
 //! from typed state.
 
+mod background;
 mod tables;
 
 pub use harmonid_data::result::{
@@ -120,6 +121,7 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
         };
         judge.apply(Quantity::Param(p), e, v, &mut jackknife_warnings);
     }
+    let background = background::reported(&judge, &values, ds, &mut jackknife_warnings);
     if !shot_index.is_empty() {
         let estimates = modes
             .values_mut()
@@ -155,6 +157,7 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
         warnings.push(format!(
             "{why}; reporting the pooled equation-error (linear) estimate"
         ));
+        warnings.extend(background::not_fitted(&settings.background));
     }
     warnings.extend(tables::undetermined_warnings(&modes, &parameters));
     warnings.extend(jackknife_warning(&jackknife_warnings));
@@ -190,6 +193,7 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
         eom: tables::eom_table(prob, &one),
         forces: tables::force_table(ds, prob, &one),
         gains: tables::gain_table(ds, prob, &one),
+        background,
         modes,
         parameters,
         fits,

@@ -382,6 +382,7 @@ pub fn report_from_shots(model_path: &str, ds: &Dataset, prob: &Problem, fit: &F
         eom: eom_table(prob, &fit.values),
         forces: force_table(ds, prob, &fit.values),
         gains: gain_table(ds, prob, &fit.values),
+        background: BTreeMap::new(),
         modes,
         parameters,
         fits,

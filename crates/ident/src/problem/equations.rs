@@ -40,7 +40,7 @@ impl Problem {
                 }
                 out
             }
-            Unknown::Force { .. } | Unknown::Gain { .. } => Vec::new(),
+            Unknown::Force { .. } | Unknown::Gain { .. } | Unknown::Background { .. } => Vec::new(),
         }
     }
 

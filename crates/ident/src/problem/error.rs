@@ -31,6 +31,18 @@ pub enum IdentError {
         /// [`crate::MAX_MEASUREMENTS`].
         limit: usize,
     },
+    /// A measurement background (`--background`) the dataset or the settings cannot fit.
+    #[error("{file}: {why}")]
+    #[diagnostic(
+        code(harmonid::ident::background),
+        help("the background terms are drive (B·V), slope (S·V·(f − f_mode)) and constant (C); see docs/identification.md, \"Measurement backgrounds\"")
+    )]
+    Background {
+        /// Manifest path.
+        file: String,
+        /// What is refused and what to do.
+        why: String,
+    },
     /// No nominal frequency for a mode.
     #[error("mode {mode} has no nominal resonance frequency: give it in the model (`mode {mode} at ... kHz`), in the dataset's [nominal_hz], or on the command line")]
     #[diagnostic(

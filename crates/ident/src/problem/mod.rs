@@ -126,7 +126,17 @@ impl Problem {
             tone_modes.push(prep.drive_idx.iter().map(|&i| prep.mode_of[i]).collect());
             meas.push(prep);
         }
+        crate::background::check(ds, settings)?;
         let table = UnknownTable::new(model, nominal_hz, force_model, tone_modes);
+        // The background's unknowns (after all others): the output-error fit's only; the
+        // equation-error stages leave them at zero (`crate::background`).
+        let table = match settings.background.terms() {
+            [] => table,
+            terms => {
+                let modes = crate::background::modes_with_lines(ds, table.nominal_hz());
+                table.with_background(terms, &modes)
+            }
+        };
         let mut prob = Problem {
             mode_names,
             param_names: model.params.iter().map(|p| p.name.clone()).collect(),

@@ -31,6 +31,8 @@ impl Problem {
         let act = &self.meas[mi].active;
         match &self.table.unknowns()[ui] {
             Unknown::Force { meas, .. } => *meas == mi,
+            // Not in the equation-error equations (`crate::background`).
+            Unknown::Background { .. } => false,
             Unknown::Gain { meas, mode, .. } => {
                 meas.is_none_or(|m| m == mi)
                     && self.meas[mi]
@@ -159,7 +161,8 @@ impl Problem {
             self.groups.extend(new_groups);
         }
         for (u, &done) in determined.iter().enumerate() {
-            if !done && !self.not_identifiable.iter().any(|x| x.unknown == u) {
+            let background = matches!(self.table.unknowns()[u], Unknown::Background { .. });
+            if !done && !background && !self.not_identifiable.iter().any(|x| x.unknown == u) {
                 let modes = self.unknown_modes(&self.table.unknowns()[u]);
                 let need = mode_sets_text(&modes, &self.mode_names);
                 self.not_identifiable.push(NotIdentifiable {

@@ -128,6 +128,7 @@ pub(super) fn truth(prob: &super::Problem) -> Vec<f64> {
                     GAIN[mode].im
                 }
             }
+            Unknown::Background { .. } => 0.0,
             Unknown::Force { meas, tone, quad } => {
                 let (_, n, level) = designs(true)[meas].1[tone];
                 let f = GAIN[n] * level;

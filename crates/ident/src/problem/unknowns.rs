@@ -20,6 +20,12 @@ impl Problem {
                     .unwrap_or_default(),
                 if *quad == 0 { "re" } else { "im" }
             ),
+            Unknown::Background { mode, term, quad } => format!(
+                "background {} of {} ({})",
+                term.name(),
+                self.mode_names[*mode],
+                if *quad == 0 { "re" } else { "im" }
+            ),
         }
     }
 

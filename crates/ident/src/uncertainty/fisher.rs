@@ -350,13 +350,11 @@ pub fn bounds_from_information(
         }
     }
     for (i, &k) in free.iter().enumerate() {
-        if let Unknown::Param(p) = fwd.unknowns()[k] {
-            quantities.push(bound(
-                Quantity::Param(p),
-                fwd.label(k),
-                theta[k],
-                cov[i * c + i].sqrt(),
-            ));
+        // Parameters and background terms are reported as they are fitted.
+        if let Some(q @ (Quantity::Param(_) | Quantity::Background { .. })) =
+            Quantity::of(&fwd.unknowns()[k])
+        {
+            quantities.push(bound(q, fwd.label(k), theta[k], cov[i * c + i].sqrt()));
         }
     }
     let unidentifiable = dropped

@@ -106,12 +106,9 @@ pub(crate) fn jackknife(
         }
     }
     for (k, u) in fwd.unknowns().iter().enumerate() {
-        if let Unknown::Param(p) = *u {
+        if let Some(q @ (Quantity::Param(_) | Quantity::Background { .. })) = Quantity::of(u) {
             if free.contains(&k) {
-                push(
-                    Quantity::Param(p),
-                    (0..groups).map(|s| delta(s, k)).collect(),
-                );
+                push(q, (0..groups).map(|s| delta(s, k)).collect());
             }
         }
     }
