@@ -161,7 +161,7 @@ pub(super) fn eom_table(
         let mut per: BTreeMap<String, Vec<f64>> = BTreeMap::new();
         for th in &theta {
             for (m, b) in prob.eom_coefficients(n, th) {
-                per.entry(m.name(&prob.variable_names)).or_default().push(b);
+                per.entry(prob.monomial_name(&m)).or_default().push(b);
             }
         }
         let row: BTreeMap<String, Option<f64>> = per

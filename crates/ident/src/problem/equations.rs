@@ -25,12 +25,15 @@ impl Problem {
                             // A velocity involves its mode; the pump (after every velocity)
                             // none.
                             let nm = self.mode_names.len();
-                            let mut s: Vec<usize> = self.monomials[t.monomial]
-                                .factors()
-                                .iter()
-                                .filter(|(v, _)| v.index() < 2 * nm)
-                                .map(|(v, _)| v.index() % nm)
-                                .collect();
+                            let mut s: Vec<usize> = match &self.ns[t.monomial] {
+                                Some(ns) => self.nonsmooth_modes(ns),
+                                None => self.monomials[t.monomial]
+                                    .factors()
+                                    .iter()
+                                    .filter(|(v, _)| v.index() < 2 * nm)
+                                    .map(|(v, _)| v.index() % nm)
+                                    .collect(),
+                            };
                             s.push(n);
                             s.sort_unstable();
                             s.dedup();
@@ -57,7 +60,9 @@ impl Problem {
 }
 
 /// The monomials of every equation and each equation's terms, with fixed parameters folded into
-/// the constant part; errors when a coefficient is not affine or a term has degree < 2.
+/// the constant part; errors when a coefficient is not affine or a polynomial term has degree
+/// < 2. The terms with a non-smooth factor (`Model::nonsmooth`) come after the polynomial ones
+/// of their equation; their monomials hold the factors' variables.
 pub(super) fn build_equations(
     model: &Model,
     mode_names: &[String],
@@ -67,7 +72,9 @@ pub(super) fn build_equations(
     let mut eqs = Vec::with_capacity(nm);
     for (n, eq) in model.eom.iter().enumerate() {
         let mut terms = Vec::new();
-        for (m, c) in eq.terms() {
+        let ns = model.nonsmooth.get(n).into_iter().flat_map(|p| p.terms());
+        for (m, c) in eq.terms().chain(ns) {
+            let smooth = m.factors().iter().all(|(v, _)| v.index() <= 2 * nm);
             let Some(aff) = c.affine() else {
                 return Err(IdentError::Unsupported(format!(
                     "the coefficient of {} in the equation of {} is not affine in the parameters",
@@ -75,7 +82,7 @@ pub(super) fn build_equations(
                     mode_names[n]
                 )));
             };
-            if m.degree() < 2 {
+            if smooth && m.degree() < 2 {
                 return Err(IdentError::Unsupported(format!(
                     "the equation of {} has a term {} of degree {} < 2; linear and constant terms beyond ω² are not supported by the identification",
                     mode_names[n],

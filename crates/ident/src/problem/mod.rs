@@ -39,6 +39,7 @@ mod equations;
 mod error;
 mod fit;
 mod force_model;
+mod nonsmooth;
 mod regressors;
 mod stages;
 #[cfg(test)]
@@ -89,6 +90,15 @@ pub struct Problem {
     monomials: Vec<PowerProduct>,
     eqs: Vec<Vec<Term>>,
     meas: Vec<MeasPrep>,
+    /// Per monomial, its split for evaluation in time when it holds a non-smooth factor.
+    ns: Vec<Option<nonsmooth::NsMonomial>>,
+    /// Per measurement, for a model with non-smooth terms, the harmonics of the common period
+    /// its input and measured lines are (empty otherwise).
+    ns_lattice: Vec<nonsmooth::Lattice>,
+    /// The non-smooth terms (`abs(q1)*q1 in the equation of q1`), for messages.
+    nonsmooth_names: Vec<String>,
+    /// Canonical name of each monomial (`q1^3`, `abs(q1)*q1`).
+    monomial_names: Vec<String>,
     manifest_path: String,
 }
 
@@ -104,6 +114,7 @@ impl Problem {
         let manifest_path = ds.dir.join("dataset.toml").display().to_string();
         let nominal_hz = attribution::nominal_frequencies(model, ds, settings)?;
         let (monomials, eqs) = equations::build_equations(model, &mode_names)?;
+        let monomials_for_ns = monomials.clone();
         let force_model =
             force_model::resolve_force_model(settings.force_model, ds, &manifest_path)?;
         let max_deg = model.max_degree() as usize;
@@ -151,8 +162,18 @@ impl Problem {
             monomials,
             eqs,
             meas,
+            ns: nonsmooth::split_monomials(model, &monomials_for_ns),
+            ns_lattice: Vec::new(),
+            nonsmooth_names: model.nonsmooth_term_names(),
+            monomial_names: monomials_for_ns
+                .iter()
+                .map(|m| model.monomial_name(m))
+                .collect(),
             manifest_path,
         };
+        if model.has_nonsmooth() {
+            prob.ns_lattice = nonsmooth::lattices(&prob, ds)?;
+        }
         prob.derive_groups(ds)?;
         Ok(prob)
     }

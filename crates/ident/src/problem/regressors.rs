@@ -46,13 +46,16 @@ impl Problem {
             for t in &self.eqs[n] {
                 if g[t.monomial].is_empty() {
                     let mut out = vec![Complex64::new(0.0, 0.0); nf];
-                    monomial_amplitudes(
-                        &prep.plan,
-                        &self.monomials[t.monomial],
-                        &modal_ref,
-                        &mut out,
-                        scratch,
-                    );
+                    match &self.ns[t.monomial] {
+                        Some(ns) => self.nonsmooth_column(mi, ns, &modal_ref, &mut out),
+                        None => monomial_amplitudes(
+                            &prep.plan,
+                            &self.monomials[t.monomial],
+                            &modal_ref,
+                            &mut out,
+                            scratch,
+                        ),
+                    }
                     g[t.monomial] = out;
                 }
             }

@@ -108,6 +108,22 @@ impl Problem {
                     if b == 0.0 || !b.is_finite() {
                         continue;
                     }
+                    if let Some(ns) = &self.ns[t.monomial] {
+                        let mut modes = self.nonsmooth_modes(ns);
+                        modes.sort_unstable();
+                        modes.dedup();
+                        for mode in modes {
+                            for s in (0..nf).filter(|&s| prep.mode_of[s] == mode) {
+                                let at = (mode, prep.input_of[s], m.freqs_hz[s]);
+                                let (dre, dim) = self.nonsmooth_column_jacobian(mi, ns, &modal, at);
+                                for o in (0..nf).filter(|&o| prep.mode_of[o] == n) {
+                                    jac[o * 2 * nf + 2 * s] += dre[o] * b;
+                                    jac[o * 2 * nf + 2 * s + 1] += dim[o] * b;
+                                }
+                            }
+                        }
+                        continue;
+                    }
                     let mono = &self.monomials[t.monomial];
                     for &(v, _) in mono.factors() {
                         // The pump is given, without noise.
