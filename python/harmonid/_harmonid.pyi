@@ -87,6 +87,8 @@ class IdentifyResult:
     @property
     def goodness_of_fit(self) -> Optional[dict[str, Any]]: ...
     @property
+    def background(self) -> dict[str, Any]: ...
+    @property
     def warnings(self) -> list[str]: ...
     @property
     def per_shot(self) -> dict[str, npt.NDArray[Any]]: ...
@@ -106,6 +108,7 @@ def identify(
     estimator: Literal["ml", "linear"] = "ml",
     crlb: bool = False,
     error_floor: bool = False,
+    background: Optional[str] = None,
     rank_tol: Optional[float] = None,
     gls: Optional[bool] = None,
     gls_iterations: Optional[int] = None,

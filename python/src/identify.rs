@@ -5,7 +5,7 @@ use crate::convert::json_to_py;
 use crate::dataset::Dataset;
 use crate::errors::{ident_error, HarmonidError};
 use crate::model::Model;
-use harmonid_ident::{Estimator, ForceModel, Report, Settings};
+use harmonid_ident::{Background, Estimator, ForceModel, Report, Settings};
 use numpy::IntoPyArray;
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
@@ -40,6 +40,10 @@ fn estimator(name: &str) -> PyResult<Estimator> {
 ///   `result.crlb`);
 /// - `error_floor`: add an error floor to the shot noise, estimated with the fit
 ///   (`--error-floor`; `result.goodness_of_fit["error_floor"]`, and no p-value);
+/// - `background`: a measurement background fitted with the model, `"drive"`, `"slope"`,
+///   `"constant"` or several joined by commas (`"drive,slope"`; `--background`): per mode on
+///   every measured drive line, `B·D + S·D·(f − f_ref) + C` (D the drive level and phase), in
+///   the data's unit; `result.background`;
 /// - `holdout`: measurement names to leave out of the fit (or a sweep's, or the input file or
 ///   label an imported sweep came from); the result's `holdout` says how well the estimate
 ///   predicts them (`--holdout`);
@@ -48,7 +52,7 @@ fn estimator(name: &str) -> PyResult<Estimator> {
 ///
 /// Runs without holding the GIL. Returns an `IdentifyResult`.
 #[pyfunction]
-#[pyo3(signature = (model, dataset, *, joint = false, force_model = "auto", nominal_hz = None, near_rel = None, unweighted = false, estimator = "ml", crlb = false, error_floor = false, rank_tol = None, gls = None, gls_iterations = None, sample_covariance = None, holdout = None))]
+#[pyo3(signature = (model, dataset, *, joint = false, force_model = "auto", nominal_hz = None, near_rel = None, unweighted = false, estimator = "ml", crlb = false, error_floor = false, background = None, rank_tol = None, gls = None, gls_iterations = None, sample_covariance = None, holdout = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn identify(
     py: Python<'_>,
@@ -62,6 +66,7 @@ pub fn identify(
     estimator: &str,
     crlb: bool,
     error_floor: bool,
+    background: Option<String>,
     rank_tol: Option<f64>,
     gls: Option<bool>,
     gls_iterations: Option<usize>,
@@ -93,6 +98,11 @@ pub fn identify(
         error_floor,
         ..Settings::default()
     };
+    if let Some(b) = background {
+        settings.background = b
+            .parse::<Background>()
+            .map_err(|e| HarmonidError::new_err(format!("background={b:?}: {e}")))?;
+    }
     if let Some(x) = near_rel {
         settings.near_rel = x;
     }
@@ -204,6 +214,19 @@ impl IdentifyResult {
     #[getter]
     fn eom<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         self.part(py, "eom")
+    }
+
+    /// The measurement background fitted with the model (`background=`): `{mode: {"unit",
+    /// "f_ref_hz", "drive", "slope", "constant"}}`, each term `{"re": {...}, "im": {...}}` with
+    /// value and stderr in the data's unit (per drive unit, per Hz); `{}` without one.
+    #[getter]
+    fn background<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        json_to_py(
+            py,
+            self.json
+                .get("background")
+                .unwrap_or(&Value::Object(serde_json::Map::new())),
+        )
     }
 
     /// Whether the model fits the data (`result.goodness_of_fit` of `docs/data-format.md`:

@@ -24,6 +24,7 @@ OPTIONS = [
     ({"estimator": "linear", "crlb": True}, ["--estimator", "linear", "--crlb"]),
     ({"holdout": ["single_q1"]}, ["--holdout", "single_q1"]),
     ({"error_floor": True}, ["--error-floor"]),
+    ({"background": "constant"}, ["--background", "constant"]),
 ]
 
 
@@ -170,3 +171,23 @@ def test_identify_alone_does_not_import_numpy():
         "assert 'numpy' in sys.modules\n"
     )
     subprocess.run([sys.executable, "-c", code], check=True, cwd=REPO)
+
+
+def test_background_is_reported_and_bad_words_refused(tmp_path):
+    model = harmonid.Model.from_file(MODEL_2)
+    data = harmonid.Dataset.from_folder(DATA_2)
+    r = harmonid.identify(model, data, background="constant")
+    bg = r.background
+    assert set(bg) == {"q1", "q2"}
+    for b in bg.values():
+        assert set(b) >= {"unit", "f_ref_hz", "constant"}
+        assert "drive" not in b
+        for part in ("re", "im"):
+            e = b["constant"][part]
+            assert np.isfinite(e["value"]) and e["stderr"] > 0
+    assert r.to_dict()["background"] == bg
+    assert harmonid.identify(model, data).background == {}
+    with pytest.raises(harmonid.HarmonidError, match="not one of"):
+        harmonid.identify(model, data, background="drive,offset")
+    with pytest.raises(harmonid.HarmonidError, match="output-error estimator"):
+        harmonid.identify(model, data, background="constant", estimator="linear")

@@ -20,12 +20,23 @@ pub struct Args {
     /// replaced only when it is a harmonid report.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
+    /// When identifying (no --result): fit a measurement background with the model, as
+    /// `identify --background` does; the figures' model then includes it (a --result carries
+    /// its own).
+    #[arg(long, value_name = "drive[,slope][,constant]", value_parser = super::identify::background_parser)]
+    pub background: Option<harmonid_ident::Background>,
 }
 
 /// Runs the subcommand.
 pub fn run(args: Args) -> miette::Result<()> {
     let model = harmonid_model::load(&args.model).map_err(miette::Report::new)?;
     let ds = super::common::load_dataset(&args.dataset)?;
+    if let (Some(path), Some(bg)) = (&args.result, &args.background) {
+        return Err(miette!(
+            "--background {bg} with --result {}: the result carries the background it was fitted with; leave out --background, or identify again (harmonid identify ... --background {bg} --out r.json)",
+            path.display()
+        ));
+    }
     let source = match &args.result {
         Some(path) => {
             let text = std::fs::read_to_string(path)
@@ -40,7 +51,10 @@ pub fn run(args: Args) -> miette::Result<()> {
             check_result_matches(path, &rep, &args.model, &model, &args.dataset, &ds)?;
             Source::Result(path.clone(), Box::new(rep))
         }
-        None => Source::Identify(Settings::default()),
+        None => Source::Identify(Settings {
+            background: args.background.clone().unwrap_or_default(),
+            ..Settings::default()
+        }),
     };
     let pb = super::progress::spinner("identifying, reconstructing and drawing");
     let page = harmonid_report::build(&args.model, &model, &ds, source);

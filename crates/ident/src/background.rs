@@ -197,6 +197,26 @@ pub(crate) fn check(ds: &Dataset, settings: &Settings) -> Result<(), IdentError>
     Ok(())
 }
 
+/// The values `settings.background_fixed` holds for a background unknown (mode, term, part),
+/// converted from the dataset's unit to the fit's (metres, or volts), or `None` (free).
+pub(crate) fn fixed_values<'a>(
+    ds: &Dataset,
+    settings: &'a Settings,
+    mode_names: &'a [String],
+) -> impl Fn(usize, BackgroundTerm, u8) -> Option<f64> + 'a {
+    let scale = ds.manifest.unit_scale().unwrap_or(1.0);
+    move |mode, term, quad| {
+        let b = settings.background_fixed.get(mode_names.get(mode)?)?;
+        let c = match term {
+            BackgroundTerm::Drive => b.drive.as_ref(),
+            BackgroundTerm::Slope => b.slope.as_ref(),
+            BackgroundTerm::Constant => b.constant.as_ref(),
+        }?;
+        let v = if quad == 0 { c.re.value } else { c.im.value };
+        v.is_finite().then_some(v * scale)
+    }
+}
+
 /// The modes with a measured line at a drive tone's frequency (the lines a background sits
 /// on), in index order: only they get background unknowns.
 pub(crate) fn modes_with_lines(ds: &Dataset, nominal_hz: &[f64]) -> Vec<usize> {

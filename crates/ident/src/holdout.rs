@@ -90,6 +90,7 @@ pub fn identify_with_holdout(
     // held-out lines would hide what it is there to measure).
     let shot_noise = Settings {
         error_floor: false,
+        background_fixed: report.background.clone(),
         ..settings.clone()
     };
     let prediction = identify(&fixed, &held_ds, &shot_noise)?;

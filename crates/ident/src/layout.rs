@@ -217,14 +217,21 @@ impl UnknownTable {
     }
 
     /// This table with the background unknowns of `terms` appended (real then imaginary
-    /// part of each term, for each of `modes` in turn): free, unbounded, after every other
-    /// unknown, so the indices of the others do not move.
-    pub(crate) fn with_background(&self, terms: &[BackgroundTerm], modes: &[usize]) -> Self {
+    /// part of each term, for each of `modes` in turn): unbounded, after every other unknown,
+    /// so the indices of the others do not move; free, or fixed at `fixed(mode, term, quad)`
+    /// when it gives a value.
+    pub(crate) fn with_background(
+        &self,
+        terms: &[BackgroundTerm],
+        modes: &[usize],
+        fixed: &dyn Fn(usize, BackgroundTerm, u8) -> Option<f64>,
+    ) -> Self {
         let mut t = self.clone();
         for &mode in modes {
             for &term in terms {
                 for quad in 0..2 {
-                    t.push(Unknown::Background { mode, term, quad }, None, (None, None));
+                    let u = Unknown::Background { mode, term, quad };
+                    t.push(u, fixed(mode, term, quad), (None, None));
                 }
             }
         }

@@ -167,6 +167,10 @@ pub struct Settings {
     /// drive level, a slope times drive × (f − f_mode) and a drive-independent offset, as
     /// chosen ([`crate::background`]). Output-error estimator only.
     pub background: Background,
+    /// Background values to hold fixed instead of fitting (per mode, in the dataset's unit,
+    /// as a result reports them; default empty): a held-out prediction (`holdout`) keeps the
+    /// background the fit found, as it keeps the model.
+    pub background_fixed: BTreeMap<String, harmonid_data::result::BackgroundResult>,
 }
 
 impl Default for Settings {
@@ -186,6 +190,7 @@ impl Default for Settings {
             jackknife: true,
             error_floor: false,
             background: Background::default(),
+            background_fixed: BTreeMap::new(),
         }
     }
 }

@@ -27,12 +27,13 @@ fn blank() -> Estimate {
 }
 
 /// The background per mode name from the reported `values` (layout of the problem's table,
-/// whose background unknowns the output-error fit estimated), in `unit` (the dataset's).
-/// Empty when the table has none.
+/// whose background unknowns the output-error fit estimated, in the fit's unit: metres, or
+/// volts), converted to the dataset's unit `unit` of `scale` metres each. Empty when the table
+/// has none.
 pub(super) fn table(
     judge: &Judge<'_>,
     values: &[f64],
-    unit: &str,
+    (unit, scale): (&str, f64),
     disagreements: &mut Vec<JackknifeDisagreement>,
 ) -> BTreeMap<String, BackgroundResult> {
     let prob = judge.prob;
@@ -60,6 +61,11 @@ pub(super) fn table(
                 e.identifiable = true;
                 e.reason = None;
             }
+            // In the dataset's unit (the jackknife compared above in the fit's).
+            e.value /= scale;
+            e.stderr /= scale;
+            e.crlb = e.crlb.map(|c| c / scale);
+            e.jackknife = e.jackknife.map(|j| j / scale);
             e
         };
         let c = ComplexEstimate {
@@ -93,7 +99,9 @@ pub(super) fn reported(
     disagreements: &mut Vec<JackknifeDisagreement>,
 ) -> BTreeMap<String, BackgroundResult> {
     if judge.fo.is_some() && judge.estimator.is_output_error() {
-        table(judge, values, &ds.manifest.displacement_unit, disagreements)
+        let unit = &ds.manifest.displacement_unit;
+        let scale = ds.manifest.unit_scale().unwrap_or(1.0);
+        table(judge, values, (unit, scale), disagreements)
     } else {
         BTreeMap::new()
     }

@@ -145,7 +145,8 @@ impl Problem {
             [] => table,
             terms => {
                 let modes = crate::background::modes_with_lines(ds, table.nominal_hz());
-                table.with_background(terms, &modes)
+                let fixed = crate::background::fixed_values(ds, settings, &mode_names);
+                table.with_background(terms, &modes, &fixed)
             }
         };
         let mut prob = Problem {

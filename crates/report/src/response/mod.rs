@@ -11,6 +11,7 @@
 //! (`Report::forces`: the fitted actuator gain times the drive level and its phase, or the
 //! fitted force), so the model is converted exactly as the identification converted it.
 
+mod background;
 mod family;
 mod figure;
 mod measured;
@@ -80,6 +81,7 @@ pub fn family_response(
             Err(e) => notes.push(format!("{}: no model curve ({e})", fam.label)),
         }
     }
+    notes.extend(background::add(result, ds, &mut sweeps, curve.as_mut()));
     let point = ds
         .manifest
         .points
