@@ -46,10 +46,12 @@ pub use response::{
 };
 pub use sensitivity::{Observation, SensParam, Sensitivity};
 pub use steady::{
-    backbone, check_stability, convergence_report, limit_cycle, steady_state, steady_state_from,
-    stepped_sweep, sweep, sweep_two_tone, ConvergenceReport, Fold, HbSettings, HbSolver, HbStatus,
-    Hopf, LimitCycle, ModeLine, Stability, SteadyState, SweepPoint, SweepResult, SweepSettings,
-    TwoToneCurve, TwoToneJump, TwoTonePoint, TwoToneSettings, TwoToneStatus, TwoToneSweep,
-    CONDENSE_SEPARATION, MAX_MODES, MAX_SWEEP_HARMONICS, MAX_SWEEP_HZ, MAX_SWEEP_POINTS,
+    backbone, check_stability, convergence_report, limit_cycle, quasi_periodic_branch,
+    steady_state, steady_state_from, stepped_sweep, sweep, sweep_two_tone, BranchEnd,
+    ConvergenceReport, Fold, HbSettings, HbSolver, HbStatus, Hopf, LimitCycle, ModeLine,
+    QuasiPeriodicBranch, QuasiPeriodicPoint, QuasiPeriodicSettings, Stability, SteadyState,
+    SweepPoint, SweepResult, SweepSettings, TwoToneCurve, TwoToneJump, TwoTonePoint,
+    TwoToneSettings, TwoToneStatus, TwoToneSweep, CONDENSE_SEPARATION, MAX_MODES,
+    MAX_SWEEP_HARMONICS, MAX_SWEEP_HZ, MAX_SWEEP_POINTS,
 };
 pub use time_domain::{simulate_lockin, LockinResult, Start, TdSettings};

@@ -49,7 +49,7 @@ pub(super) fn critical_pair(
 }
 
 /// The solver on the lattice of `harmonics` of `f_hz`, and an empty state on it.
-fn solver_at(
+pub(super) fn solver_at(
     model: &NumericModel,
     force: &[Complex64],
     harmonics: &[usize],

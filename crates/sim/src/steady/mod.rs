@@ -23,8 +23,10 @@
 //! One folder, one job per file: [`HbSolver`]'s set-up, residual and Jacobian (`solver`),
 //! Newton (`newton`), the drive ramp (`ramp`), landing after a fold (`land`), stability
 //! (`stability`) and lattice convergence (`convergence`), the next step of a stepped-sine
-//! experiment (`step`), the undriven self-excited oscillation (`limit_cycle`), the oscillation
-//! a pump sustains above its threshold (`pumped`); and the
+//! experiment (`step`), the undriven self-excited oscillation (`limit_cycle`), the
+//! quasi-periodic branch from a Hopf point of a driven curve (`quasi_periodic`, on the
+//! two-frequency balance of `torus`), the oscillation a pump sustains above its threshold
+//! (`pumped`); and the
 //! continuations in frequency:
 //! the single-tone arclength sweep on its alternating frequency–time engine (`sweep`, `aft`),
 //! backbones (`backbone`) and the two-tone sweep on [`HbSolver`] (`two_tone`). Every
@@ -38,6 +40,7 @@ mod land;
 mod limit_cycle;
 mod newton;
 mod pumped;
+mod quasi_periodic;
 mod ramp;
 mod solver;
 mod stability;
@@ -50,12 +53,17 @@ mod sweep_tests;
 mod test_models;
 #[cfg(test)]
 mod tests;
+mod torus;
 mod two_tone;
 
 pub use backbone::backbone;
 pub use convergence::{convergence_report, ConvergenceReport};
 pub use hopf::Hopf;
 pub use limit_cycle::{limit_cycle, LimitCycle};
+pub use quasi_periodic::{
+    quasi_periodic_branch, BranchEnd, QuasiPeriodicBranch, QuasiPeriodicPoint,
+    QuasiPeriodicSettings,
+};
 pub(crate) use solver::variable_spectra;
 pub use solver::{steady_state, steady_state_from, HbSolver, MAX_MODES};
 pub use stability::{check_stability, CONDENSE_SEPARATION};

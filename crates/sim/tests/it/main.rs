@@ -6,6 +6,7 @@ mod finite_inputs;
 mod hopf;
 mod linear_response;
 mod pumping;
+mod quasi_periodic;
 mod ramp_past_fold;
 mod sensitivity;
 mod stop_at_fold;
