@@ -173,6 +173,70 @@ fn a_background_that_cannot_be_fitted_is_refused_saying_what_to_do() {
     );
 }
 
+/// The command line: an unknown word is refused by the option's parser, listing the valid
+/// ones; `report --result --background` is refused (the result carries its own); a dataset
+/// fitted with `--background constant` writes `background` in the result.
+#[test]
+fn the_command_line_refuses_bad_backgrounds_and_writes_the_fitted_one() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let (model, data) = (
+        root.join("examples/nanostring_2mode/model.hb"),
+        root.join("examples/nanostring_2mode/data"),
+    );
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("r.json");
+    let harmonid = |args: &[&std::ffi::OsStr]| {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_harmonid"))
+            .args(args)
+            .output()
+            .expect("run");
+        (
+            o.status.success(),
+            String::from_utf8_lossy(&o.stderr).to_string(),
+        )
+    };
+    let os = |s: &'static str| std::ffi::OsStr::new(s);
+    let (ok, err) = harmonid(&[
+        os("identify"),
+        model.as_os_str(),
+        data.as_os_str(),
+        os("--background"),
+        os("drive,feedthrough"),
+    ]);
+    assert!(
+        !ok && err.contains("\"feedthrough\"") && err.contains("\"constant\""),
+        "{err}"
+    );
+    let (ok, err) = harmonid(&[
+        os("identify"),
+        model.as_os_str(),
+        data.as_os_str(),
+        os("--background"),
+        os("constant"),
+        os("--out"),
+        out.as_os_str(),
+    ]);
+    assert!(ok, "{err}");
+    let rep = harmonid::ident::Report::from_json(&std::fs::read_to_string(&out).expect("read"))
+        .expect("result");
+    assert!(rep.background["q1"].constant.is_some() && rep.background["q1"].drive.is_none());
+    let (ok, err) = harmonid(&[
+        os("report"),
+        model.as_os_str(),
+        data.as_os_str(),
+        os("--result"),
+        out.as_os_str(),
+        os("--background"),
+        os("constant"),
+        os("--out"),
+        dir.path().join("rep").as_os_str(),
+    ]);
+    assert!(
+        !ok && err.contains("carries the background it was fitted with"),
+        "{err}"
+    );
+}
+
 /// Coverage of the background and the resonator over many noise draws (run with
 /// `cargo test --release -p harmonid --test it -- background::coverage --ignored --nocapture`;
 /// 200 draws of the fit above with 50 shots, about a minute): the truth within 1 / 2 standard
