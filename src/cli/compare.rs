@@ -33,6 +33,12 @@ pub struct Args {
     /// predicts them (relative RMS and noise sigmas).
     #[arg(long, value_delimiter = ',', value_name = "NAME[,NAME...]")]
     pub holdout: Vec<String>,
+    /// Fit a measurement background with every model (as `identify --background`): per mode
+    /// on every measured line at a drive tone, `drive` a complex feedthrough times the drive
+    /// level, `slope` a complex slope times the drive times (f − f_mode), `constant` a
+    /// drive-independent complex offset. Its unknowns count in every model's.
+    #[arg(long, value_name = "drive[,slope][,constant]", value_parser = crate::cli::identify::background_parser)]
+    pub background: Option<harmonid_ident::Background>,
 }
 
 /// Runs the subcommand.
@@ -53,6 +59,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     let settings = Settings {
         force_model: args.forces.force_model(),
         error_floor: args.error_floor,
+        background: args.background.clone().unwrap_or_default(),
         ..Settings::default()
     };
     let pb = super::progress::spinner(&format!("fitting {} models", models.len()));

@@ -1,5 +1,6 @@
 //! `harmonid discover DATASET MODEL --degrees 2,3 [--potential] --out selected.hb`: which
-//! candidate terms the data support (`harmonid_ident::discover`).
+//! candidate terms the data support (`harmonid_ident::discover`); with `--holdout` (which
+//! `--error-floor` needs) selected by the prediction of the held-out data.
 
 use crate::cli::common::{check_outputs, print_out, write_output, ForceArgs};
 use harmonid_ident::{discover, DiscoverSettings, Library, LibraryForm, Settings};
@@ -32,6 +33,26 @@ pub struct Args {
     /// Most terms added.
     #[arg(long, default_value_t = 10)]
     pub max_terms: usize,
+    /// Fit every model with an error floor added to the shot noise (as `identify
+    /// --error-floor`): for measured sweeps whose steps scatter more than their own samples
+    /// say. Every χ² then equals its expectation, so terms are selected by how well they
+    /// predict the --holdout data, which this needs.
+    #[arg(long)]
+    pub error_floor: bool,
+    /// Fit every model without these measurements or sweeps and select terms by how well the
+    /// fit of the rest predicts them (relative RMS), instead of by the likelihood-ratio test.
+    #[arg(long, value_delimiter = ',', value_name = "NAME[,NAME...]")]
+    pub holdout: Vec<String>,
+    /// With --holdout: a term is added when it lowers the held-out relative RMS by more than
+    /// this fraction of it (and kept only while removing it would raise it by as much).
+    #[arg(long, default_value_t = 0.05, value_name = "FRACTION")]
+    pub min_improvement: f64,
+    /// Fit a measurement background with every model (as `identify --background`): per mode
+    /// on every measured line at a drive tone, `drive` a complex feedthrough times the drive
+    /// level, `slope` a complex slope times the drive times (f − f_mode), `constant` a
+    /// drive-independent complex offset. Its unknowns count in every model's.
+    #[arg(long, value_name = "drive[,slope][,constant]", value_parser = crate::cli::identify::background_parser)]
+    pub background: Option<harmonid_ident::Background>,
     /// Write the selected model here (a model file, every term per equation).
     #[arg(long, value_name = "SELECTED.hb")]
     pub out: PathBuf,
@@ -63,10 +84,14 @@ pub fn run(args: Args) -> miette::Result<()> {
         identify: Settings {
             force_model: args.forces.force_model(),
             jackknife: false,
+            error_floor: args.error_floor,
+            background: args.background.clone().unwrap_or_default(),
             ..Settings::default()
         },
         alpha: args.alpha,
         max_added: args.max_terms,
+        holdout: args.holdout.clone(),
+        min_improvement: args.min_improvement,
     };
     let library = Library {
         degrees: args.degrees.clone(),

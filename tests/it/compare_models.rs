@@ -241,6 +241,11 @@ fn with_an_error_floor_the_held_out_prediction_ranks_the_models() {
     eprintln!("{}", c.table());
     assert_eq!(c.ranked_by, "holdout");
     assert_eq!(c.models[c.best].model, "damped", "{}", c.verdict);
+    // duffing is nested in damped, but a floor leaves no likelihood-ratio test to print.
+    assert!(c.nested.is_empty(), "{:?}", c.nested);
+    let table = c.table();
+    assert!(!table.contains("likelihood ratio)"), "{table}");
+    assert!(table.contains("no likelihood-ratio test"), "{table}");
     let rel = |i: usize| c.models[i].holdout_relative_rms.expect("held out");
     assert!(rel(1) < 0.5 * rel(0), "{} against {}", rel(1), rel(0));
     // The true model predicts its held-out level to about the noise.
@@ -250,5 +255,51 @@ fn with_an_error_floor_the_held_out_prediction_ranks_the_models() {
         c.verdict.contains("predicts the held-out data best"),
         "{}",
         c.verdict
+    );
+}
+
+/// A model the measurements left after the holdout do not determine is reported as such and
+/// the others are ranked (the uncoupled nanostring without `single_q1`: its `beta1` and `beta2`
+/// are then not determined); when none is determined the comparison is refused naming each.
+#[test]
+fn an_undetermined_model_is_reported_and_the_others_ranked() {
+    let ds = harmonid_data::Dataset::load("examples/nanostring_2mode/data").expect("dataset");
+    let models = models();
+    let held = ["single_q1".to_string()];
+    let c = harmonid_ident::compare_with_holdout(
+        &[models[0].clone(), models[2].clone()],
+        &ds,
+        &held,
+        &Settings::default(),
+    )
+    .expect("compare");
+    let table = c.table();
+    eprintln!("{table}");
+    assert_eq!(c.models.len(), 1);
+    assert_eq!(c.models[c.best].model, models[0].0);
+    assert_eq!(c.not_determined.len(), 1);
+    let u = &c.not_determined[0];
+    assert_eq!(u.model, models[2].0);
+    assert_eq!(u.quantities, ["beta1", "beta2"]);
+    assert!(c.verdict.contains("not ranked"), "{}", c.verdict);
+    assert!(
+        table.contains("not determined: --holdout single_q1"),
+        "{table}"
+    );
+    let json = c.to_json();
+    assert!(json.contains("\"not_determined\""), "{json}");
+    let held = ["single_q2".to_string()];
+    let err = harmonid_ident::compare_with_holdout(
+        &[models[0].clone(), models[2].clone()],
+        &ds,
+        &held,
+        &Settings::default(),
+    )
+    .expect_err("nothing determined");
+    assert!(matches!(err, CompareError::NoneDetermined { .. }), "{err}");
+    let text = err.to_string();
+    assert!(
+        text.contains(&models[0].0) && text.contains(&models[2].0),
+        "{text}"
     );
 }

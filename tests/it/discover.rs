@@ -66,7 +66,7 @@ fn run(example: &str, seed: u64) -> (usize, usize, usize, String) {
         .iter()
         .map(|s| {
             format!(
-                "{} {} (Δχ² {:.1}, p {:.1e} × {})",
+                "{} {} (Δχ² {:.1?}, p {:?} × {})",
                 s.action, s.term, s.delta_chi2, s.p_value, s.among
             )
         })
@@ -285,7 +285,7 @@ fn velocity_library_finds_the_nonlinear_damping() {
         .iter()
         .map(|s| {
             format!(
-                "{} {} (Δχ² {:.1}, p {:.1e})",
+                "{} {} (Δχ² {:.1?}, p {:?})",
                 s.action, s.term, s.delta_chi2, s.p_value
             )
         })
@@ -307,4 +307,59 @@ fn velocity_library_finds_the_nonlinear_damping() {
         e.value,
         e.stderr
     );
+}
+
+/// Under an error floor (issue 36, item 4) every fit's χ² is its expectation, so terms are
+/// selected by the held-out prediction: on the softened, nonlinearly damped mode's stepped
+/// sweeps, the top level held out, started from the Duffing term alone, `q1^2*d(q1)` is added
+/// (the held-out RMS falls several-fold) and nothing else; without a holdout the floor is
+/// refused, naming the option.
+#[test]
+fn under_an_error_floor_the_held_out_prediction_selects_the_damping() {
+    let damped = harmonid::model::parse_str(gen::DAMPED_DUFFING, "damped.hb").expect("model");
+    let (v, sweeps) = gen::hysteretic_sweeps(4, 24);
+    let clean = gen::simulate_sweeps_clean(&damped, &v, &sweeps, &[1.0], 3);
+    let ds = gen::add_noise(&clean, 2e-11, 5);
+    let start = harmonid::model::parse_str(
+        "mode q1 at 1 MHz\nparam beta1\npotential: beta1/4*q1^4\n",
+        "duffing.hb",
+    )
+    .expect("model");
+    let library = Library {
+        degrees: vec![3],
+        form: LibraryForm::Equation,
+        velocities: true,
+    };
+    let mut settings = DiscoverSettings::default();
+    settings.identify.force_model = harmonid::ident::ForceModel::GainPerMode;
+    settings.identify.error_floor = true;
+    let err = discover(&start, &ds, &library, &settings, |_, _| {}).expect_err("no holdout");
+    assert!(err.to_string().contains("--holdout"), "{err}");
+    settings.holdout = vec!["up_l03".into(), "dn_l03".into()];
+    let found = discover(&start, &ds, &library, &settings, |_, _| {}).expect("discover");
+    eprintln!("{}", found.table());
+    assert_eq!(found.selected_by, "holdout");
+    let added: Vec<&str> = found
+        .steps
+        .iter()
+        .filter(|s| s.action == "added")
+        .map(|s| s.term.as_str())
+        .collect();
+    assert_eq!(
+        added,
+        ["q1^2*d(q1) in the equation of q1"],
+        "{}",
+        found.table()
+    );
+    let st = &found.steps[0];
+    let (before, after) = (
+        st.holdout_rms_before.expect("before"),
+        st.holdout_rms_after.expect("after"),
+    );
+    assert!(after < 0.5 * before, "{before} -> {after}");
+    assert_eq!(found.holdout_relative_rms, Some(after));
+    assert!(st.delta_chi2.is_none() && st.p_value.is_none());
+    assert!(found.to_json().contains("\"holdout_rms_after\""));
+    let source = found.model_source("ds", "duffing.hb");
+    assert!(source.contains("held-out"), "{source}");
 }

@@ -8,6 +8,7 @@ mod check_cli;
 mod compare_models;
 mod data_format_docs;
 mod discover;
+mod discover_damping;
 mod drive_ladder;
 mod error_floor;
 mod explore_cli;

@@ -30,7 +30,7 @@
 //! is refused.
 
 use crate::finalize::Report;
-use crate::holdout::{identify_with_holdout, HeldOut};
+use crate::holdout::{fit_and_predict, HeldOut};
 use crate::identify::identify;
 use crate::problem::IdentError;
 use crate::settings::Settings;
@@ -97,14 +97,30 @@ pub struct NestedTest {
     pub p_value: f64,
 }
 
+/// A model the measurements left after the holdout do not determine: not ranked.
+#[derive(Debug, Clone, Serialize)]
+pub struct NotDetermined {
+    /// The model's name.
+    pub model: String,
+    /// The quantities those measurements do not determine.
+    pub quantities: Vec<String>,
+    /// Why, in words (the first quantity's reason, and what to hold out instead).
+    pub reason: String,
+}
+
 /// The comparison of several models on one dataset.
 #[derive(Debug, Clone, Serialize)]
 pub struct ModelComparison {
     /// Real residuals `N` (the same for every model).
     pub observations: usize,
-    /// Every model, in the order given.
+    /// Every model the comparison could judge, in the order given.
     pub models: Vec<ModelFit>,
-    /// Every nested pair's likelihood-ratio test.
+    /// With a holdout: the models the other measurements do not determine, left out of the
+    /// ranking (in the order given).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub not_determined: Vec<NotDetermined>,
+    /// Every nested pair's likelihood-ratio test (none with an error floor: every `χ²` is then
+    /// its expectation, and the held-out prediction compares them instead).
     pub nested: Vec<NestedTest>,
     /// Index of the model the data support (smallest BIC; with an error floor, the smallest
     /// held-out prediction error).
@@ -148,6 +164,18 @@ pub enum CompareError {
         help("name measurements or sweeps the models must predict: --holdout NAME (repeatable; e.g. the strongest drive level's sweep)")
     )]
     FloorWithoutHoldout,
+    /// No model is determined by the measurements left after the holdout.
+    #[error("--holdout {held}: without it the other measurements determine none of the models: {models}")]
+    #[diagnostic(
+        code(harmonid::compare::none_determined),
+        help("hold out a measurement or sweep the others do not need (e.g. one drive level of several, not the only measurement of a mode or coupling)")
+    )]
+    NoneDetermined {
+        /// The held-out names, comma-separated.
+        held: String,
+        /// Each model and the quantities it leaves undetermined.
+        models: String,
+    },
     /// A model's output-error fit failed, so it has no likelihood to compare.
     #[error("{model}: no output-error fit to compare ({why})")]
     #[diagnostic(
@@ -208,24 +236,30 @@ pub fn compare_with_holdout(
         ..settings.clone()
     };
     let mut fits = Vec::with_capacity(models.len());
+    let mut not_determined = Vec::new();
     let mut observations = None;
     for (name, model) in models {
-        let result = if held.is_empty() {
-            identify(model, ds, &settings)
-        } else {
-            identify_with_holdout(model, ds, held, &settings)
-        }
-        .map_err(|source| CompareError::Model {
+        let to_err = |source| CompareError::Model {
             model: name.clone(),
             source: Box::new(source),
-        })?;
-        let Some(g) = result.goodness_of_fit.clone() else {
-            return Err(CompareError::NoMlFit {
-                model: name.clone(),
-                why: result.warnings.first().cloned().unwrap_or_default(),
-            });
         };
-        let n = 2 * g.lines.len();
+        let result = if held.is_empty() {
+            identify(model, ds, &settings).map_err(to_err)?
+        } else {
+            match fit_and_predict(model, ds, held, &settings, true).map_err(to_err)? {
+                Ok(r) => r,
+                // Not determined without the held-out data: reported, the others ranked.
+                Err(u) => {
+                    not_determined.push(NotDetermined {
+                        model: name.clone(),
+                        quantities: u.names,
+                        reason: u.message,
+                    });
+                    continue;
+                }
+            }
+        };
+        let (fit, n) = model_fit(name, result)?;
         match observations {
             None => observations = Some((name.clone(), n)),
             Some((ref a, na)) if na != n => {
@@ -238,31 +272,16 @@ pub fn compare_with_holdout(
             }
             _ => {}
         }
-        let k = n - g.dof;
-        // Without shot noise every fit's χ² is its dof (the noise is its own residual): the
-        // Gaussian likelihood profiled over one noise level, N ln(RSS) up to a shared
-        // constant, takes its place.
-        let chi2 = if g.p_value.is_some() {
-            g.chi2
-        } else {
-            n as f64 * (g.relative_rms.powi(2)).ln()
-        };
-        fits.push(ModelFit {
-            model: name.clone(),
-            unknowns: k,
-            chi2,
-            dof: g.dof,
-            chi2_per_dof: g.chi2_per_dof,
-            fits: g.fits,
-            p_value: g.p_value,
-            log_likelihood: -0.5 * chi2,
-            aic: chi2 + 2.0 * k as f64,
-            bic: chi2 + k as f64 * (n as f64).ln(),
-            delta_aic: 0.0,
-            delta_bic: 0.0,
-            holdout_relative_rms: pooled_holdout(&result, |h| Some(h.relative_rms)),
-            holdout_rms_sigma: pooled_holdout(&result, |h| h.rms_sigma_floor.or(h.rms_sigma)),
-            result,
+        fits.push(fit);
+    }
+    if fits.is_empty() {
+        return Err(CompareError::NoneDetermined {
+            held: held.join(","),
+            models: not_determined
+                .iter()
+                .map(|u| format!("{} ({})", u.model, u.quantities.join(", ")))
+                .collect::<Vec<_>>()
+                .join("; "),
         });
     }
     let n = observations.map_or(0, |o| o.1);
@@ -274,7 +293,8 @@ pub fn compare_with_holdout(
     }
     let terms: Vec<BTreeSet<(String, String)>> = fits.iter().map(|f| terms(&f.result)).collect();
     let mut nested = Vec::new();
-    for (i, a) in fits.iter().enumerate() {
+    // With an error floor every χ² is its expectation: no likelihood-ratio test is valid.
+    for (i, a) in fits.iter().enumerate().filter(|_| !settings.error_floor) {
         for (j, b) in fits.iter().enumerate() {
             if i != j && a.unknowns < b.unknowns && terms[i].is_subset(&terms[j]) {
                 let dk = b.unknowns - a.unknowns;
@@ -301,14 +321,25 @@ pub fn compare_with_holdout(
     let best = (0..models.len())
         .min_by(|&a, &b| key(&models[a]).total_cmp(&key(&models[b])))
         .unwrap_or(0);
-    let verdict = if by_holdout {
+    let mut verdict = if by_holdout {
         holdout_verdict(&models, best)
     } else {
         verdict(&models, best)
     };
+    if !not_determined.is_empty() {
+        let names: Vec<String> = not_determined
+            .iter()
+            .map(|u| format!("{} ({})", u.model, u.quantities.join(", ")))
+            .collect();
+        verdict.push_str(&format!(
+            "; not ranked, because the measurements left after the holdout do not determine them: {}",
+            names.join(", ")
+        ));
+    }
     Ok(ModelComparison {
         observations: n,
         models,
+        not_determined,
         nested,
         best,
         ranked_by: if by_holdout { "holdout" } else { "bic" }.into(),
@@ -317,10 +348,48 @@ pub fn compare_with_holdout(
     })
 }
 
+/// A model's row from its identification `result`, and the real residuals it was fitted to.
+fn model_fit(name: &str, result: Report) -> Result<(ModelFit, usize), CompareError> {
+    let Some(g) = result.goodness_of_fit.clone() else {
+        return Err(CompareError::NoMlFit {
+            model: name.to_string(),
+            why: result.warnings.first().cloned().unwrap_or_default(),
+        });
+    };
+    let n = 2 * g.lines.len();
+    let k = n - g.dof;
+    // Without shot noise every fit's χ² is its dof (the noise is its own residual): the
+    // Gaussian likelihood profiled over one noise level, N ln(RSS) up to a shared
+    // constant, takes its place.
+    let chi2 = if g.p_value.is_some() {
+        g.chi2
+    } else {
+        n as f64 * (g.relative_rms.powi(2)).ln()
+    };
+    let fit = ModelFit {
+        model: name.to_string(),
+        unknowns: k,
+        chi2,
+        dof: g.dof,
+        chi2_per_dof: g.chi2_per_dof,
+        fits: g.fits,
+        p_value: g.p_value,
+        log_likelihood: -0.5 * chi2,
+        aic: chi2 + 2.0 * k as f64,
+        bic: chi2 + k as f64 * (n as f64).ln(),
+        delta_aic: 0.0,
+        delta_bic: 0.0,
+        holdout_relative_rms: pooled_holdout(&result, |h| Some(h.relative_rms)),
+        holdout_rms_sigma: pooled_holdout(&result, |h| h.rms_sigma_floor.or(h.rms_sigma)),
+        result,
+    };
+    Ok((fit, n))
+}
+
 /// A held-out RMS pooled over the held-out measurements and sweeps (each step of a held-out
 /// sweep is in its sweep's entry): `√(Σ nᵢ xᵢ² / Σ nᵢ)` with `nᵢ` the entry's lines; `None`
 /// when nothing is held out or an entry lacks the value.
-fn pooled_holdout(r: &Report, value: impl Fn(&HeldOut) -> Option<f64>) -> Option<f64> {
+pub(crate) fn pooled_holdout(r: &Report, value: impl Fn(&HeldOut) -> Option<f64>) -> Option<f64> {
     let entries: Vec<&HeldOut> = r.holdout.iter().filter(|h| h.sweep.is_none()).collect();
     if entries.is_empty() {
         return None;
@@ -437,6 +506,7 @@ impl ModelComparison {
             .models
             .iter()
             .map(|m| m.model.len())
+            .chain(self.not_determined.iter().map(|u| u.model.len()))
             .max()
             .unwrap_or(5)
             .max(5);
@@ -494,6 +564,12 @@ impl ModelComparison {
                 );
             }
         }
+        if self.ranked_by == "holdout" && self.models.len() > 1 {
+            let _ = writeln!(
+                s,
+                "\nno likelihood-ratio test of nested pairs: the error floor makes every χ² its expectation (the held-out prediction compares the models)"
+            );
+        }
         if !self.held_out.is_empty() {
             let _ = writeln!(
                 s,
@@ -511,6 +587,9 @@ impl ModelComparison {
                         .map_or(String::new(), |x| format!(", {x:.3} noise sigmas")),
                 );
             }
+        }
+        for u in &self.not_determined {
+            let _ = writeln!(s, "  {:<w$} not determined: {}", u.model, u.reason);
         }
         let _ = writeln!(s, "\n{}", self.verdict);
         s

@@ -22,11 +22,24 @@
 //! skipped. Then, while some parameter's removal (fixing it at zero) raises `χ²` by less than
 //! that corrected threshold over the number of parameters, the least needed one is removed.
 //!
+//! **Held-out selection.** With measurements or sweeps held out ([`DiscoverSettings::holdout`]),
+//! which an error floor ([`Settings::error_floor`]) requires (the floor brings every fit's `χ²`
+//! to its expectation, so the test above has nothing left to test), every fit is made without
+//! them and judged by how well it predicts them ([`crate::identify_with_holdout`]): the pooled
+//! relative RMS `r` of the held-out amplitudes. A richer model's gain over a simpler one is
+//! `1 − r_richer/r_simpler`; the best candidate is added when it gains more than
+//! [`DiscoverSettings::min_improvement`], and a parameter is removed while its removal loses
+//! less than that and the fit does not find it nonzero (`|value| ≥ 2 stderr`: the held-out
+//! data may not need a term the others determine). Candidates the remaining measurements do
+//! not determine are skipped; the starting model need not be determined by them.
+//!
 //! Every step is a full identification, so the work is bounded: at most `max_added` terms,
 //! and a library larger than the data's real residuals minus the model's unknowns, or above
 //! [`MAX_CANDIDATES`], is refused with the count.
 
+use crate::compare::pooled_holdout;
 use crate::finalize::Report;
+use crate::holdout::fit_and_predict;
 use crate::identify::identify;
 use crate::problem::IdentError;
 use crate::settings::{Estimator, Settings};
@@ -72,6 +85,12 @@ pub struct DiscoverSettings {
     pub alpha: f64,
     /// Most terms added (default 10).
     pub max_added: usize,
+    /// Measurements or sweeps held out (names as for [`crate::identify_with_holdout`]): when
+    /// not empty, terms are selected by how well the fit of the rest predicts them.
+    pub holdout: Vec<String>,
+    /// With a holdout: the least relative drop of the held-out RMS that adds a term (and the
+    /// least relative rise that keeps one), e.g. 0.05 for 5 % (default).
+    pub min_improvement: f64,
 }
 
 impl Default for DiscoverSettings {
@@ -83,6 +102,8 @@ impl Default for DiscoverSettings {
             },
             alpha: 0.01,
             max_added: 10,
+            holdout: Vec::new(),
+            min_improvement: 0.05,
         }
     }
 }
@@ -96,10 +117,19 @@ pub struct DiscoveryStep {
     pub parameter: String,
     /// The term in words: `q2*q3 in the equation of q1`, `potential q1*q2*q3`.
     pub term: String,
-    /// `χ²` the term takes away (added) or that its removal adds (removed), in noise units.
-    pub delta_chi2: f64,
-    /// The likelihood-ratio p-value, uncorrected.
-    pub p_value: f64,
+    /// `χ²` the term takes away (added) or that its removal adds (removed), in noise units
+    /// (selection by `χ²`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub delta_chi2: Option<f64>,
+    /// The likelihood-ratio p-value, uncorrected (selection by `χ²`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub p_value: Option<f64>,
+    /// The held-out relative RMS (a fraction) before the step (held-out selection).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub holdout_rms_before: Option<f64>,
+    /// The held-out relative RMS after the step (held-out selection).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub holdout_rms_after: Option<f64>,
     /// Candidates (or parameters) it was chosen among: the Bonferroni factor.
     pub among: usize,
     /// The value the fit gives it (added), or had (removed).
@@ -113,12 +143,21 @@ pub struct Discovery {
     pub candidates: usize,
     /// The accepted steps, in order.
     pub steps: Vec<DiscoveryStep>,
-    /// Identifications run.
+    /// Identifications run (with a holdout each is a fit and a prediction).
     pub fits: usize,
+    /// What selects the terms: `"chi2"` (the likelihood-ratio test) or `"holdout"`.
+    pub selected_by: &'static str,
+    /// The measurements or sweeps held out (held-out selection).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub held_out: Vec<String>,
+    /// The selected model's held-out relative RMS (held-out selection).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub holdout_relative_rms: Option<f64>,
     /// The selected model.
     #[serde(skip)]
     pub model: Model,
-    /// Its identification.
+    /// Its identification (with a holdout: without the held-out data, their prediction in
+    /// [`Report::holdout`]).
     #[serde(skip)]
     pub result: Report,
 }
@@ -182,11 +221,33 @@ struct Candidate {
 struct Fitted {
     chi2: f64,
     scale: f64,
+    /// With a holdout: the prediction's pooled relative RMS of the held-out amplitudes.
+    holdout: Option<f64>,
     report: Report,
 }
 
-fn fit(model: &Model, ds: &Dataset, settings: &Settings) -> Option<Fitted> {
-    let report = identify(model, ds, settings).ok()?;
+/// `model`'s output-error fit to `ds` (without the `held` measurements when any, and then
+/// judged by its prediction of them); `None` when it fails, does not converge or (with a
+/// holdout, and `determined`) the rest does not determine it.
+fn fit(
+    model: &Model,
+    ds: &Dataset,
+    settings: &Settings,
+    held: &[String],
+    determined: bool,
+) -> Option<Fitted> {
+    let report = if held.is_empty() {
+        identify(model, ds, settings).ok()?
+    } else {
+        fit_and_predict(model, ds, held, settings, determined)
+            .ok()?
+            .ok()?
+    };
+    let holdout = if held.is_empty() {
+        None
+    } else {
+        Some(pooled_holdout(&report, |h| Some(h.relative_rms))?)
+    };
     if report.estimator != Estimator::Ml.name() {
         return None;
     }
@@ -203,8 +264,40 @@ fn fit(model: &Model, ds: &Dataset, settings: &Settings) -> Option<Fitted> {
     Some(Fitted {
         chi2,
         scale,
+        holdout,
         report,
     })
+}
+
+/// How the steps are judged: the likelihood-ratio test, or the held-out prediction.
+#[derive(Debug, Clone, Copy)]
+enum Criterion {
+    /// Family-wise error per step.
+    Chi2 { alpha: f64 },
+    /// The least relative drop of the held-out RMS.
+    Holdout { min_improvement: f64 },
+}
+
+impl Criterion {
+    /// What the richer of two fits gains over the simpler: `Δχ²` in noise units (over the
+    /// richer fit's scale), or the relative drop of the held-out RMS.
+    fn gain(self, simpler: &Fitted, richer: &Fitted) -> f64 {
+        match self {
+            Criterion::Chi2 { .. } => (simpler.chi2 - richer.chi2) / richer.scale,
+            Criterion::Holdout { .. } => match (simpler.holdout, richer.holdout) {
+                (Some(s), Some(r)) if s > 0.0 => 1.0 - r / s,
+                _ => f64::NEG_INFINITY,
+            },
+        }
+    }
+
+    /// Whether a gain among `among` tries is significant (adds a term, or keeps one).
+    fn significant(self, gain: f64, among: usize) -> bool {
+        match self {
+            Criterion::Chi2 { alpha } => chi2_tail(gain, 1.0) * (among as f64) < alpha,
+            Criterion::Holdout { min_improvement } => gain > min_improvement,
+        }
+    }
 }
 
 /// Runs the discovery; `progress(done, total)` is called after every identification of a
@@ -228,33 +321,42 @@ pub fn discover(
             form: library.form,
         });
     }
+    let held = settings.holdout.as_slice();
     let current = model.clone();
-    let here = fit(&current, ds, &ident).ok_or_else(|| {
-        DiscoverError::Start(
-            identify(model, ds, &ident)
-                .map(|r| r.warnings.first().cloned().unwrap_or_default())
-                .unwrap_or_else(|e| e.to_string()),
-        )
-    })?;
+    // The start need not be determined without the held-out data (a wrong model's error bars
+    // are inflated by the floor): it is where the search starts, not a selected model.
+    let here = fit(&current, ds, &ident, held, false)
+        .ok_or_else(|| start_error(model, ds, &ident, held))?;
     check_room(&pool, &here)?;
     let total = pool.len();
+    let criterion = if held.is_empty() {
+        Criterion::Chi2 {
+            alpha: settings.alpha,
+        }
+    } else {
+        Criterion::Holdout {
+            min_improvement: settings.min_improvement,
+        }
+    };
     let mut search = Search {
         ds,
         ident,
+        held,
+        criterion,
         current,
         here,
         steps: Vec::new(),
         fits: 1,
     };
-    // Forward: the candidate that lowers χ² most, while it passes the corrected test.
+    // Forward: the candidate that gains most, while its gain is significant.
     for _ in 0..settings.max_added {
-        if !search.add_best(&mut pool, total, settings.alpha, &mut progress) {
+        if !search.add_best(&mut pool, total, &mut progress) {
             break;
         }
     }
     // Backward: the least needed parameter while its removal is not significant.
     let mut removed = false;
-    while search.remove_weakest(settings.alpha) {
+    while search.remove_weakest() {
         removed = true;
     }
     let Search {
@@ -267,24 +369,56 @@ pub fn discover(
     } = search;
     // The selected model's own fit: after a removal, the parameter is gone rather than fixed
     // at zero, so the result lists it no more; otherwise the last fit is that model's.
-    let result = if removed {
+    let here = if removed {
         fits += 1;
-        fit(&current, ds, &ident).map_or(here.report, |f| f.report)
+        fit(&current, ds, &ident, held, true).unwrap_or(here)
     } else {
-        here.report
+        here
     };
     Ok(Discovery {
         candidates: total,
         steps,
         fits,
+        selected_by: if held.is_empty() { "chi2" } else { "holdout" },
+        held_out: held.to_vec(),
+        holdout_relative_rms: here.holdout,
         model: current,
-        result,
+        result: here.report,
     })
 }
 
-/// The settings a discovery cannot start without: a family-wise error in (0, 1) and
-/// equation-term degrees from 1 to 7.
+/// Why the starting model has no fit to start from: the identification's error or first
+/// warning, or (with a holdout) what the rest does not determine.
+fn start_error(model: &Model, ds: &Dataset, ident: &Settings, held: &[String]) -> DiscoverError {
+    let why = |r: Result<Report, IdentError>| {
+        r.map(|r| r.warnings.first().cloned().unwrap_or_default())
+            .unwrap_or_else(|e| e.to_string())
+    };
+    DiscoverError::Start(if held.is_empty() {
+        why(identify(model, ds, ident))
+    } else {
+        match fit_and_predict(model, ds, held, ident, false) {
+            Ok(Err(u)) => u.message,
+            Ok(Ok(r)) => why(Ok(r)),
+            Err(e) => e.to_string(),
+        }
+    })
+}
+
+/// The settings a discovery cannot start without: a family-wise error in (0, 1), equation-term
+/// degrees from 1 to 7, a holdout with an error floor and a least improvement in [0, 1).
 fn check_settings(settings: &DiscoverSettings, library: &Library) -> Result<(), DiscoverError> {
+    if settings.identify.error_floor && settings.holdout.is_empty() {
+        return Err(DiscoverError::Setting(
+            "--error-floor without --holdout: with an error floor every fit's χ² is brought to its expectation, so the likelihood-ratio test cannot select terms; hold out measurements or sweeps to select by their prediction (--holdout NAME, e.g. the strongest drive level's sweeps; Python holdout=[...])".into(),
+        ));
+    }
+    if !(0.0..1.0).contains(&settings.min_improvement) {
+        return Err(DiscoverError::Setting(format!(
+            "--min-improvement {} (Python min_improvement=): give the least relative drop of the held-out RMS that adds a term, from 0 to below 1, e.g. 0.05",
+            settings.min_improvement
+        )));
+    }
     if !(settings.alpha > 0.0 && settings.alpha < 1.0) {
         return Err(DiscoverError::Setting(format!(
             "alpha = {}: give a family-wise error between 0 and 1, e.g. 0.01",
@@ -336,6 +470,8 @@ fn check_room(pool: &[Candidate], here: &Fitted) -> Result<(), DiscoverError> {
 struct Search<'a> {
     ds: &'a Dataset,
     ident: Settings,
+    held: &'a [String],
+    criterion: Criterion,
     current: Model,
     here: Fitted,
     steps: Vec<DiscoveryStep>,
@@ -343,14 +479,12 @@ struct Search<'a> {
 }
 
 impl Search<'_> {
-    /// One forward step: adds the determined candidate of `pool` that lowers χ² most, if it
-    /// passes the test at `alpha` corrected for the candidates tried. Returns whether one was
-    /// added.
+    /// One forward step: adds the determined candidate of `pool` that gains most, if its gain
+    /// is significant among the candidates tried. Returns whether one was added.
     fn add_best(
         &mut self,
         pool: &mut Vec<Candidate>,
         total: usize,
-        alpha: f64,
         progress: &mut impl FnMut(usize, usize),
     ) -> bool {
         let among = pool.len();
@@ -360,7 +494,7 @@ impl Search<'_> {
             let Some(trial) = with_candidate(&self.current, c) else {
                 continue;
             };
-            let f = fit(&trial, self.ds, &self.ident);
+            let f = fit(&trial, self.ds, &self.ident, self.held, true);
             self.fits += 1;
             progress(self.fits, total * (self.steps.len() + 1));
             let Some(f) = f else { continue };
@@ -370,7 +504,7 @@ impl Search<'_> {
             if !determined {
                 continue;
             }
-            let delta = (self.here.chi2 - f.chi2) / f.scale;
+            let delta = self.criterion.gain(&self.here, &f);
             if best.as_ref().is_none_or(|b| delta > b.1) {
                 best = Some((i, delta, f, trial));
             }
@@ -378,29 +512,21 @@ impl Search<'_> {
         let Some((i, delta, f, trial)) = best else {
             return false;
         };
-        let p = chi2_tail(delta, 1.0);
-        if p * among as f64 >= alpha {
+        if !self.criterion.significant(delta, among) {
             return false;
         }
         let c = pool.remove(i);
-        self.steps.push(DiscoveryStep {
-            action: "added",
-            value: f.report.parameters[&c.name].value,
-            parameter: c.name,
-            term: c.words,
-            delta_chi2: delta,
-            p_value: p,
-            among,
-        });
+        let value = f.report.parameters[&c.name].value;
+        self.steps
+            .push(self.step("added", c.name, c.words, delta, among, value, &f));
         self.current = trial;
         self.here = f;
         true
     }
 
-    /// One backward step: removes the free parameter whose removal raises χ² least, if that
-    /// rise is not significant at `alpha` corrected for the parameters tried. Returns whether
-    /// one was removed.
-    fn remove_weakest(&mut self, alpha: f64) -> bool {
+    /// One backward step: removes the free parameter whose removal loses least, if that loss
+    /// is not significant among the parameters tried. Returns whether one was removed.
+    fn remove_weakest(&mut self) -> bool {
         let current = &self.current;
         let free: Vec<usize> = (0..current.params.len())
             .filter(|&p| current.params[p].kind == ParamKind::Unknown)
@@ -408,13 +534,26 @@ impl Search<'_> {
         let among = free.len();
         let mut weakest: Option<(usize, f64, Fitted, Model)> = None;
         for &p in &free {
+            // Held-out selection: a parameter the fit finds nonzero (|value| ≥ 2 stderr) stays,
+            // whatever the held-out data need (they may not see it at all).
+            let nonzero = self
+                .here
+                .report
+                .parameters
+                .get(&current.params[p].name)
+                .is_some_and(|e| {
+                    e.identifiable && e.stderr.is_finite() && e.value.abs() >= 2.0 * e.stderr
+                });
+            if matches!(self.criterion, Criterion::Holdout { .. }) && nonzero {
+                continue;
+            }
             let mut trial = current.clone();
             trial.params[p].kind = ParamKind::Fixed(0.0);
             trial.params[p].bounds = Bounds::default();
-            let f = fit(&trial, self.ds, &self.ident);
+            let f = fit(&trial, self.ds, &self.ident, self.held, true);
             self.fits += 1;
             let Some(f) = f else { continue };
-            let delta = (f.chi2 - self.here.chi2) / self.here.scale;
+            let delta = self.criterion.gain(&f, &self.here);
             if weakest.as_ref().is_none_or(|w| delta < w.1) {
                 weakest = Some((p, delta, f, trial));
             }
@@ -422,29 +561,52 @@ impl Search<'_> {
         let Some((p, delta, f, trial)) = weakest else {
             return false;
         };
-        let pv = chi2_tail(delta, 1.0);
-        if pv * (among as f64) < alpha {
+        if self.criterion.significant(delta, among) {
             return false;
         }
         let name = current.params[p].name.clone();
-        self.steps.push(DiscoveryStep {
-            action: "removed",
-            value: self
-                .here
-                .report
-                .parameters
-                .get(&name)
-                .map_or(f64::NAN, |e| e.value),
-            term: terms_of(current, p),
-            parameter: name,
-            delta_chi2: delta,
-            p_value: pv,
-            among,
-        });
+        let value = self
+            .here
+            .report
+            .parameters
+            .get(&name)
+            .map_or(f64::NAN, |e| e.value);
+        let term = terms_of(current, p);
+        let step = self.step("removed", name, term, delta, among, value, &f);
+        self.steps.push(step);
         // Dropped from the model; fixed at zero (the same equations) should that overflow.
         self.current = without(&trial, p).unwrap_or(trial);
         self.here = f;
         true
+    }
+}
+
+impl Search<'_> {
+    /// The record of a step from the current fit to `after`, whose gain (of the richer over
+    /// the simpler of the two) is `gain` among `among` tries.
+    #[allow(clippy::too_many_arguments)]
+    fn step(
+        &self,
+        action: &'static str,
+        parameter: String,
+        term: String,
+        gain: f64,
+        among: usize,
+        value: f64,
+        after: &Fitted,
+    ) -> DiscoveryStep {
+        let by_chi2 = matches!(self.criterion, Criterion::Chi2 { .. });
+        DiscoveryStep {
+            action,
+            parameter,
+            term,
+            delta_chi2: by_chi2.then_some(gain),
+            p_value: by_chi2.then(|| chi2_tail(gain, 1.0)),
+            holdout_rms_before: self.here.holdout,
+            holdout_rms_after: after.holdout,
+            among,
+            value,
+        }
     }
 }
 
@@ -666,6 +828,24 @@ fn without_param(c: &Coeff, p: usize) -> Option<Coeff> {
     Some(out)
 }
 
+impl DiscoveryStep {
+    /// Why the step was taken: `Δχ² = 563.1  p = 1.8e-124`, or `held-out 21.78 % → 10.20 %`.
+    fn evidence(&self) -> String {
+        match (self.delta_chi2, self.p_value) {
+            (Some(d), Some(p)) => format!("Δχ² = {d:>10.1}  p = {p:.2e}"),
+            _ => {
+                let pct =
+                    |x: Option<f64>| x.map_or("–".into(), |x| format!("{:.2} %", 100.0 * x));
+                format!(
+                    "held-out {} → {}",
+                    pct(self.holdout_rms_before),
+                    pct(self.holdout_rms_after)
+                )
+            }
+        }
+    }
+}
+
 impl Discovery {
     /// The steps and the selected terms as a table for the terminal.
     pub fn table(&self) -> String {
@@ -682,11 +862,27 @@ impl Discovery {
                 "no step: the data demand no candidate term, and need every parameter of the model"
             );
         }
+        if !self.held_out.is_empty() {
+            let _ = writeln!(
+                s,
+                "selected by the prediction of {} (held out, not fitted): {}",
+                self.held_out.join(", "),
+                self.holdout_relative_rms.map_or("–".into(), |r| format!(
+                    "{:.2} % RMS at the end",
+                    100.0 * r
+                ))
+            );
+        }
         for st in &self.steps {
             let _ = writeln!(
                 s,
-                "  {:<8} {:<12} {:<40} Δχ² = {:>10.1}  p = {:.2e} (× {} tried) value {:.4e}",
-                st.action, st.parameter, st.term, st.delta_chi2, st.p_value, st.among, st.value
+                "  {:<8} {:<12} {:<40} {} (× {} tried) value {:.4e}",
+                st.action,
+                st.parameter,
+                st.term,
+                st.evidence(),
+                st.among,
+                st.value
             );
         }
         let names: Vec<&str> = self.model.params.iter().map(|p| p.name.as_str()).collect();
@@ -705,14 +901,26 @@ impl Discovery {
 
     /// The selected model as a model file, its header naming the steps.
     pub fn model_source(&self, dataset: &str, start: &str) -> String {
+        let rule = if self.held_out.is_empty() {
+            "family-wise error per step as given".to_string()
+        } else {
+            format!(
+                "selected by the prediction of {} (held out), least improvement as given",
+                self.held_out.join(", ")
+            )
+        };
         let mut header = format!(
-            "Selected by harmonid discover from {start} on {dataset}: {} candidate terms, family-wise error per step as given.",
+            "Selected by harmonid discover from {start} on {dataset}: {} candidate terms, {rule}.",
             self.candidates
         );
         for st in &self.steps {
             header.push_str(&format!(
-                "\n{} {} ({}): Δχ² {:.1}, p {:.2e} among {}",
-                st.action, st.parameter, st.term, st.delta_chi2, st.p_value, st.among
+                "\n{} {} ({}): {} among {}",
+                st.action,
+                st.parameter,
+                st.term,
+                st.evidence(),
+                st.among
             ));
         }
         self.model.to_source(&header)

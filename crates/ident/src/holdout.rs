@@ -25,6 +25,29 @@ pub fn identify_with_holdout(
     held: &[String],
     settings: &Settings,
 ) -> Result<Report, IdentError> {
+    fit_and_predict(model, ds, held, settings, true)?.map_err(|u| IdentError::Holdout(u.message))
+}
+
+/// A model the measurements left after a holdout do not determine: a property of the model and
+/// the split (a comparison reports it and ranks the others), not a failure of the fit.
+#[derive(Debug, Clone)]
+pub(crate) struct Undetermined {
+    /// The quantities not determined.
+    pub names: Vec<String>,
+    /// The message, naming them, the first one's reason and what to hold out instead.
+    pub message: String,
+}
+
+/// [`identify_with_holdout`], with a model the remaining measurements do not determine told
+/// apart from the errors (`Ok(Err(..))`); unless `require_determined`, such a model still
+/// predicts the held-out data from its estimate (a discovery's starting point).
+pub(crate) fn fit_and_predict(
+    model: &Model,
+    ds: &Dataset,
+    held: &[String],
+    settings: &Settings,
+    require_determined: bool,
+) -> Result<Result<Report, Undetermined>, IdentError> {
     // A name holds out one measurement, or every step of a sweep.
     let named = |m: &harmonid_data::Measurement, name: &String| {
         &m.spec.name == name || m.spec.sweep.as_ref().is_some_and(|s| &s.sweep == name)
@@ -75,15 +98,18 @@ pub fn identify_with_holdout(
         .filter(|(_, e)| !e.identifiable)
         .map(|(name, e)| (name, e.reason.clone().unwrap_or_default()))
         .collect();
-    if !undetermined.is_empty() {
-        return Err(IdentError::Holdout(format!(
-            "--holdout {}: without {} the other measurements do not determine {} ({}: {}); hold out a measurement they do not need",
-            held.join(","),
-            if held.len() == 1 { "it" } else { "them" },
-            undetermined.iter().map(|u| u.0.as_str()).collect::<Vec<_>>().join(", "),
-            undetermined[0].0,
-            undetermined[0].1
-        )));
+    if require_determined && !undetermined.is_empty() {
+        return Ok(Err(Undetermined {
+            names: undetermined.iter().map(|u| u.0.clone()).collect(),
+            message: format!(
+                "--holdout {}: without {} the other measurements do not determine {} ({}: {}); hold out a measurement they do not need",
+                held.join(","),
+                if held.len() == 1 { "it" } else { "them" },
+                undetermined.iter().map(|u| u.0.as_str()).collect::<Vec<_>>().join(", "),
+                undetermined[0].0,
+                undetermined[0].1
+            ),
+        }));
     }
     let fixed = fixed_at(model, &report);
     // The prediction's misfit in the shot noise's units (an error floor fitted to the
@@ -105,7 +131,7 @@ pub fn identify_with_holdout(
             )))
         }
     };
-    Ok(report)
+    Ok(Ok(report))
 }
 
 /// The held-out entries of the prediction's verdict `g` on `held_ds`: one per measurement

@@ -62,6 +62,7 @@ mod uncertainty;
 pub use background::{Background, BackgroundTerm, UnknownBackground};
 pub use compare::{
     compare, compare_with_holdout, CompareError, ModelComparison, ModelFit, NestedTest,
+    NotDetermined,
 };
 pub use discover::{
     discover, DiscoverError, DiscoverSettings, Discovery, DiscoveryStep, Library, LibraryForm,
