@@ -105,7 +105,8 @@ def mix(model, drives, *, sidebands=None, window_hz=None, nominal_hz=None):
 
 
 
-def compare(dataset, models, *, force_model="auto", holdout=(), error_floor=False):
+def compare(dataset, models, *, force_model="auto", holdout=(), error_floor=False,
+            background=None):
     """Fits ``dataset`` by every model and says which one the data support.
 
     ``models`` maps a name to each ``Model`` (or is a list of ``(name, Model)`` pairs). Returns
@@ -116,7 +117,9 @@ def compare(dataset, models, *, force_model="auto", holdout=(), error_floor=Fals
     nested pairs), ``best``, ``ranked_by`` and ``verdict``. ``holdout`` (names of measurements
     or sweeps) fits every model without them and reports how well each predicts them;
     ``error_floor=True`` adds a fitted error floor to every model's noise and ranks the models
-    by that prediction (``holdout`` is then required).
+    by that prediction (``holdout`` is then required); ``background`` (``"drive"``,
+    ``"slope"``, ``"constant"``, joined by commas) fits a measurement background with every
+    model, as ``--background``.
     """
     if isinstance(models, Mapping):
         models = list(models.items())
@@ -126,4 +129,5 @@ def compare(dataset, models, *, force_model="auto", holdout=(), error_floor=Fals
         force_model=force_model,
         holdout=[str(h) for h in holdout],
         error_floor=bool(error_floor),
+        background=background,
     )

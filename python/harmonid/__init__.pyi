@@ -43,4 +43,5 @@ def compare(
     force_model: Literal["auto", "free", "gain_per_measurement", "gain_per_mode"] = "auto",
     holdout: Sequence[str] = (),
     error_floor: bool = False,
+    background: Optional[str] = None,
 ) -> dict[str, Any]: ...

@@ -122,6 +122,7 @@ def compare(
     force_model: Literal["auto", "free", "gain_per_measurement", "gain_per_mode"] = "auto",
     holdout: Sequence[str] = (),
     error_floor: bool = False,
+    background: Optional[str] = None,
 ) -> dict[str, Any]: ...
 def discover(
     model: Model,
@@ -133,6 +134,10 @@ def discover(
     max_terms: int = 10,
     force_model: Literal["auto", "free", "gain_per_measurement", "gain_per_mode"] = "auto",
     velocities: bool = False,
+    holdout: Sequence[str] = (),
+    error_floor: bool = False,
+    min_improvement: float = 0.05,
+    background: Optional[str] = None,
 ) -> dict[str, Any]: ...
 def mix(
     model: Model,

@@ -11,6 +11,17 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use serde_json::Value;
 
+/// `background=`: `"drive"`, `"slope"`, `"constant"` or several joined by commas (as
+/// `--background`); `None` fits none.
+fn background(b: Option<String>) -> PyResult<harmonid_ident::Background> {
+    match b {
+        None => Ok(harmonid_ident::Background::default()),
+        Some(b) => b
+            .parse()
+            .map_err(|e| HarmonidError::new_err(format!("background={b:?}: {e}"))),
+    }
+}
+
 fn parse(json: &str) -> PyResult<Value> {
     serde_json::from_str(json)
         .map_err(|e| HarmonidError::new_err(format!("harmonid wrote invalid JSON: {e}")))
@@ -24,9 +35,10 @@ fn parse(json: &str) -> PyResult<Value> {
 /// `ranked_by`; `verdict`). `force_model` as for `identify`; `holdout` (names of measurements or
 /// sweeps) fits every model without them and reports how well each predicts them;
 /// `error_floor=True` fits a floor to every model and ranks by that prediction (it needs
-/// `holdout`).
+/// `holdout`); `background` (`"drive"`, `"slope"`, `"constant"`, joined by commas) fits a
+/// measurement background with every model, as `--background`.
 #[pyfunction]
-#[pyo3(signature = (dataset, models, *, force_model = "auto", holdout = Vec::new(), error_floor = false))]
+#[pyo3(signature = (dataset, models, *, force_model = "auto", holdout = Vec::new(), error_floor = false, background = None))]
 pub fn compare<'py>(
     py: Python<'py>,
     dataset: &Dataset,
@@ -34,10 +46,12 @@ pub fn compare<'py>(
     force_model: &str,
     holdout: Vec<String>,
     error_floor: bool,
+    background: Option<String>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let settings = Settings {
         force_model: self::force_model(force_model)?,
         error_floor,
+        background: self::background(background)?,
         ..Settings::default()
     };
     let models: Vec<(String, harmonid_model::Model)> = models
@@ -58,11 +72,16 @@ pub fn compare<'py>(
 /// does: from `model`, the library of every monomial of the equation degrees `degrees`, per
 /// equation or (`potential=True`) as potential terms, with (`velocities=True`) every monomial
 /// holding a velocity per equation (nonlinear damping); `alpha` the family-wise error per step,
-/// `max_terms` the most additions. Returns a dict: `candidates`, `steps` (each `action`,
-/// `parameter`, `term`, `delta_chi2`, `p_value`, `among`, `value`), `fits`, `model` (the selected
-/// `Model`), `source` (its model file's text) and `result` (its `IdentifyResult`).
+/// `max_terms` the most additions. `holdout` (names of measurements or sweeps) selects terms
+/// by how well the fit of the rest predicts them instead: a term is added when it lowers their
+/// relative RMS by more than the fraction `min_improvement`; `error_floor=True` fits a floor to
+/// every model (it needs `holdout`); `background` as for `compare`. Returns a dict: `candidates`, `steps` (each `action`,
+/// `parameter`, `term`, `among`, `value`, and `delta_chi2`, `p_value` or, with `holdout`,
+/// `holdout_rms_before`, `holdout_rms_after`), `fits`, `selected_by` (`"chi2"` or
+/// `"holdout"`), with `holdout` also `held_out` and `holdout_relative_rms`, `model` (the
+/// selected `Model`), `source` (its model file's text) and `result` (its `IdentifyResult`).
 #[pyfunction]
-#[pyo3(signature = (model, dataset, degrees, *, potential = false, alpha = 0.01, max_terms = 10, force_model = "auto", velocities = false))]
+#[pyo3(signature = (model, dataset, degrees, *, potential = false, alpha = 0.01, max_terms = 10, force_model = "auto", velocities = false, holdout = Vec::new(), error_floor = false, min_improvement = 0.05, background = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn discover<'py>(
     py: Python<'py>,
@@ -74,15 +93,23 @@ pub fn discover<'py>(
     max_terms: usize,
     force_model: &str,
     velocities: bool,
+    holdout: Vec<String>,
+    error_floor: bool,
+    min_improvement: f64,
+    background: Option<String>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let settings = DiscoverSettings {
         identify: Settings {
             force_model: self::force_model(force_model)?,
             jackknife: false,
+            error_floor,
+            background: self::background(background)?,
             ..Settings::default()
         },
         alpha,
         max_added: max_terms,
+        holdout,
+        min_improvement,
     };
     let library = Library {
         degrees,
@@ -102,8 +129,17 @@ pub fn discover<'py>(
         .map_err(|e| HarmonidError::new_err(e.to_string()))?;
     let out = PyDict::new(py);
     let steps = parse(&found.to_json())?;
-    for key in ["candidates", "steps", "fits"] {
-        out.set_item(key, json_to_py(py, &steps[key])?)?;
+    for key in [
+        "candidates",
+        "steps",
+        "fits",
+        "selected_by",
+        "held_out",
+        "holdout_relative_rms",
+    ] {
+        if let Some(v) = steps.get(key) {
+            out.set_item(key, json_to_py(py, v)?)?;
+        }
     }
     let source = found.model_source(&ds.dir.display().to_string(), &m.source);
     out.set_item("source", &source)?;

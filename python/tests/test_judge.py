@@ -75,3 +75,59 @@ def test_discover_finds_the_coupling_back():
     # The written model reads back.
     back = harmonid.Model.from_str(found["source"], "selected.hb")
     assert list(back.parameters) == list(found["model"].parameters)
+
+
+def test_discover_with_error_floor_selects_by_the_held_out_prediction(cli, tmp_path):
+    ex = "examples/nanostring_2mode/"
+    rounds = []
+    for seed in ("1", "2"):
+        out = tmp_path / f"round{seed}"
+        cli("simulate", MODEL_2, "--values", ex + "values.toml", "--plan", ex + "plan.toml",
+            "--seed", seed, "--out", out)
+        rounds.append(out)
+    pooled = tmp_path / "pooled"
+    cli("merge", *rounds, "--out", pooled)
+    start = tmp_path / "bare.hb"
+    start.write_text(NO_COUPLING)
+    held = "round2_couple_q1_q2"
+    want = load_json(cli("discover", pooled, start, "--degrees", "3", "--potential", "--json",
+                         "--error-floor", "--holdout", held, "--out", tmp_path / "sel.hb"))
+    ds = harmonid.Dataset.from_folder(pooled)
+    found = harmonid.discover(harmonid.Model.from_file(start), ds, [3], potential=True,
+                              error_floor=True, holdout=[held])
+    for key in ("candidates", "steps", "fits", "selected_by", "held_out", "holdout_relative_rms"):
+        assert_close(found[key], want[key], path=key)
+    assert found["selected_by"] == "holdout"
+    added = [s["term"] for s in found["steps"] if s["action"] == "added"]
+    assert added == ["potential q1^2*q2^2"], found["steps"]
+    step = found["steps"][0]
+    assert step["holdout_rms_after"] < 0.95 * step["holdout_rms_before"], step
+    assert "delta_chi2" not in step
+    try:
+        harmonid.discover(harmonid.Model.from_file(start), ds, [3], error_floor=True)
+    except harmonid.HarmonidError as e:
+        assert "--holdout" in str(e), str(e)
+    else:
+        raise AssertionError("a floor without holdout was accepted")
+
+
+def test_compare_and_discover_take_a_background(cli, tmp_path):
+    bare = tmp_path / "bare.hb"
+    bare.write_text(NO_COUPLING)
+    want = load_json(cli("compare", DATA_2, MODEL_2, bare, "--json", "--background", "constant"))
+    ds = harmonid.Dataset.from_folder(DATA_2)
+    models = {MODEL_2: harmonid.Model.from_file(MODEL_2), str(bare): harmonid.Model.from_file(bare)}
+    got = harmonid.compare(ds, models, background="constant")
+    assert_close(got, want)
+    plain = harmonid.compare(ds, models)
+    # Two complex offsets (one per mode): four more unknowns in every model.
+    assert [m["unknowns"] for m in got["models"]] == [m["unknowns"] + 4 for m in plain["models"]]
+    found = harmonid.discover(harmonid.Model.from_file(MODEL_2), ds, [3], potential=True,
+                              background="constant")
+    assert set(found["result"].background) == {"q1", "q2"}, found["result"].background
+    try:
+        harmonid.compare(ds, models, background="feedthrough")
+    except harmonid.HarmonidError as e:
+        assert "background" in str(e), str(e)
+    else:
+        raise AssertionError("an unknown background word was accepted")
