@@ -108,9 +108,11 @@ pub struct Args {
     /// Largest drive force per tone, N/kg.
     #[arg(long)]
     pub max_force: Option<f64>,
-    /// Wall-clock budget of the design's search, s: once spent, each measurement still to
-    /// design keeps the first feasible candidate (or the best tried so far), and the plan says
-    /// so. 0 for no budget.
+    /// Wall-clock budget of the whole design, s: once spent, each measurement still to design
+    /// keeps the first feasible candidate (or the best tried so far), the final pass skips the
+    /// truncation check of the measurements it has not reached, and the devices drawn from the
+    /// range are scored only as far as it went (at least one); the plan says what was
+    /// skipped. 0 for no budget.
     #[arg(long, value_name = "SECONDS", default_value_t = 120.0)]
     pub time_budget: f64,
     /// A measurement point with the mode shapes there: `--point q1=0.309,q2=0.588`

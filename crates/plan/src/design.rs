@@ -8,7 +8,7 @@
 
 use crate::coupled::{coupled_variants, preference_order, Tones, Variant, COMPARABLE};
 use crate::devices::{feasible_on, SolverPool};
-use crate::evaluate::{joint_bounds, robustness, Evaluation};
+use crate::evaluate::{joint_bounds, robustness_within, Evaluation};
 use crate::info::{
     info_of, is_infeasible, ladder_info, restrict_lines, simulate, too_large, truncation_unchecked,
     Fidelity, MeasInfo, Target,
@@ -50,9 +50,14 @@ pub struct DesignSettings {
     pub max_voltage: Option<f64>,
     /// Measurement points (mode shapes); empty: modal amplitudes.
     pub points: Vec<Point>,
-    /// Wall-clock budget of the search, s (`None`: none). Once spent, each measurement still to
-    /// design keeps the first feasible candidate (or the best of those already tried) and the
-    /// plan notes it; the final scoring pass always runs.
+    /// Wall-clock budget of the whole design, s (`None`: none). Once spent, each measurement
+    /// still to design keeps the first feasible candidate (or the best of those already
+    /// tried); the final pass scores the measurements it has not reached at the search's
+    /// lattice order (no truncation check); the devices drawn from the range are scored until
+    /// it is spent (at least one device; the median and worst bounds are over those). Each cut
+    /// is noted in the plan's [`Evaluation::notes`]. A design always completes: the budget
+    /// bounds its options, not its result, so it can overrun by the first feasible candidates
+    /// of the measurements left and the first device drawn.
     pub time_budget_s: Option<f64>,
     /// The devices the plan must survive (`None`: the guess only). Every candidate drive is
     /// checked at the corners of this range ([`GuessRange::corners`]) as well as at the guess,
@@ -345,23 +350,31 @@ pub(crate) fn design_inner(
             .time_budget_s
             .map(|t| std::time::Instant::now() + std::time::Duration::from_secs_f64(t.max(0.0))),
         corners: RefCell::new(BTreeMap::new()),
+        pool: SolverPool::new(2 * rayon::current_num_threads()),
         gains: instrument.gains,
         caps: instrument.caps,
         output_cap,
     };
-    let mut plan_ms = designer.measurements_by_stage(&stages, needed, progress)?;
+    // One bar over the whole work: the search's measurements, the final pass over them, the
+    // devices drawn.
+    let draws = s.range.as_ref().map_or(0, |_| s.draws);
+    let total = 2 * needed + draws;
+    let mut progress = |st: DesignStep<'_>| progress(DesignStep { total, ..st });
+    let mut plan_ms = designer.measurements_by_stage(&stages, needed, &mut progress)?;
     for pm in &mut plan_ms {
         // A ladder of one level at the full forces is the measurement itself.
         if s.ladder != [1.0] {
             pm.levels = s.ladder.clone();
         }
     }
-    let infos = designer.final_information(&plan_ms)?;
-    progress(DesignStep {
-        done: needed,
-        total: needed,
-        name: "",
-    });
+    let infos = designer.final_information(&plan_ms, &mut |k| {
+        progress(DesignStep {
+            done: needed + k,
+            total,
+            name: "scoring the plan at simulate's fidelity",
+        })
+    })?;
+    let deadline = designer.deadline;
     let limits = designer.limits;
     let notes = designer.notes.into_inner();
     base.measurements = plan_ms;
@@ -376,10 +389,38 @@ pub(crate) fn design_inner(
         });
     }
     if let Some(range) = &s.range {
-        let mut r = robustness(model, range, &base, s.sigma_m, s.shots, s.draws)?;
+        let what = "scoring the devices drawn from the range";
+        let (mut r, skipped) = robustness_within(
+            model,
+            range,
+            &base,
+            (s.sigma_m, s.shots),
+            s.draws,
+            deadline,
+            &mut |k| {
+                progress(DesignStep {
+                    done: 2 * needed + k,
+                    total,
+                    name: what,
+                })
+            },
+        )?;
+        if skipped > 0 {
+            ev.notes.push(format!(
+                "the time budget ({} s) was spent: the median and worst bounds are over the first {} of the {} devices drawn from the range, {skipped} were not scored (a larger --time-budget scores them all)",
+                s.time_budget_s.unwrap_or_default(),
+                r.draws,
+                s.draws
+            ));
+        }
         r.corners = Some(corners_text(s));
         ev.robustness = Some(r);
     }
+    progress(DesignStep {
+        done: total,
+        total,
+        name: "",
+    });
     Ok((base, ev))
 }
 
@@ -717,6 +758,10 @@ struct Designer<'a> {
     /// first needed, with the one that failed last (tried first: a drive too strong for one
     /// device is usually too strong for the same one at the next level).
     corners: RefCell<BTreeMap<Vec<(u64, usize)>, CornerSet>>,
+    /// Ramp solvers kept across the range checks: a drive's tones keep their lattice while the
+    /// search moves its level, so its solvers serve every level (and both fidelities) instead
+    /// of being planned and allocated per check.
+    pool: SolverPool,
 }
 
 /// The devices checked for one set of tones and the index of the one that failed last.
@@ -769,32 +814,59 @@ impl Designer<'_> {
     /// them (the truncation check may raise the lattice order the search used). A measurement
     /// whose wider lattice is beyond a size bound keeps the search's lattice, with a note: the
     /// check is not possible, which is not evidence of truncation. The measurements are
-    /// independent: scored in parallel, noted in order.
-    fn final_information(&self, plan_ms: &[PlanMeasurement]) -> Result<Vec<MeasInfo>, PlanError> {
+    /// independent: scored in parallel a few at a time (`progress` told how many are done),
+    /// noted in order. Once the time budget is spent, the measurements still to score are
+    /// scored at the search's fidelity (no truncation check), with a note naming them.
+    fn final_information(
+        &self,
+        plan_ms: &[PlanMeasurement],
+        progress: &mut dyn FnMut(usize),
+    ) -> Result<Vec<MeasInfo>, PlanError> {
         let (target, base) = (self.target, self.base);
-        let scored: Vec<_> = plan_ms
-            .par_iter()
-            .map(|pm| match ladder_info(target, base, pm, Fidelity::User) {
-                Err(e) if truncation_unchecked(&e) => (
-                    Some(e.to_string()),
-                    ladder_info(target, base, pm, Fidelity::Search),
-                ),
-                r => (None, r),
-            })
-            .collect();
         let mut infos = Vec::with_capacity(plan_ms.len());
-        for (pm, (unchecked, r)) in plan_ms.iter().zip(scored) {
-            if let Some(e) = unchecked {
-                self.note(format!(
-                    "{}: its harmonic balance's truncation is not checked at a wider lattice ({e})",
-                    pm.name
-                ));
+        let mut unchecked_by_budget = Vec::new();
+        let chunk = 2 * rayon::current_num_threads().max(1);
+        for (c, ms) in plan_ms.chunks(chunk).enumerate() {
+            let spent = self
+                .deadline
+                .is_some_and(|d| std::time::Instant::now() >= d);
+            let fidelity = if spent {
+                unchecked_by_budget.extend(ms.iter().map(|pm| pm.name.as_str()));
+                Fidelity::Search
+            } else {
+                Fidelity::User
+            };
+            let scored: Vec<_> = ms
+                .par_iter()
+                .map(|pm| match ladder_info(target, base, pm, fidelity) {
+                    Err(e) if truncation_unchecked(&e) => (
+                        Some(e.to_string()),
+                        ladder_info(target, base, pm, Fidelity::Search),
+                    ),
+                    r => (None, r),
+                })
+                .collect();
+            for (pm, (unchecked, r)) in ms.iter().zip(scored) {
+                if let Some(e) = unchecked {
+                    self.note(format!(
+                        "{}: its harmonic balance's truncation is not checked at a wider lattice ({e})",
+                        pm.name
+                    ));
+                }
+                let (info, lost) = r?;
+                infos.extend(info);
+                for k in lost {
+                    self.note(crate::evaluate::lost_note(pm, k));
+                }
             }
-            let (info, lost) = r?;
-            infos.extend(info);
-            for k in lost {
-                self.note(crate::evaluate::lost_note(pm, k));
-            }
+            progress(c * chunk + ms.len());
+        }
+        if !unchecked_by_budget.is_empty() {
+            self.note(format!(
+                "the time budget ({} s) was spent before the final pass: {} are scored at the search's lattice order, without the truncation check `harmonid simulate` makes (a larger --time-budget checks them)",
+                self.s.time_budget_s.unwrap_or_default(),
+                unchecked_by_budget.join(", ")
+            ));
         }
         Ok(infos)
     }
@@ -928,14 +1000,14 @@ impl Designer<'_> {
             &[Fidelity::Search]
         };
         // The devices share the tones: a solver planned on a lattice serves every device with it.
-        let pool = SolverPool::new(batch);
+        let pool = &self.pool;
         for &fidelity in fidelities {
             for ks in std::iter::once(&order[..order.len().min(1)])
                 .chain(order[1.min(order.len())..].chunks(batch))
             {
                 let outcomes: Vec<Result<(), PlanError>> = ks
                     .par_iter()
-                    .map(|&k| feasible_on(&devices[k].1, pm, fidelity, &pool))
+                    .map(|&k| feasible_on(&devices[k].1, pm, fidelity, pool))
                     .collect();
                 for (&k, outcome) in ks.iter().zip(outcomes) {
                     match outcome {

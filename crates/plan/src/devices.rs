@@ -13,7 +13,9 @@
 use crate::info::{Fidelity, SCREEN_ORDER};
 use crate::PlanError;
 use harmonid_experiment::{ExperimentError, PlanMeasurement, Settings};
-use harmonid_sim::{choose_lattice, HbSettings, HbSolver, HbStatus, NumericModel, SimError};
+use harmonid_sim::{
+    choose_lattice, HbSettings, HbSolver, HbStatus, NumericModel, SimError, SteadyState,
+};
 use std::sync::Mutex;
 
 /// Solvers kept for reuse, each with the lattice it was planned on. At most `cap` are kept
@@ -62,6 +64,17 @@ pub(crate) fn feasible_on(
     fidelity: Fidelity,
     pool: &SolverPool,
 ) -> Result<(), PlanError> {
+    solve_on(num, pm, fidelity, pool).map(|_| ())
+}
+
+/// [`feasible_on`], returning the stable steady state it reached (the state
+/// [`crate::info::simulate`] finds: the same lattice, the same ramp from rest).
+pub(crate) fn solve_on(
+    num: &NumericModel,
+    pm: &PlanMeasurement,
+    fidelity: Fidelity,
+    pool: &SolverPool,
+) -> Result<SteadyState, PlanError> {
     let drive = pm.excitation(num)?;
     let mut hs = HbSettings {
         stop_at_fold: true,
@@ -110,7 +123,7 @@ pub(crate) fn feasible_on(
         }
     };
     pool.put(solver);
-    verdict
+    verdict.map(|()| st)
 }
 
 #[cfg(test)]

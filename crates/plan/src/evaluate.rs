@@ -1,6 +1,6 @@
 //! Scores a plan: structural identifiability and the Cramér–Rao bound of every unknown.
 
-use crate::info::{is_infeasible, ladder_info, n_shared, too_large, Fidelity, MeasInfo, Target};
+use crate::info::{ladder_info, n_shared, Fidelity, MeasInfo, Target};
 use crate::range::GuessRange;
 use crate::terms::param_modes;
 use crate::PlanError;
@@ -9,7 +9,6 @@ use harmonid_ident::Unknown;
 use harmonid_ident::{bounds_from_information, Bounds};
 use harmonid_model::Model;
 use harmonid_sim::{ModelValues, NumericModel};
-use rayon::prelude::*;
 use std::collections::BTreeMap;
 
 /// An unknown the plan cannot determine, and the drive that would fix it.
@@ -239,12 +238,15 @@ pub(crate) fn joint_bounds(
 
 /// The information of measurements added up as each is computed, keeping only the first's
 /// forward model (for the unknowns' names): a device's bounds over a plan of many
-/// measurements and levels in the memory of one.
+/// measurements and levels in the memory of one. (The draws are now scored level by level,
+/// [`crate::draws`]; the device-by-device path is kept for the test that compares them.)
+#[cfg(test)]
 pub(crate) struct InfoSum {
     first: Option<MeasInfo>,
     sum: Vec<f64>,
 }
 
+#[cfg(test)]
 impl InfoSum {
     /// Nothing added yet.
     pub(crate) fn new() -> Self {
@@ -318,54 +320,45 @@ pub fn robustness(
     shots: usize,
     draws: usize,
 ) -> Result<Robustness, PlanError> {
+    robustness_within(
+        model,
+        range,
+        plan,
+        (sigma_m, shots),
+        draws,
+        None,
+        &mut |_| {},
+    )
+    .map(|(r, _)| r)
+}
+
+/// [`robustness`] stopped between chunks of draws once `deadline` has passed (the report is
+/// then over the draws scored, [`Robustness::draws`] of them; the count left out is returned
+/// with it), calling `progress` with the draws scored so far.
+pub(crate) fn robustness_within(
+    model: &Model,
+    range: &GuessRange,
+    plan: &Plan,
+    (sigma_m, shots): (f64, usize),
+    draws: usize,
+    deadline: Option<std::time::Instant>,
+    progress: &mut dyn FnMut(usize),
+) -> Result<(Robustness, usize), PlanError> {
     crate::check_draws(draws)?;
     let plan = with_levels(plan, &NumericModel::from_model(model, range.guess())?)?;
-    // Each device is simulated apart (in parallel: the draws are independent and each costs
-    // the whole plan's simulation), then gathered in draw order.
-    let outcomes: Vec<Result<Draw, PlanError>> = range
-        .draws(draws, 0)
-        .par_iter()
-        .enumerate()
-        .map(|(k, values)| {
-            let num = NumericModel::from_model(model, values)?;
-            let target = Target {
-                model,
-                num: &num,
-                values,
-                sigma_m,
-                shots,
-            };
-            // Reduced as it goes: a device holds one sum, not a forward model per level.
-            let mut sum = InfoSum::new();
-            let mut lost = Vec::new();
-            for pm in &plan.measurements {
-                match ladder_info(&target, &plan, pm, Fidelity::Search) {
-                    Ok((i, l)) => {
-                        i.into_iter().for_each(|m| sum.add(m));
-                        lost.extend(l.iter().map(|j| format!("draw {k}: {} level {j}", pm.name)));
-                    }
-                    Err(e) if is_infeasible(&e) || too_large(&e).is_some() => {
-                        return Ok(Draw::Failed(format!(
-                            "draw {k} ({}): {}: {e}",
-                            range.describe_device(model, values, pm),
-                            pm.name
-                        )));
-                    }
-                    Err(e) => return Err(e),
-                }
-            }
-            let ev = sum.bounds(model, shots)?;
-            Ok(Draw::Scored {
-                rel: ev
-                    .bounds
-                    .quantities
-                    .iter()
-                    .map(|b| (b.name.clone(), b.rel))
-                    .collect(),
-                lost,
-            })
-        })
+    // Every level is scored on a chunk of devices at once, its solvers kept across them
+    // (crate::draws), then gathered in draw order.
+    let devices = range.draws(draws, 0);
+    let scored = crate::draws::score_draws(
+        model, range, &plan, &devices, sigma_m, shots, deadline, progress,
+    )?;
+    let skipped = scored.skipped;
+    let outcomes: Vec<Result<Draw, PlanError>> = scored
+        .draws
+        .into_iter()
+        .map(|d| d.and_then(|d| relative(model, d, shots)))
         .collect();
+    let draws = outcomes.len();
     let mut per_quantity: BTreeMap<String, Vec<f64>> = BTreeMap::new();
     let mut failures = Vec::new();
     let mut lost_levels = Vec::new();
@@ -387,19 +380,42 @@ pub fn robustness(
         worst.insert(name.clone(), rels.last().copied().unwrap_or(f64::NAN));
         median.insert(name, rels[rels.len() / 2]);
     }
-    Ok(Robustness {
-        range: range.describe(),
-        corners: None,
-        draws,
-        worst,
-        median,
-        failures,
-        lost_levels,
+    Ok((
+        Robustness {
+            range: range.describe(),
+            corners: None,
+            draws,
+            worst,
+            median,
+            failures,
+            lost_levels,
+        },
+        skipped,
+    ))
+}
+
+/// The relative bounds of a device whose information [`crate::draws`] summed.
+fn relative(model: &Model, d: crate::draws::Draw, shots: usize) -> Result<Draw, PlanError> {
+    Ok(match d {
+        crate::draws::Draw::Failed(f) => Draw::Failed(f),
+        crate::draws::Draw::Summed { sum, named, lost } => {
+            let ev = bounds_of_sum(model, &named, &sum, shots)?;
+            Draw::Scored {
+                rel: ev
+                    .bounds
+                    .quantities
+                    .iter()
+                    .map(|b| (b.name.clone(), b.rel))
+                    .collect(),
+                lost,
+            }
+        }
     })
 }
 
 /// One device of [`robustness`]: a measurement it cannot run, or every quantity's relative
 /// bound with the ladder levels it loses.
+#[derive(Debug)]
 enum Draw {
     Failed(String),
     Scored {
@@ -473,4 +489,164 @@ pub(crate) fn lost_note(pm: &harmonid_experiment::PlanMeasurement, k: usize) -> 
         "{}: level {k} of its ladder ({} of the forces) has no stable steady state at the guess (the drive passes a fold, or the state is unstable); scored without it",
         pm.name, pm.levels[k]
     )
+}
+
+/// The draws scored device by device, every level simulated afresh (the path before
+/// [`crate::draws`]): what the test of that module compares it with.
+#[cfg(test)]
+fn draws_one_by_one(
+    model: &Model,
+    range: &GuessRange,
+    plan: &Plan,
+    (sigma_m, shots): (f64, usize),
+    draws: usize,
+) -> Result<Vec<Draw>, PlanError> {
+    use crate::info::{is_infeasible, too_large};
+    let plan = with_levels(plan, &NumericModel::from_model(model, range.guess())?)?;
+    let mut out = Vec::new();
+    'draws: for (k, values) in range.draws(draws, 0).iter().enumerate() {
+        let num = NumericModel::from_model(model, values)?;
+        let target = Target {
+            model,
+            num: &num,
+            values,
+            sigma_m,
+            shots,
+        };
+        let mut sum = InfoSum::new();
+        let mut lost = Vec::new();
+        for pm in &plan.measurements {
+            match ladder_info(&target, &plan, pm, Fidelity::Search) {
+                Ok((i, l)) => {
+                    i.into_iter().for_each(|m| sum.add(m));
+                    lost.extend(l.iter().map(|j| format!("draw {k}: {} level {j}", pm.name)));
+                }
+                Err(e) if is_infeasible(&e) || too_large(&e).is_some() => {
+                    out.push(Draw::Failed(format!(
+                        "draw {k} ({}): {}: {e}",
+                        range.describe_device(model, values, pm),
+                        pm.name
+                    )));
+                    continue 'draws;
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        let ev = sum.bounds(model, shots)?;
+        out.push(Draw::Scored {
+            rel: ev
+                .bounds
+                .quantities
+                .iter()
+                .map(|b| (b.name.clone(), b.rel))
+                .collect(),
+            lost,
+        });
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod draws_tests {
+    use super::*;
+    use crate::draws::score_draws;
+    use std::collections::BTreeMap;
+    use std::time::Instant;
+
+    /// The draws' information, relative bounds as [`robustness`] reports them.
+    fn scored(model: &Model, d: Result<crate::draws::Draw, PlanError>) -> Draw {
+        relative(model, d.expect("scored"), 20).expect("bounds")
+    }
+
+    /// The two-mode string's paper plan with a drive ladder on every measurement (one without
+    /// its lines, chosen per device) at `scale` of its forces, over the default range: the
+    /// draws scored level by level equal those scored device by device, failures word for word.
+    #[test]
+    fn scoring_level_by_level_equals_scoring_device_by_device() {
+        let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("../../examples/nanostring_2mode");
+        let model = harmonid_model::load(&dir.join("model.hb")).expect("model");
+        let values = harmonid_experiment::read_values(&dir.join("values.toml")).expect("values");
+        let text = std::fs::read_to_string(dir.join("plan.toml")).expect("plan");
+        let plan = Plan::from_toml(&text, "plan.toml").expect("plan");
+        let range = GuessRange::new(&model, &values, &BTreeMap::new()).expect("range");
+        let mut counts = (0, 0, 0);
+        for scale in [1.0, 4.0] {
+            let mut plan = plan.clone();
+            for (j, pm) in plan.measurements.iter_mut().enumerate() {
+                pm.levels = vec![0.5, 0.75, 1.0];
+                for f in pm.force.values_mut() {
+                    f.iter_mut().for_each(|x| *x *= scale);
+                }
+                if let Some(v) = pm.drive_levels_v.as_mut() {
+                    v.iter_mut().for_each(|x| *x *= scale);
+                }
+                if j == 1 {
+                    pm.measure_hz = None;
+                }
+            }
+            let noise = (5e-11, 20);
+            let old = draws_one_by_one(&model, &range, &plan, noise, 4).expect("one by one");
+            let plan = with_levels(
+                &plan,
+                &NumericModel::from_model(&model, range.guess()).expect("num"),
+            )
+            .expect("levels");
+            let new = score_draws(
+                &model,
+                &range,
+                &plan,
+                &range.draws(4, 0),
+                5e-11,
+                20,
+                None,
+                &mut |_| {},
+            )
+            .expect("level by level");
+            assert_eq!(new.skipped, 0);
+            // A deadline already past: one draw scored (the first, as without a deadline), the
+            // others counted as skipped.
+            let cut = score_draws(
+                &model,
+                &range,
+                &plan,
+                &range.draws(4, 0),
+                5e-11,
+                20,
+                Some(Instant::now()),
+                &mut |_| {},
+            )
+            .expect("cut short");
+            assert_eq!((cut.draws.len(), cut.skipped), (1, 3));
+            assert_eq!(
+                format!(
+                    "{:?}",
+                    scored(&model, cut.draws.into_iter().next().expect("one"))
+                ),
+                format!("{:?}", old[0])
+            );
+            assert_eq!(old.len(), new.draws.len());
+            for (a, b) in old.iter().zip(new.draws) {
+                match (a, scored(&model, b)) {
+                    (Draw::Failed(x), Draw::Failed(y)) => {
+                        assert_eq!(x, &y);
+                        counts.0 += 1;
+                    }
+                    (Draw::Scored { rel: r1, lost: l1 }, Draw::Scored { rel: r2, lost: l2 }) => {
+                        assert_eq!(l1, &l2);
+                        counts.2 += l2.len();
+                        assert_eq!(r1.len(), r2.len());
+                        for ((n1, x), (n2, y)) in r1.iter().zip(&r2) {
+                            assert_eq!(n1, n2);
+                            assert!((x - y).abs() <= 1e-6 * x.abs(), "{n1}: {x:e} vs {y:e}");
+                        }
+                        counts.1 += 1;
+                    }
+                    (x, y) => panic!("{x:?} vs {y:?}"),
+                }
+            }
+        }
+        println!("failed, scored, levels lost: {counts:?}");
+        assert!(counts.1 > 0, "{counts:?}");
+    }
 }

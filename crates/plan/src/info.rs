@@ -216,13 +216,42 @@ pub(crate) fn info_of(
     dataset: &Dataset,
     lattice_lines: usize,
 ) -> Result<MeasInfo, PlanError> {
-    let (model, num, values, sigma_m, shots) = (t.model, t.num, t.values, t.sigma_m, t.shots);
-    let mut fwd = ForwardModel::new(
+    let mut fwd = forward_of(t.model, dataset)?;
+    let (info, theta) = profiled_info(t, pm, dataset, &mut fwd)?;
+    // The evaluated forward model keeps its harmonic-balance solver (a dense Jacobian and its
+    // factors, tens to hundreds of MB on a large lattice): a plan keeps one `MeasInfo` per
+    // measurement and level, so it keeps a fresh one, which only names the unknowns.
+    drop(fwd);
+    Ok(MeasInfo {
+        info,
+        fwd: forward_of(t.model, dataset)?,
+        theta,
+        lattice_lines,
+    })
+}
+
+/// A forward model of `dataset`'s measurements (the gains free), not yet evaluated.
+pub(crate) fn forward_of(model: &Model, dataset: &Dataset) -> Result<ForwardModel, PlanError> {
+    Ok(ForwardModel::new(
         model,
         dataset,
         ForceModel::Auto,
         &ForwardSettings::default(),
-    )?;
+    )?)
+}
+
+/// The information on the shared unknowns (`S × S`, row-major, the gains profiled out) of
+/// `pm` on the target's device, whose noise-free data is `dataset`, and `θ` there: `fwd` is a
+/// forward model of that one measurement ([`forward_of`]), fresh or already used for the same
+/// measurement on another device (it keeps its solver and lattice, so a caller scoring one
+/// measurement on many devices allocates them once); it is started from `dataset`.
+pub(crate) fn profiled_info(
+    t: &Target<'_>,
+    pm: &PlanMeasurement,
+    dataset: &Dataset,
+    fwd: &mut ForwardModel,
+) -> Result<(Vec<f64>, Vec<f64>), PlanError> {
+    let (model, num, values, sigma_m, shots) = (t.model, t.num, t.values, t.sigma_m, t.shots);
     let drive = pm.excitation(num)?;
     let theta = fwd.theta_from(values, &[drive.force])?;
     fwd.start_from_data(dataset);
@@ -237,7 +266,7 @@ pub(crate) fn info_of(
     let (keep, nuis): (Vec<usize>, Vec<usize>) = (0..c).partition(|&i| {
         !matches!(
             fwd.unknowns()[free[i]],
-            Unknown::Gain { .. } | Unknown::Force { .. } | Unknown::Background { .. }
+            Unknown::Gain { .. } | Unknown::Force { .. }
         )
     });
     let a = DMatrix::from_fn(keep.len(), keep.len(), |i, j| full[keep[i] * c + keep[j]]);
@@ -267,22 +296,7 @@ pub(crate) fn info_of(
             info[free[ki] * s + free[kj]] = eff[(i, j)];
         }
     }
-    // The evaluated forward model keeps its harmonic-balance solver (a dense Jacobian and its
-    // factors, tens to hundreds of MB on a large lattice): a plan keeps one `MeasInfo` per
-    // measurement and level, so it keeps a fresh one, which only names the unknowns.
-    drop(fwd);
-    let fwd = ForwardModel::new(
-        model,
-        dataset,
-        ForceModel::Auto,
-        &ForwardSettings::default(),
-    )?;
-    Ok(MeasInfo {
-        info,
-        fwd,
-        theta,
-        lattice_lines,
-    })
+    Ok((info, theta))
 }
 
 #[cfg(test)]

@@ -15,6 +15,7 @@
 mod coupled;
 mod design;
 mod devices;
+mod draws;
 mod evaluate;
 mod info;
 mod instrument;
