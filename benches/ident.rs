@@ -15,8 +15,9 @@
 //! (issue 35): a softening Duffing mode with nonlinear damping, 12 drive levels each swept up
 //! and down through its folds (48 or 417 steps a sweep, 5 samples a step, 0.02 nm), the whole
 //! identification with the error floor, one gain for the dataset.
-//! `ten_mode_uniform_q`, `twenty_mode_string` (issue 40): the ten-mode string with every
-//! Q = 1.3e5 (`harmonid_testgen::ten_mode_uniform_q`) and the twenty-mode string (20 + 190
+//! `ten_mode_uniform_q`, `ten_mode_example`, `twenty_mode_string` (issue 40): the ten-mode
+//! string with every Q = 1.3e5 (`harmonid_testgen::ten_mode_uniform_q`), the ten-mode example
+//! itself (`examples/nanostring_10mode` and its plan) and the twenty-mode string (20 + 190
 //! unknown parameters, `harmonid_testgen::string_model(20)`), each from its committed
 //! `harmonid plan --nominal --noise 0.1nm --shots 30` plan (`tests/it/data/`), 30 shots at
 //! 0.1 nm; the whole default identification. `HARMONID_BENCH_SKIP_20=1` leaves the twenty-mode
@@ -153,6 +154,12 @@ fn bench_many_modes(c: &mut Criterion) {
     );
     let ds = gen::add_noise(&clean, 1e-10, 11);
     group.bench_function("ten_mode_uniform_q", |b| {
+        b.iter(|| black_box(identify(&model, black_box(&ds), &settings).expect("identify")))
+    });
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples/nanostring_10mode");
+    let (_, clean) = gen::simulate_plan_file(&model, &dir, 30);
+    let ds = gen::add_noise(&clean, 1e-10, 11);
+    group.bench_function("ten_mode_example", |b| {
         b.iter(|| black_box(identify(&model, black_box(&ds), &settings).expect("identify")))
     });
     if std::env::var_os("HARMONID_BENCH_SKIP_20").is_none() {
