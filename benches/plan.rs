@@ -8,8 +8,9 @@
 //! `design_range/nanostring_10mode`: the ten-mode example's own command, `harmonid plan
 //! examples/nanostring_10mode/model.hb --values … --noise 0.1nm --shots 30`: designed over the
 //! guess's default range (f ± 2 linewidths, Q ± 30 %, ×/÷ 2), the default ladder, 10 draws, the
-//! command line's 120 s search budget (issue 40, item 4). Minutes per design: ten samples take
-//! most of an hour; run it alone (`cargo bench --bench plan -- design_range`).
+//! command line's 120 s budget, which now bounds the whole design (issue 40, item 4). About three
+//! minutes per design on the shared 2-core VM (2026-11-27): ten samples take half an hour; run it
+//! alone (`cargo bench --bench plan -- design_range`).
 #![allow(missing_docs)] // criterion_group! generates an undocumented pub fn
 
 use criterion::{criterion_group, criterion_main, Criterion};
