@@ -196,7 +196,7 @@ fn run(
 /// The two-mode device: exactly the three damping terms are added, none removed, each within
 /// 4 standard errors of the truth.
 #[test]
-#[ignore = "about a minute: cargo test --release --test it -- discover_damping:: --ignored"]
+#[ignore = "15 s in release: cargo test --release --test it -- discover_damping:: --ignored"]
 fn own_and_cross_nonlinear_damping_are_found_and_nothing_else() {
     let (added, found) = run(TRUTH, DUFFING, 15, 2);
     assert_eq!(
