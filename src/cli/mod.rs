@@ -7,6 +7,7 @@ pub mod discover;
 pub mod figure;
 pub mod identify;
 pub mod import;
+pub mod limit_cycles;
 pub mod merge;
 pub mod mix;
 pub mod noise_study;

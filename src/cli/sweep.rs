@@ -17,7 +17,7 @@ const MAX_AUTO_HARMONICS: usize = 31;
 /// Runs the subcommand.
 pub fn run(args: Args) -> miette::Result<()> {
     let inputs = [args.model.as_path(), args.values.as_path()];
-    if let Some(out) = &args.out {
+    for out in [&args.out, &args.limit_cycles].into_iter().flatten() {
         super::common::check_outputs(&[out.as_path()], &inputs)?;
     }
     if let Some(p) = &args.plot {
@@ -67,13 +67,27 @@ pub fn run(args: Args) -> miette::Result<()> {
         );
         s.harmonics = next;
     };
+    let branches = match &args.limit_cycles {
+        Some(_) => {
+            super::limit_cycles::branches(&model, &force, &r, (args.from, args.to), args.points)
+        }
+        None => Vec::new(),
+    };
     if let Some(path) = &args.plot {
         let n = harmonid_report::curves::driven_mode(&force);
-        super::figure::save(
-            &harmonid_report::curves::sweep_curve(&model, &r, n),
-            path,
-            &inputs,
-        )?;
+        let mut fig = harmonid_report::curves::sweep_curve(&model, &r, n);
+        let name = &model.mode_names[n];
+        if !branches.is_empty() {
+            fig.y_label = format!("|{name}| at f, and at f2 beside it (m)");
+        }
+        fig.branches
+            .extend(super::limit_cycles::plot_branches(&branches, n, name));
+        super::figure::save(&fig, path, &inputs)?;
+        eprintln!("wrote {}", path.display());
+    }
+    if let Some(path) = &args.limit_cycles {
+        let csv = super::limit_cycles::csv(&model, &branches);
+        super::common::write_output(path, csv.as_bytes(), &inputs)?;
         eprintln!("wrote {}", path.display());
     }
     let mut csv = String::from("f_hz,stable");

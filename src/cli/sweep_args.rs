@@ -42,6 +42,14 @@ pub struct Args {
     /// half `f_p/2` (the oscillation a pump above threshold sustains), `stable`, `converged`.
     #[arg(long = "pump", value_name = "HZ:LEVEL[:PHASE_RAD]")]
     pub pump: Vec<String>,
+    /// From every Hopf point of the curve, continue the quasi-periodic branch (the drive plus
+    /// a self-oscillation at a second base frequency `f2`, on the lines `k1 f + k2 f2`) in the
+    /// drive frequency over the range, and write it to this CSV: `hopf, f_hz, f2_hz,
+    /// offset_hz`, each mode's |X| at `f2`, `f` and `2f-f2` (m), `stable` (empty where not
+    /// judged), `growth_per_s`.
+    /// With `--plot` the branches are drawn too.
+    #[arg(long = "limit-cycles", value_name = "FILE.csv")]
+    pub limit_cycles: Option<PathBuf>,
     /// Output CSV (stdout when absent).
     #[arg(long)]
     pub out: Option<PathBuf>,

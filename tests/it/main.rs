@@ -20,6 +20,7 @@ mod identify_calibration;
 mod identify_cli;
 mod identify_consistency;
 mod identify_shared;
+mod limit_cycles_cli;
 mod import_simulated;
 mod lab_loop;
 mod long_record;

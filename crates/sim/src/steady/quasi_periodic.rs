@@ -58,8 +58,11 @@ pub struct QuasiPeriodicPoint {
     /// [`QuasiPeriodicBranch::lines`]`[l] = (k₁, k₂)`, at `k₁ f_hz + k₂ f2_hz`
     /// (`q_n = Σ_l Re[X e^{i2π(k₁f + k₂f₂)t}]`; a negative total is the conjugate line).
     pub amplitudes: Vec<Vec<Complex64>>,
-    /// The slow flow's verdict without its free-phase eigenvalue; `None` at the Hopf point
-    /// itself and where two lines coincide (locking within the lattice's order).
+    /// The slow flow's verdict without its free-phase eigenvalue; `None` where the growth
+    /// rate is within the slow flow's own error of zero (`2|f₂ − f|/f` of the linear decay
+    /// rate: it neglects `Ẍ`, whose weight grows with a line's offset from the drive; near
+    /// the Hopf point the branch is that close to neutral) and where two lines coincide
+    /// (locking within the lattice's order).
     pub stability: Option<Stability>,
 }
 
@@ -92,7 +95,9 @@ pub struct QuasiPeriodicBranch {
     pub mode: usize,
     /// Lines `(k₁, k₂)`: `k₁ f_d + k₂ f₂`.
     pub lines: Vec<(i64, i64)>,
-    /// Points in order from the Hopf point (the first, amplitude zero, is the Hopf point).
+    /// Points in order from the Hopf point (which is not one of them: its frequencies are the
+    /// sweep's slow-flow estimate, the branch's own start is where the amplitude at `f₂`
+    /// extrapolates to zero).
     pub points: Vec<QuasiPeriodicPoint>,
     /// Why it ended.
     pub end: BranchEnd,
@@ -140,13 +145,13 @@ pub fn quasi_periodic_branch(
     let torus = Torus::new(model, force, settings.harmonics)?;
     let start = Start::at_hopf(model, force, sweep, &h, &torus, settings.tol)?;
     let mut c = Continuation::new(torus, force, &start, settings);
-    let mut points = vec![c.point(None)];
+    let mut points = Vec::new();
     let (lo, hi) = (
         settings.f_range_hz.0.min(settings.f_range_hz.1),
         settings.f_range_hz.0.max(settings.f_range_hz.1),
     );
     let end = loop {
-        if points.len() >= settings.points.max(2) {
+        if points.len() >= settings.points.max(1) {
             break BranchEnd::Points;
         }
         let f_before = c.wd / TAU;
@@ -528,6 +533,9 @@ fn torus_stability(
     let decay = (0..nm)
         .map(|n| 0.5 * model.gamma(n))
         .fold(f64::INFINITY, f64::min);
+    if growth.abs() < 2.0 * (p.f2_hz - p.f_hz).abs() / p.f_hz * decay {
+        return None;
+    }
     Some(Stability {
         stable: growth < 1e-6 * decay,
         growth_rate: growth,
