@@ -72,6 +72,7 @@ pub fn states<'py>(
             Continued::Yes {
                 stable,
                 growth_rate,
+                eigenvalues,
                 shift,
                 same_as,
                 ..
@@ -79,6 +80,7 @@ pub fn states<'py>(
                 l.set_item("continued", true)?;
                 l.set_item("stable", stable)?;
                 l.set_item("growth_rate", growth_rate)?;
+                l.set_item("eigenvalues", eigenvalues.clone().into_pyarray(py))?;
                 l.set_item("shift", shift)?;
                 l.set_item("same_as", same_as)?;
             }

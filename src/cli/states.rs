@@ -165,6 +165,22 @@ fn table(model: &NumericModel, s: &States) -> String {
             .collect();
         let _ = writeln!(t, "  slow-flow eigenvalues (1/s): {}", eig.join(", "));
         let _ = writeln!(t, "  on the lattice: {}", lattice_text(&st.lattice));
+        if let Continued::Yes {
+            eigenvalues,
+            same_as: None,
+            ..
+        } = &st.lattice
+        {
+            let eig: Vec<String> = eigenvalues
+                .iter()
+                .map(|z| format!("{:.4e}{:+.4e}i", z.re, z.im))
+                .collect();
+            let _ = writeln!(
+                t,
+                "  slow-flow eigenvalues on the lattice (1/s): {}",
+                eig.join(", ")
+            );
+        }
     }
     t
 }
@@ -183,8 +199,9 @@ fn json(model: &NumericModel, s: &States) -> String {
                 .collect();
             let lattice = match &st.lattice {
                 Continued::NotAsked => json!(null),
-                Continued::Yes { stable, growth_rate, shift, same_as, .. } => {
-                    json!({"continued": true, "stable": stable, "growth_rate": growth_rate, "shift": shift, "same_as": same_as})
+                Continued::Yes { stable, growth_rate, eigenvalues, shift, same_as, .. } => {
+                    let eig: Vec<[f64; 2]> = eigenvalues.iter().map(|z| [z.re, z.im]).collect();
+                    json!({"continued": true, "stable": stable, "growth_rate": growth_rate, "eigenvalues": eig, "shift": shift, "same_as": same_as})
                 }
                 Continued::No { why } => json!({"continued": false, "why": why}),
             };

@@ -78,6 +78,11 @@ pub enum Continued {
         stable: bool,
         /// Its largest slow-flow growth rate, 1/s.
         growth_rate: f64,
+        /// The eigenvalues of its slow flow on the full lattice, 1/s
+        /// ([`HbSolver::slow_flow_eigenvalues`]: the lines near the resonances, the far ones
+        /// condensed), which [`HbSolver::stability`] judges; beside the single harmonic's
+        /// [`State::eigenvalues`], they include the harmonics' effect.
+        eigenvalues: Vec<Complex64>,
         /// `‖X_lattice − X_single‖ / ‖X_single‖` at the tone.
         shift: f64,
         /// Index of an earlier state that reached the same lattice state.
@@ -370,6 +375,7 @@ fn continue_on_lattice(
             continue;
         }
         let stab = solver.stability(&st)?;
+        let eigenvalues = solver.slow_flow_eigenvalues(&st)?;
         let at: Vec<Complex64> = (0..model.n_modes()).map(|n| st.amplitudes[n][r]).collect();
         let diff: Vec<Complex64> = at.iter().zip(&s.amplitudes).map(|(a, b)| a - b).collect();
         let size = norm(&s.amplitudes).max(norm(&at)).max(f64::MIN_POSITIVE);
@@ -382,6 +388,7 @@ fn continue_on_lattice(
         s.lattice = Continued::Yes {
             stable: stab.stable,
             growth_rate: stab.growth_rate,
+            eigenvalues,
             shift: norm(&diff) / size,
             same_as,
             state: Box::new(st.clone()),

@@ -59,9 +59,20 @@ fn bistable_duffing_has_three_states_two_stable_each_on_the_lattice() {
                 stable,
                 shift,
                 same_as,
+                eigenvalues,
                 ..
             } => {
                 assert_eq!(*stable, st.stable, "the lattice agrees on stability");
+                // The lattice's slow flow has the single harmonic's eigenvalues, moved by the
+                // harmonics' weight (and those of the lines it keeps beside them).
+                let scale = st.eigenvalues.iter().map(|z| z.norm()).fold(0.0, f64::max);
+                for z in &st.eigenvalues {
+                    let d = eigenvalues
+                        .iter()
+                        .map(|w| (w - z).norm())
+                        .fold(f64::INFINITY, f64::min);
+                    assert!(d < 1e-2 * scale, "{z} vs {eigenvalues:?}");
+                }
                 assert!(*shift < 1e-2, "harmonics move the tone's line by {shift:e}");
                 assert!(same_as.is_none());
             }
