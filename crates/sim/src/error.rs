@@ -170,6 +170,17 @@ pub enum SimError {
         /// Longest window tried, s.
         max_s: f64,
     },
+    /// Terms with a non-smooth factor (`abs`, `sign`, `tanh`) where they cannot be taken:
+    /// a backbone, or lattice lines that are not harmonics of one common frequency.
+    #[error("{what} cannot take the model's non-smooth terms ({terms}): {why}")]
+    NonSmooth {
+        /// The computation refused.
+        what: &'static str,
+        /// The terms, as `monomial in the equation of mode`.
+        terms: String,
+        /// Why, and what to do instead.
+        why: String,
+    },
     /// The harmonic-balance problem could not be set up (a free-text reason; prefer a typed
     /// variant below in new code).
     #[error("harmonic balance: {0}")]

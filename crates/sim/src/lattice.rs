@@ -54,13 +54,22 @@ pub fn choose_lattice(
 ) -> Result<Vec<f64>, SimError> {
     let generators = drive.generators_hz();
     let nd = generators.len();
-    let odd_only = model.terms().iter().all(|t| model.state_degree(t) % 2 == 1);
-    let dmax = model.max_degree().max(1) as usize;
+    let pump_var = 2 * model.n_modes();
+    let odd_only = model.terms().iter().all(|t| model.state_degree(t) % 2 == 1)
+        && model.rough_terms().iter().all(|t| t.is_odd(pump_var));
+    // A non-smooth term's spectrum does not end: it counts as its effective degree.
+    let dmax = model
+        .rough_terms()
+        .iter()
+        .map(|t| t.effective_degree())
+        .fold(model.max_degree(), u32::max)
+        .max(1) as usize;
     let mut out: Vec<f64> = drive.tones_hz.clone();
     // The pump's own lines: inputs of the products (an odd model does not respond there).
     out.extend(drive.pumps.iter().map(|p| p.hz));
     out.extend(s.extra_hz.iter().copied().filter(|&f| f > LINE_TOL_HZ));
-    let mut dc = !odd_only && !model.terms().is_empty();
+    let nonlinear = !model.terms().is_empty() || model.has_nonsmooth();
+    let mut dc = !odd_only && nonlinear;
     // Slow lines of an even model: beats of two lines near resonances, |f_a − f_b| ≤ 2 w f_n;
     // their response is quasi-static (like the offset), not small.
     let slow_band = 2.0 * s.window_rel * model.f_hz.iter().copied().fold(0.0, f64::max);
@@ -80,7 +89,7 @@ pub fn choose_lattice(
         let f: f64 = k.iter().zip(&generators).map(|(&a, &b)| a as f64 * b).sum();
         if f.abs() <= LINE_TOL_HZ {
             // An allowed combination on 0 Hz: the response has a static offset.
-            dc |= !model.terms().is_empty();
+            dc |= nonlinear;
             return;
         }
         if f < 0.0 {

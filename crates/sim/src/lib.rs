@@ -30,6 +30,7 @@ mod linalg;
 mod noise;
 mod numeric;
 mod response;
+mod rough;
 pub mod sensitivity;
 mod steady;
 
@@ -39,7 +40,10 @@ pub use error::SimError;
 pub use excitation::{common_grid, linear_response, Excitation, PumpTone};
 pub use lattice::{choose_lattice, measured_lines, LatticeSettings, LINE_TOL_HZ};
 pub use noise::{lockin_noise_sigma, NoiseGen};
-pub use numeric::{parse_monomial, ModeValues, ModelValues, NumericModel, Term};
+pub use numeric::{
+    parse_monomial, parse_rough_monomial, ModeValues, ModelValues, NumericModel, Term,
+};
+pub use rough::RoughTerm;
 pub use response::{
     probe_response, LinearResponse, ProbeResponse, MAX_PROBES, MAX_RESPONSE_HARMONIC,
     MAX_RESPONSE_UNKNOWNS, RESPONSE_DEPTH,

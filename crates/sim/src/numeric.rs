@@ -1,6 +1,7 @@
 //! The numeric form of a model: evaluated coefficients in a flat layout for fast evaluation of
 //! the nonlinear forces `Σ_m b_m^(n) m(q)` and their derivatives.
 
+use crate::rough::RoughTerm;
 use crate::SimError;
 use harmonid_model::{Linear, Model};
 use harmonid_poly::PowerProduct;
@@ -54,6 +55,10 @@ pub struct NumericModel {
     /// The terms compiled for [`NumericModel::forces`]: term `t` is
     /// `coef[t] · Π pows[pow_idx[fac_start[t]..fac_start[t+1]]]` (indices into the power table).
     flat: FlatTerms,
+    /// Terms with a non-smooth factor (`abs`, `sign`, `tanh`), beside the polynomial `terms`.
+    rough: Vec<RoughTerm>,
+    /// Per rough term: `(p, ∂coef/∂θ_p)`, as `param_grad`.
+    rough_grad: Vec<Vec<(usize, f64)>>,
 }
 
 /// Terms as flat arrays (no per-term heap pointer to chase in the time-domain hot loop).
@@ -151,6 +156,89 @@ pub fn parse_monomial(name: &str, modes: &[String]) -> Result<Vec<(usize, u32)>,
         .collect())
 }
 
+/// A monomial name with non-smooth factors (`abs(q1)*q1`, `sign(d(q1))`,
+/// `tanh(d(q1)/0.001)*q2^2`: the names [`harmonid_model::Model::monomial_name`] writes) as a
+/// term of equation `eq` with coefficient `coef`; `None` for a name without one.
+pub fn parse_rough_monomial(
+    name: &str,
+    modes: &[String],
+    eq: usize,
+    coef: f64,
+) -> Result<Option<RoughTerm>, SimError> {
+    use harmonid_model::NonSmooth;
+    let bad = |why: String| SimError::BadMonomial {
+        name: name.to_string(),
+        why,
+        modes: modes.join(", "),
+    };
+    let var = |x: &str| -> Result<harmonid_poly::VarId, SimError> {
+        let (mode, velocity) = match x.strip_prefix("d(").and_then(|v| v.strip_suffix(')')) {
+            Some(v) => (v.trim(), true),
+            None => (x.trim(), false),
+        };
+        let m = modes
+            .iter()
+            .position(|n| n == mode)
+            .ok_or_else(|| bad(format!("`{mode}` is not a mode")))?;
+        Ok(harmonid_poly::VarId(
+            if velocity { modes.len() + m } else { m } as u32,
+        ))
+    };
+    let mut poly = Vec::new();
+    let mut nonsmooth = Vec::new();
+    for part in name.split('*').map(str::trim) {
+        let Some(f) = ["abs(", "sign(", "tanh("]
+            .iter()
+            .find(|f| part.starts_with(*f))
+        else {
+            poly.push(part);
+            continue;
+        };
+        let close = part
+            .rfind(')')
+            .ok_or_else(|| bad(format!("`{part}` has no `)`")))?;
+        let k = match part[close + 1..].strip_prefix('^') {
+            Some(k) => k
+                .trim()
+                .parse::<u32>()
+                .map_err(|_| bad(format!("`{k}` is not a whole exponent")))?,
+            None if part[close + 1..].trim().is_empty() => 1,
+            None => return Err(bad(format!("`{part}` has text after its `)`"))),
+        };
+        let inner = &part[f.len()..close];
+        let factor = match *f {
+            "abs(" => NonSmooth::Abs(var(inner)?),
+            "sign(" => NonSmooth::Sign(var(inner)?),
+            _ => {
+                let (x, c) = inner
+                    .rsplit_once('/')
+                    .map_or((inner, Ok(1.0)), |(x, c)| (x, c.trim().parse::<f64>()));
+                let c = c.map_err(|_| bad(format!("the scale of `{part}` is not a number")))?;
+                if !(c > 0.0 && c.is_finite()) {
+                    return Err(bad(format!("the scale of `{part}` must be positive")));
+                }
+                NonSmooth::Tanh(var(x)?, c)
+            }
+        };
+        nonsmooth.push((factor, k));
+    }
+    if nonsmooth.is_empty() {
+        return Ok(None);
+    }
+    let factors = if poly.is_empty() {
+        Vec::new()
+    } else {
+        parse_monomial(&poly.join("*"), modes)?
+    };
+    Ok(Some(RoughTerm {
+        eq,
+        coef,
+        factors,
+        nonsmooth,
+        name: name.to_string(),
+    }))
+}
+
 impl NumericModel {
     /// The monomial of a term's factors over the model's variables (modes, velocities, pump).
     pub(crate) fn term_monomial(&self, factors: &[(usize, u32)]) -> PowerProduct {
@@ -171,7 +259,20 @@ impl NumericModel {
         terms: Vec<Term>,
     ) -> Result<Self, SimError> {
         let terms = terms.into_iter().map(|t| (t, Vec::new())).collect();
-        Self::with_gradients(mode_names, f_hz, q_factor, terms)
+        Self::with_gradients(mode_names, f_hz, q_factor, terms, Vec::new())
+    }
+
+    /// As [`NumericModel::new`] with terms that hold non-smooth factors besides (`rough`, each
+    /// with its parameter gradient, possibly empty).
+    pub fn with_rough_terms(
+        mode_names: Vec<String>,
+        f_hz: Vec<f64>,
+        q_factor: Vec<f64>,
+        terms: Vec<Term>,
+        rough: Vec<(RoughTerm, Vec<(usize, f64)>)>,
+    ) -> Result<Self, SimError> {
+        let terms = terms.into_iter().map(|t| (t, Vec::new())).collect();
+        Self::with_gradients(mode_names, f_hz, q_factor, terms, rough)
     }
 
     /// As [`NumericModel::new`], each term with its parameter gradient `(p, ∂coef/∂θ_p)`; a
@@ -182,6 +283,7 @@ impl NumericModel {
         f_hz: Vec<f64>,
         q_factor: Vec<f64>,
         terms: Vec<(Term, Vec<(usize, f64)>)>,
+        rough: Vec<(RoughTerm, Vec<(usize, f64)>)>,
     ) -> Result<Self, SimError> {
         let n = mode_names.len();
         if f_hz.len() != n || q_factor.len() != n {
@@ -212,6 +314,7 @@ impl NumericModel {
                 });
             }
         }
+        let (rough, rough_grad) = check_rough(rough, &mode_names)?;
         terms.sort_by_key(|(t, _)| t.eq);
         let (terms, param_grad): (Vec<Term>, Vec<_>) = terms.into_iter().unzip();
         let mut eq_start = vec![0; n + 1];
@@ -221,12 +324,22 @@ impl NumericModel {
         for i in 0..n {
             eq_start[i + 1] += eq_start[i];
         }
+        let rough_vars = || {
+            rough.iter().flat_map(|t| {
+                t.factors
+                    .iter()
+                    .map(|&(m, _)| m)
+                    .chain(t.nonsmooth.iter().map(|(f, _)| f.var().index()))
+            })
+        };
         let velocities = terms
             .iter()
-            .any(|t| t.factors.iter().any(|&(m, _)| (n..2 * n).contains(&m)));
+            .any(|t| t.factors.iter().any(|&(m, _)| (n..2 * n).contains(&m)))
+            || rough_vars().any(|m| (n..2 * n).contains(&m));
         let pump = terms
             .iter()
-            .any(|t| t.factors.iter().any(|&(m, _)| m == 2 * n));
+            .any(|t| t.factors.iter().any(|&(m, _)| m == 2 * n))
+            || rough_vars().any(|m| m == 2 * n);
         // The variables in use: the modes, the velocities when a term holds one, the pump
         // after every velocity slot when a term holds it.
         let n_vars = if pump {
@@ -267,6 +380,8 @@ impl NumericModel {
             max_pow,
             velocities,
             flat,
+            rough,
+            rough_grad,
         };
         out.check_bounded()?;
         Ok(out)
@@ -325,15 +440,27 @@ impl NumericModel {
             Vec::new()
         };
         let mut terms = Vec::new();
+        let mut rough = Vec::new();
         for (n, eq) in model.eom.iter().enumerate() {
+            if !values.eom.contains_key(&names[n]) {
+                rough_terms_of(model, n, &pvals, &mut rough)?;
+            }
             if let Some(given) = values.eom.get(&names[n]) {
                 for (mono, &coef) in given {
-                    let term = Term {
-                        eq: n,
-                        coef,
-                        factors: parse_monomial(mono, &names)?,
-                    };
-                    terms.push((term, Vec::new()));
+                    match parse_rough_monomial(mono, &names, n, coef)? {
+                        Some(t) => rough.push((t, Vec::new())),
+                        None => {
+                            let factors = parse_monomial(mono, &names)?;
+                            terms.push((
+                                Term {
+                                    eq: n,
+                                    coef,
+                                    factors,
+                                },
+                                Vec::new(),
+                            ));
+                        }
+                    }
                 }
                 continue;
             }
@@ -354,7 +481,7 @@ impl NumericModel {
                 terms.push((term, grad));
             }
         }
-        Self::with_gradients(names, f_hz, q, terms)
+        Self::with_gradients(names, f_hz, q, terms, rough)
     }
 
     /// Builds a numeric model straight from values with `[modes.*]` and `[eom.*]` (a
@@ -372,6 +499,7 @@ impl NumericModel {
             })?);
         }
         let mut terms = Vec::new();
+        let mut rough = Vec::new();
         for (mode, map) in &values.eom {
             let eq =
                 mode_names
@@ -382,14 +510,17 @@ impl NumericModel {
                         declared: mode_names.join(", "),
                     })?;
             for (mono, &coef) in map {
-                terms.push(Term {
-                    eq,
-                    coef,
-                    factors: parse_monomial(mono, mode_names)?,
-                });
+                match parse_rough_monomial(mono, mode_names, eq, coef)? {
+                    Some(t) => rough.push((t, Vec::new())),
+                    None => terms.push(Term {
+                        eq,
+                        coef,
+                        factors: parse_monomial(mono, mode_names)?,
+                    }),
+                }
             }
         }
-        Self::new(mode_names.to_vec(), f_hz, q, terms)
+        Self::with_rough_terms(mode_names.to_vec(), f_hz, q, terms, rough)
     }
 
     /// Number of modes.
@@ -526,6 +657,12 @@ impl NumericModel {
                 });
                 (pp.name(&self.variable_names()), t.coef)
             })
+            .chain(
+                self.rough
+                    .iter()
+                    .filter(|t| t.eq == n)
+                    .map(|t| (t.name.clone(), t.coef)),
+            )
             .collect()
     }
 
@@ -548,6 +685,9 @@ impl NumericModel {
             }
             *o = s;
         }
+        for t in &self.rough {
+            out[t.eq] += t.value(q);
+        }
     }
 
     /// Jacobian of the nonlinear forces, `jac[n * V + j] = ∂(Σ_m b_m^(n) m(x)) / ∂x_j` over
@@ -568,6 +708,25 @@ impl NumericModel {
                 jac[t.eq * nm + j] += v;
             }
         }
+        for t in &self.rough {
+            t.add_gradient(q, &mut jac[t.eq * nm..(t.eq + 1) * nm]);
+        }
+    }
+
+    /// The terms with a non-smooth factor (`abs`, `sign`, `tanh`), grouped by nothing in
+    /// particular; [`Self::forces`] and [`Self::force_jacobian`] include them pointwise.
+    pub fn rough_terms(&self) -> &[RoughTerm] {
+        &self.rough
+    }
+
+    /// Parameter gradient of rough term `t`, as [`Self::term_param_grad`].
+    pub fn rough_param_grad(&self, t: usize) -> &[(usize, f64)] {
+        &self.rough_grad[t]
+    }
+
+    /// Whether a term holds a non-smooth factor.
+    pub fn has_nonsmooth(&self) -> bool {
+        !self.rough.is_empty()
     }
 
     #[inline]
@@ -640,6 +799,80 @@ impl NumericModel {
 
 fn flat_pp(m: &PowerProduct) -> Vec<(usize, u32)> {
     m.factors().iter().map(|&(v, k)| (v.index(), k)).collect()
+}
+
+/// Appends the non-smooth terms of equation `n` of `model`, evaluated at parameter values
+/// `pvals`, with their parameter gradients.
+fn rough_terms_of(
+    model: &Model,
+    n: usize,
+    pvals: &[f64],
+    out: &mut Vec<(RoughTerm, Vec<(usize, f64)>)>,
+) -> Result<(), SimError> {
+    let Some(eq) = model.nonsmooth.get(n) else {
+        return Ok(());
+    };
+    for (m, c) in eq.terms() {
+        let name = model.monomial_name(m);
+        let mut grad = Vec::new();
+        for p in c.variables() {
+            let d = c.derivative(p).map_err(|_| SimError::DerivativeOverflow {
+                monomial: name.clone(),
+                mode: model.modes[n].name.clone(),
+            })?;
+            grad.push((p.index(), d.eval(pvals)));
+        }
+        let (poly, factors) = model.split_nonsmooth(m);
+        let nonsmooth = factors
+            .iter()
+            .filter_map(|&(k, e)| model.nonsmooth_factors.get(k).map(|f| (*f, e)))
+            .collect();
+        let term = RoughTerm {
+            eq: n,
+            coef: c.eval(pvals),
+            factors: flat_pp(&poly),
+            nonsmooth,
+            name,
+        };
+        out.push((term, grad));
+    }
+    Ok(())
+}
+
+/// Checks rough terms (equation and variables in range, finite coefficients) and drops zero
+/// ones without a gradient; returns them and their gradients apart.
+#[allow(clippy::type_complexity)]
+fn check_rough(
+    rough: Vec<(RoughTerm, Vec<(usize, f64)>)>,
+    mode_names: &[String],
+) -> Result<(Vec<RoughTerm>, Vec<Vec<(usize, f64)>>), SimError> {
+    let n = mode_names.len();
+    let mut out = (Vec::new(), Vec::new());
+    for (t, g) in rough {
+        if t.coef == 0.0 && g.is_empty() {
+            continue;
+        }
+        let vars_ok = t.factors.iter().all(|&(m, k)| m <= 2 * n && k > 0)
+            && t.nonsmooth
+                .iter()
+                .all(|(f, k)| f.var().index() < 2 * n && *k > 0);
+        if t.eq >= n || !vars_ok {
+            return Err(SimError::TermBeyondModes { modes: n });
+        }
+        if !t.coef.is_finite() {
+            return Err(SimError::BadValue {
+                what: format!(
+                    "the coefficient of {} in the equation of {}",
+                    t.name, mode_names[t.eq]
+                ),
+                value: t.coef,
+                why: "coefficients must be finite".into(),
+            });
+        }
+        out.0.push(t);
+        out.1.push(g);
+    }
+    Ok(out)
 }
 
 #[cfg(test)]

@@ -285,6 +285,7 @@ impl Sensitivity {
                     }
                 }
                 SensParam::Param(p) => {
+                    add_rough_param(solver, state, p, &mut self.dres);
                     let model = solver.model();
                     for t in 0..self.n_terms {
                         let Some(&(_, g)) = model.term_param_grad(t).iter().find(|&&(q, _)| q == p)
@@ -336,5 +337,39 @@ impl Sensitivity {
             }
         }
         Ok(())
+    }
+}
+
+/// Adds `Σ_t (∂b_t/∂p) [term_t]_r` of the non-smooth terms to `dres` (`[n·R + r]`): each
+/// term's lines with coefficient 1, by alternating frequency–time at `state` (allocates, for
+/// models with such terms only).
+fn add_rough_param(solver: &mut HbSolver, state: &SteadyState, p: usize, dres: &mut [Complex64]) {
+    let model = solver.model().clone();
+    let nt = model.rough_terms().len();
+    let uses: Vec<(usize, f64)> = (0..nt)
+        .filter_map(|t| {
+            model
+                .rough_param_grad(t)
+                .iter()
+                .find(|&&(q, _)| q == p)
+                .map(|&(_, g)| (t, g))
+        })
+        .collect();
+    if uses.is_empty() {
+        return;
+    }
+    let nr = state.lattice_hz.len();
+    let x: Vec<Complex64> = state.amplitudes.iter().flatten().copied().collect();
+    let pump = solver.pump_spectrum().to_vec();
+    let Some(rough) = solver.rough.as_mut() else {
+        return;
+    };
+    let mut lines = vec![Z; nt * nr];
+    rough.term_lines(&x, &pump, &mut lines);
+    for (t, g) in uses {
+        let eq = model.rough_terms()[t].eq;
+        for r in 0..nr {
+            dres[eq * nr + r] += lines[t * nr + r] * g;
+        }
     }
 }

@@ -32,13 +32,21 @@ pub(super) struct Aft {
 
 impl Aft {
     pub(super) fn new(model: &NumericModel, force: &[Complex64], hmax: usize) -> Self {
-        let odd = model.terms().iter().all(|t| t.degree() % 2 == 1);
+        let pump = 2 * model.n_modes();
+        let odd = model.terms().iter().all(|t| t.degree() % 2 == 1)
+            && model.rough_terms().iter().all(|t| t.is_odd(pump));
         let harm: Vec<usize> = (0..=hmax.max(1))
             .filter(|&h| if odd { h % 2 == 1 } else { true })
             .collect();
         let d = model.max_degree().max(1) as usize;
         let need = (d + 1) * hmax.max(1) + 1;
-        let nt = need.next_power_of_two().max(16);
+        // Non-smooth terms have no last harmonic: sample as the lattice's AFT does.
+        let min_nt = if model.has_nonsmooth() {
+            super::rough_aft::ROUGH_MIN_SAMPLES
+        } else {
+            16
+        };
+        let nt = need.next_power_of_two().max(min_nt);
         let nh = harm.len();
         let mut cos = vec![0.0; nt * nh];
         let mut sin = vec![0.0; nt * nh];

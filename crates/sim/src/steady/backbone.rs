@@ -17,6 +17,18 @@ pub fn backbone(
     amplitudes: &[f64],
     harmonics: usize,
 ) -> Result<Vec<Option<f64>>, SimError> {
+    if model.has_nonsmooth() {
+        return Err(SimError::NonSmooth {
+            what: "the backbone",
+            terms: model
+                .rough_terms()
+                .iter()
+                .map(|t| format!("{} in the equation of {}", t.name, model.mode_names[t.eq]))
+                .collect::<Vec<_>>()
+                .join(", "),
+            why: "its amplitude–frequency continuation runs on polynomial terms only; sweep the drive frequency at a small damping instead (harmonid sweep), or leave the non-smooth terms out for the backbone".into(),
+        });
+    }
     if model.has_velocity_terms() {
         return Err(SimError::VelocityTerms {
             what: "the backbone (a free, undamped oscillation)",

@@ -42,6 +42,7 @@ mod newton;
 mod pumped;
 mod quasi_periodic;
 mod ramp;
+mod rough_aft;
 mod solver;
 mod stability;
 mod state;

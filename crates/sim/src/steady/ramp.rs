@@ -42,6 +42,9 @@ impl HbSolver {
     }
 
     fn solve_ramped(&mut self, settings: &HbSettings) -> SteadyState {
+        if let Some(state) = self.solve_from_linear(settings) {
+            return state;
+        }
         if settings.ramp {
             if let Some(state) = self.solve_via_coarse(settings) {
                 return state;

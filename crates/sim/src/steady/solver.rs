@@ -1,6 +1,7 @@
 //! The problem on one lattice: set-up, residual and analytic Jacobian, and the state returned.
 
 use super::ramp::{RAMP_MAX_TONES, RAMP_MIN_SAVING, RAMP_ORDER};
+use super::rough_aft::RoughAft;
 use super::{HbSettings, HbStatus, SteadyState, Z};
 use crate::lattice::{choose_lattice, low_order_lines, LatticeSettings, LINE_TOL_HZ};
 use crate::linalg::DenseLu;
@@ -53,6 +54,8 @@ pub struct HbSolver {
     /// The same problem on the lines of intermodulation order ≤ [`RAMP_ORDER`], where the drive
     /// ramp runs, and the index of each of its lines in `lattice`.
     pub(super) coarse: Option<(Box<HbSolver>, Vec<usize>)>,
+    /// The non-smooth terms by alternating frequency–time (`None` for a model without).
+    pub(crate) rough: Option<RoughAft>,
 }
 
 /// What the values of a problem (coefficients, `f`, `Q`, forces) set on a planned lattice.
@@ -154,7 +157,13 @@ impl HbSolver {
                 .terms()
                 .iter()
                 .zip(self.model.terms())
-                .all(|(a, b)| a.eq == b.eq && a.factors == b.factors);
+                .all(|(a, b)| a.eq == b.eq && a.factors == b.factors)
+            && model.rough_terms().len() == self.model.rough_terms().len()
+            && model
+                .rough_terms()
+                .iter()
+                .zip(self.model.rough_terms())
+                .all(|(a, b)| a.eq == b.eq && a.factors == b.factors && a.nonsmooth == b.nonsmooth);
         if !same_terms {
             return Err(SimError::SetUpFor { what: "set_values" });
         }
@@ -167,6 +176,9 @@ impl HbSolver {
         self.force = ops.force;
         self.force_max = ops.force_max;
         self.pump = ops.pump;
+        if let Some(r) = self.rough.as_mut() {
+            r.set_terms(model);
+        }
         // A factorised Jacobian stays for [`HbSolver::solve_continued`] (chord steps check
         // that it still contracts); it is no longer that of the current state.
         self.fresh = false;
@@ -199,7 +211,9 @@ impl HbSolver {
         let nr = lattice.len();
         let ops = Operators::new(model, drive, &lattice, plan)?;
         let nu = 2 * nm * nr;
+        let rough = RoughAft::new(model, &lattice)?;
         Ok(Self {
+            rough,
             model: model.clone(),
             scratch: ops.system.scratch(),
             system: ops.system,
@@ -252,6 +266,9 @@ impl HbSolver {
         let nv = self.model.n_vars();
         self.system
             .forces(&refs[..nv], &mut self.out, &mut self.scratch);
+        if let Some(r) = self.rough.as_mut() {
+            r.add_forces(x, &self.pump, &mut self.out);
+        }
         for i in 0..nm * nr {
             self.res[i] = self.lin[i] * x[i] - self.force[i] * s + self.out[i];
         }
@@ -339,6 +356,9 @@ impl HbSolver {
                 }
             },
         );
+        if let Some(r) = self.rough.as_mut() {
+            r.add_jacobian(&self.x, &self.pump, &mut self.jac, &mut self.coupled);
+        }
     }
 
     /// Copies `state` (solved on this lattice) into the current amplitudes.

@@ -5,6 +5,7 @@ mod decoupled_modes;
 mod finite_inputs;
 mod hopf;
 mod linear_response;
+mod nonsmooth;
 mod pumping;
 mod quasi_periodic;
 mod ramp_past_fold;
