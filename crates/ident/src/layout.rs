@@ -8,7 +8,7 @@
 //! A mode whose `Q` is fixed while its `f` is identified has `γ` fixed at `2π f_nominal/Q`
 //! in the table, and both fits derive it from the fitted `ω²` (`γ = √ω²/Q`).
 
-use crate::background::BackgroundTerm;
+use crate::background_terms::BackgroundTerm;
 use crate::settings::ForceModel;
 use harmonid_model::{Linear, Model, ParamKind};
 use std::f64::consts::TAU;

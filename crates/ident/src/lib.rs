@@ -45,6 +45,7 @@
 #![warn(missing_docs)]
 
 pub mod background;
+mod background_terms;
 mod compare;
 mod discover;
 pub mod finalize;
@@ -59,7 +60,7 @@ mod shots;
 mod solve;
 mod uncertainty;
 
-pub use background::{Background, BackgroundTerm, UnknownBackground};
+pub use background_terms::{Background, BackgroundTerm, UnknownBackground};
 pub use compare::{
     compare, compare_with_holdout, CompareError, ModelComparison, ModelFit, NestedTest,
     NotDetermined,

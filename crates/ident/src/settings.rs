@@ -2,7 +2,7 @@
 //! option with one spelling ([`FromStr`](std::str::FromStr), `Display`, serde) that the command
 //! line, Python and the result file share.
 
-use crate::background::Background;
+use crate::background_terms::Background;
 use std::collections::BTreeMap;
 
 pub use harmonid_data::result::{Estimator, UnknownEstimator};
