@@ -150,6 +150,14 @@ pub fn run(args: Args) -> miette::Result<()> {
             args.model.display()
         ));
     }
+    if model.has_nonsmooth() {
+        // Their spectrum does not end, so they have no exact mixing table.
+        eprintln!(
+            "warning: {}: the lines of the non-smooth terms ({}) are not listed: they make every odd (abs(q)*q, sign, tanh) or even harmonic combination with coefficients that only sampling in time gives (harmonid simulate computes them by alternating frequency-time; docs/harmonic-balance-algebra.md); the polynomial terms' lines follow",
+            args.model.display(),
+            model.nonsmooth_term_names().join(", ")
+        );
+    }
     let report = build(&args, &model)?;
     let text = if args.json {
         to_json(&report)
