@@ -30,6 +30,7 @@ mod model_broken;
 mod model_docs;
 mod noise_study;
 mod nonlinear_damping;
+mod nonsmooth_identify;
 mod parametric_pumping;
 mod plan_cli;
 mod plan_closed_loop;
