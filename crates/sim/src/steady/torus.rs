@@ -45,8 +45,8 @@ pub(super) struct Torus {
 
 impl Torus {
     /// The torus of `model` driven by `force` (N/kg on each mode at the drive), lines up to
-    /// `|k₁| + |k₂| ≤ harmonics`. Errors: pump terms (a pump is a third base frequency), a
-    /// harmonic count of 0 or above 31.
+    /// `|k₁| + |k₂| ≤ harmonics`. Errors: pump terms (a pump is a third base frequency),
+    /// non-smooth terms (not resolved exactly on the grid), a harmonic count of 0 or above 31.
     pub(super) fn new(
         model: &NumericModel,
         force: &[Complex64],
@@ -57,6 +57,13 @@ impl Torus {
                 what: "the quasi-periodic (two-frequency) harmonic balance",
                 terms: model.pump_term_names().join(", "),
                 instead: "a pump is a third base frequency: continue the limit cycle of a model without pump terms",
+            });
+        }
+        if model.has_nonsmooth() {
+            return Err(SimError::BadValue {
+                what: "non-smooth terms (abs, sign, tanh) in the quasi-periodic balance".into(),
+                value: model.rough_terms().len() as f64,
+                why: "its grid resolves polynomial forces exactly and a non-smooth one would alias onto the kept lines: continue limit cycles of a polynomial model".into(),
             });
         }
         if harmonics == 0 || harmonics > 31 {
