@@ -29,6 +29,17 @@ pub enum ExploreError {
         /// The limit.
         limit: &'static str,
     },
+    /// Non-smooth terms (`abs`, `sign`, `tanh`): the single-harmonic system is a polynomial
+    /// system only for polynomial terms, so the homotopy cannot promise every state of them.
+    #[error("the model's non-smooth terms ({terms}) are not polynomial: `states` and `phase-diagram` find every steady state of polynomial models only")]
+    #[diagnostic(
+        code(explore::nonsmooth),
+        help("follow the branches with `harmonid sweep` (harmonic balance by alternating frequency-time handles these terms), or replace the terms by polynomials to explore")
+    )]
+    NonSmooth {
+        /// The non-smooth terms, by monomial name.
+        terms: String,
+    },
     /// A model other than the one a system was expanded for.
     #[error("the model's terms differ from those the single-harmonic system was expanded for")]
     #[diagnostic(code(explore::other_model))]

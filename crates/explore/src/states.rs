@@ -114,8 +114,19 @@ pub struct States {
 }
 
 /// The single-harmonic tone of an excitation: one drive tone `f` (response at `f`), one pump
-/// `f_p` (response at `f_p/2`), or both with `f_p = 2f`.
+/// `f_p` (response at `f_p/2`), or both with `f_p = 2f`. Refuses non-smooth terms, whose
+/// single-harmonic system is not polynomial.
 pub fn tone_of(model: &NumericModel, drive: &Excitation) -> Result<Tone, ExploreError> {
+    if model.has_nonsmooth() {
+        let names: Vec<&str> = model
+            .rough_terms()
+            .iter()
+            .map(|t| t.name.as_str())
+            .collect();
+        return Err(ExploreError::NonSmooth {
+            terms: names.join(", "),
+        });
+    }
     let nm = model.n_modes();
     let forced = drive.force.iter().flatten().any(|z| z.norm() > 0.0);
     if drive.pumps.len() > 1 || drive.tones_hz.len() > 1 {

@@ -128,3 +128,27 @@ fn bad_grids_and_axes_are_refused_by_name() {
     );
     assert!(msg(e).contains("no drive tone"));
 }
+
+#[test]
+fn non_smooth_terms_are_refused_by_name_not_dropped() {
+    // The single-harmonic system of `abs(q1)*q1` is not polynomial: every state of it cannot be
+    // promised, and dropping the term (as polynomial-only tools do) would be a silent lie.
+    let (model, values, num) = super::models::parse(
+        "mode q1, f = 1 kHz, Q = 1000\nparam beta, kappa\neom q1 += beta*q1^3 + kappa*abs(q1)*q1\n",
+        "[parameters]\nbeta = 1e12\nkappa = 1e6\n",
+    );
+    let drive = Excitation::new(vec![1000.0], vec![vec![Complex64::new(10.0, 0.0)]]);
+    let err = harmonid_explore::states(&num, &drive, &Default::default()).expect_err("refused");
+    assert!(
+        matches!(&err, ExploreError::NonSmooth { terms } if terms == "abs(q1)*q1"),
+        "{err}"
+    );
+    let err = run_err(
+        &model,
+        &values,
+        &drive,
+        axis("freq", 990.0, 1010.0, 4),
+        axis("force:q1", 1.0, 10.0, 4),
+    );
+    assert!(matches!(err, ExploreError::NonSmooth { .. }), "{err}");
+}
