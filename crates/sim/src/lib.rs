@@ -43,11 +43,11 @@ pub use noise::{lockin_noise_sigma, NoiseGen};
 pub use numeric::{
     parse_monomial, parse_rough_monomial, ModeValues, ModelValues, NumericModel, Term,
 };
-pub use rough::RoughTerm;
 pub use response::{
     probe_response, LinearResponse, ProbeResponse, MAX_PROBES, MAX_RESPONSE_HARMONIC,
     MAX_RESPONSE_UNKNOWNS, RESPONSE_DEPTH,
 };
+pub use rough::RoughTerm;
 pub use sensitivity::{Observation, SensParam, Sensitivity};
 pub use steady::{
     backbone, check_stability, convergence_report, limit_cycle, quasi_periodic_branch,
