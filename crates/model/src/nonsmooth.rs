@@ -15,7 +15,7 @@
 use harmonid_poly::VarId;
 
 /// A non-smooth function of one mode `q_m` (variable `VarId(m)`) or one velocity `q̇_m`
-/// (variable `VarId(N + m)`), in the variable numbering of [`Model`].
+/// (variable `VarId(N + m)`), in the variable numbering of [`Model`](crate::Model).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum NonSmooth {
     /// `abs(x) = |x|`.
