@@ -184,7 +184,8 @@ def states(
     """Every steady state under one drive tone (`drives` {mode: [Hz]}, `force` {mode: N/kg})
     and/or a pump (`pumps` [(Hz, level[, phase_rad])]), as `harmonid states --json`: `tone_hz`,
     `paths`, `complex_solutions`, `at_infinity`, `failed`, and `states`, each with `amplitudes`
-    (complex, m, per mode), `stable`, `eigenvalues` (slow flow, 1/s) and, with `lattice`,
+    (complex, m, per mode), `stable`, `oscillatory` (unstable through a complex pair of the slow
+    flow, Hopf type; false for a saddle), `eigenvalues` (slow flow, 1/s) and, with `lattice`,
     `lattice` (`continued`, `stable`, `growth_rate`, `shift`, `same_as` or `why`)."""
     ...
 def phase_diagram(
@@ -200,7 +201,8 @@ def phase_diagram(
 ) -> dict[str, Any]:
     """The count of stable and unstable single-harmonic steady states over a plane, as
     `harmonid phase-diagram`: `x`, `y` each `(axis, from, to, n)` with axis "freq", "force:q1",
-    "pump_hz", "pump_level" or a parameter; returns `x`, `y`, `stable`, `unstable` (int arrays
+    "pump_hz", "pump_level" or a parameter; returns `x`, `y`, `stable`, `unstable`,
+    `oscillatory` (of the unstable, those through a complex pair: Hopf type) (int arrays
     of shape (len(y), len(x)), -1 where the time budget left a row out), `generic_count`,
     `complete`."""
     ...

@@ -65,6 +65,10 @@ pub fn states<'py>(
         let d = PyDict::new(py);
         d.set_item("amplitudes", st.amplitudes.clone().into_pyarray(py))?;
         d.set_item("stable", st.stable)?;
+        d.set_item(
+            "oscillatory",
+            harmonid_explore::unstable_through_complex_pair(&nm, &st.eigenvalues),
+        )?;
         d.set_item("eigenvalues", st.eigenvalues.clone().into_pyarray(py))?;
         let l = PyDict::new(py);
         match &st.lattice {
@@ -175,6 +179,12 @@ pub fn phase_diagram<'py>(
     out.set_item(
         "unstable",
         count(|c| c.unstable).into_pyarray(py).reshape([ny, nx])?,
+    )?;
+    out.set_item(
+        "oscillatory",
+        count(|c| c.oscillatory)
+            .into_pyarray(py)
+            .reshape([ny, nx])?,
     )?;
     out.set_item("generic_count", d.generic_count)?;
     out.set_item("complete", d.complete)?;

@@ -18,6 +18,9 @@ def test_parametron_states_equal_the_command_line(cli):
     assert got["paths"] == want["paths"]
     assert [s["stable"] for s in got["states"]] == [s["stable"] for s in want["states"]]
     assert [s["stable"] for s in got["states"]] == [False, True, True]
+    # The rest state inside the tongue is a saddle (a real eigenvalue), not oscillatory.
+    assert [s["oscillatory"] for s in got["states"]] == [s["oscillatory"] for s in want["states"]]
+    assert [s["oscillatory"] for s in got["states"]] == [False, False, False]
     for g, w in zip(got["states"], want["states"]):
         x = g["amplitudes"][0]
         assert abs(x - complex(w["amplitudes"]["q1"]["re"], w["amplitudes"]["q1"]["im"])) <= 1e-9 * max(abs(x), 1e-30)
@@ -47,9 +50,10 @@ def test_phase_diagram_equals_the_command_line_map(cli, tmp_path):
                                  ("pump_level", 1e3, 4e5, 11), pumps=[(2000.0, 1e5)])
     assert got["stable"].shape == (11, 21)
     assert got["complete"]
-    # map.csv rows run over x within y: x, y, stable, unstable.
+    # map.csv rows run over x within y: x, y, stable, unstable, oscillatory.
     assert np.array_equal(got["stable"].ravel(), want[:, 2].astype(int))
     assert np.array_equal(got["unstable"].ravel(), want[:, 3].astype(int))
+    assert np.array_equal(got["oscillatory"].ravel(), want[:, 4].astype(int))
     assert np.allclose(np.repeat(got["y"], 21), want[:, 1])
     # Inside the tongue at the top level: two stable phase states and the unstable rest state.
     assert got["stable"][-1, 10] == 2 and got["unstable"][-1, 10] == 1

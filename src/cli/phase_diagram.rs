@@ -34,7 +34,8 @@ pub struct Args {
     /// The y axis, as `--x`.
     #[arg(long, value_name = "AXIS:FROM:TO:N")]
     pub y: String,
-    /// Output CSV, columns `x,y,stable,unstable`.
+    /// Output CSV, columns `x,y,stable,unstable,oscillatory` (oscillatory: the unstable states
+    /// that lose stability through a complex pair, Hopf type).
     #[arg(long)]
     pub out: PathBuf,
     /// Also write every state: `x,y,state,stable` and each mode's `re,im,abs` (m).
@@ -177,17 +178,18 @@ fn model_name(path: &std::path::Path) -> String {
 }
 
 fn map_csv(d: &PhaseDiagram) -> String {
-    let mut s = String::from("x,y,stable,unstable\n");
+    let mut s = String::from("x,y,stable,unstable,oscillatory\n");
     let nx = d.x.len();
     for (i, c) in d.counts.iter().enumerate() {
         if let Some(c) = c {
             let _ = writeln!(
                 s,
-                "{},{},{},{}",
+                "{},{},{},{},{}",
                 d.x[i % nx],
                 d.y[i / nx],
                 c.stable,
-                c.unstable
+                c.unstable,
+                c.oscillatory
             );
         }
     }
@@ -195,7 +197,7 @@ fn map_csv(d: &PhaseDiagram) -> String {
 }
 
 fn states_csv(modes: &[String], d: &PhaseDiagram) -> String {
-    let mut s = String::from("x,y,state,stable");
+    let mut s = String::from("x,y,state,stable,oscillatory");
     for m in modes {
         let _ = write!(s, ",{m}_re,{m}_im,{m}_abs");
     }
@@ -205,9 +207,10 @@ fn states_csv(modes: &[String], d: &PhaseDiagram) -> String {
         if d.counts[i].is_none() {
             continue;
         }
-        for (k, (a, stable)) in pts.iter().enumerate() {
-            let _ = write!(s, "{},{},{},{}", d.x[i % nx], d.y[i / nx], k, *stable as u8);
-            for z in a {
+        for (k, p) in pts.iter().enumerate() {
+            let (x, y) = (d.x[i % nx], d.y[i / nx]);
+            let _ = write!(s, "{x},{y},{k},{},{}", p.stable as u8, p.oscillatory as u8);
+            for z in &p.amplitudes {
                 let _ = write!(s, ",{:e},{:e},{:e}", z.re, z.im, z.norm());
             }
             s.push('\n');

@@ -3,7 +3,7 @@
 //! amplitudes, stability, slow-flow eigenvalues and whether it continued onto the full lattice.
 
 use super::simulate::numeric_model;
-use harmonid_explore::{Continued, States, StatesSettings};
+use harmonid_explore::{unstable_through_complex_pair, Continued, States, StatesSettings};
 use harmonid_sim::{Excitation, NumericModel};
 use miette::miette;
 use std::fmt::Write as _;
@@ -143,12 +143,14 @@ fn table(model: &NumericModel, s: &States) -> String {
         s.failed
     );
     for (i, st) in s.states.iter().enumerate() {
-        let _ = writeln!(
-            t,
-            "state {}: {}",
-            i + 1,
-            if st.stable { "stable" } else { "UNSTABLE" }
-        );
+        let verdict = if st.stable {
+            "stable"
+        } else if unstable_through_complex_pair(model, &st.eigenvalues) {
+            "UNSTABLE through a complex pair (oscillatory, Hopf type: a self-oscillation grows beside the drive)"
+        } else {
+            "UNSTABLE through a real eigenvalue (a saddle)"
+        };
+        let _ = writeln!(t, "state {}: {verdict}", i + 1);
         for (n, x) in st.amplitudes.iter().enumerate() {
             let _ = writeln!(
                 t,
@@ -208,6 +210,7 @@ fn json(model: &NumericModel, s: &States) -> String {
             json!({
                 "amplitudes": amps,
                 "stable": st.stable,
+                "oscillatory": unstable_through_complex_pair(model, &st.eigenvalues),
                 "eigenvalues": st.eigenvalues.iter().map(|z| [z.re, z.im]).collect::<Vec<_>>(),
                 "lattice": lattice,
             })

@@ -82,16 +82,16 @@ fn phase_diagram_writes_the_map_states_and_plot() {
     );
     let text = std::fs::read_to_string(&map).expect("map");
     let rows: Vec<&str> = text.lines().collect();
-    assert_eq!(rows[0], "x,y,stable,unstable");
+    assert_eq!(rows[0], "x,y,stable,unstable,oscillatory");
     assert_eq!(rows.len(), 1 + 21 * 11);
     // At f_p = 2000 Hz, P = 4e5 (inside the tongue): two stable phase states, the rest unstable.
     assert!(
-        rows.contains(&"2000,400000,2,1"),
+        rows.contains(&"2000,400000,2,1,0"),
         "{}",
         &text[..200.min(text.len())]
     );
     let st = std::fs::read_to_string(&states).expect("states");
-    assert!(st.starts_with("x,y,state,stable,q1_re,q1_im,q1_abs\n"));
+    assert!(st.starts_with("x,y,state,stable,oscillatory,q1_re,q1_im,q1_abs\n"));
     assert!(std::fs::read_to_string(&plot)
         .expect("svg")
         .contains("2 stable, 1 unstable"));

@@ -46,10 +46,11 @@ pub use error::ExploreError;
 pub use harmonic::{SingleHarmonic, Tone};
 pub use homotopy::{bezout, parameter, total_degree, Solutions, MAX_PATHS};
 pub use phase::{
-    phase_diagram, Axis, AxisRange, Count, PhaseDiagram, PhaseSettings, Problem, MAX_GRID_POINTS,
+    phase_diagram, Axis, AxisRange, Count, PhaseDiagram, PhaseSettings, PointState, Problem,
+    MAX_GRID_POINTS,
 };
 pub use states::{
-    is_stable, residual, states, tone_of, Continued, Solved, State, States, StatesSettings,
-    REAL_TOL,
+    is_stable, residual, states, tone_of, unstable_through_complex_pair, Continued, Solved, State,
+    States, StatesSettings, REAL_TOL,
 };
 pub use system::{PolySystem, Term};

@@ -14,7 +14,7 @@
 
 use crate::harmonic::{SingleHarmonic, Tone};
 use crate::homotopy::{parameter, push_distinct, total_degree, Polisher};
-use crate::states::{classify, is_stable, tone_of, SEED};
+use crate::states::{classify, is_stable, tone_of, unstable_through_complex_pair, SEED};
 use crate::system::PolySystem;
 use crate::ExploreError;
 use harmonid_model::Model;
@@ -108,6 +108,21 @@ pub struct Count {
     pub stable: u32,
     /// Unstable real states.
     pub unstable: u32,
+    /// Of the unstable states, those unstable through a complex pair of the slow flow
+    /// (oscillatory, Hopf type: [`crate::unstable_through_complex_pair`]); the rest are
+    /// saddles.
+    pub oscillatory: u32,
+}
+
+/// One steady state of a grid point.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PointState {
+    /// Complex amplitude per mode at the response frequency, m (peak).
+    pub amplitudes: Vec<Complex64>,
+    /// Stable in the single-harmonic slow flow.
+    pub stable: bool,
+    /// Unstable through a complex pair ([`crate::unstable_through_complex_pair`]).
+    pub oscillatory: bool,
 }
 
 /// A phase diagram.
@@ -120,8 +135,8 @@ pub struct PhaseDiagram {
     /// `counts[iy · nx + ix]`; `None` for rows the time budget left out.
     pub counts: Vec<Option<Count>>,
     /// With [`PhaseSettings::keep_states`]: per point, each state's amplitude per mode (m)
-    /// and whether it is stable.
-    pub states: Vec<Vec<(Vec<Complex64>, bool)>>,
+    /// and its stability.
+    pub states: Vec<Vec<PointState>>,
     /// The most finite complex solutions a point had (the generic count).
     pub generic_count: usize,
     /// Points solved by the total-degree homotopy (the rest were continued).
@@ -322,7 +337,7 @@ struct Grid<'a> {
 }
 
 /// One point's system and complex solutions (the next point's start), and its states.
-type Solution = (PolySystem, Vec<Vec<Complex64>>, Vec<(Vec<Complex64>, bool)>);
+type Solution = (PolySystem, Vec<Vec<Complex64>>, Vec<PointState>);
 
 impl Grid<'_> {
     /// Solves the point `(xv, yv)`: continued from `prev` when it gives the generic count,
@@ -360,7 +375,11 @@ impl Grid<'_> {
             .amplitudes
             .into_iter()
             .zip(&solved.eigenvalues)
-            .map(|(a, e)| (a, is_stable(model, e)))
+            .map(|(amplitudes, e)| PointState {
+                amplitudes,
+                stable: is_stable(model, e),
+                oscillatory: unstable_through_complex_pair(model, e),
+            })
             .collect();
         Ok((sys, solved.complex, states))
     }
@@ -413,7 +432,7 @@ pub fn phase_diagram(
     let rows_done = AtomicUsize::new(0);
     let over = AtomicBool::new(false);
     let t0 = Instant::now();
-    type Row = Option<Vec<Vec<(Vec<Complex64>, bool)>>>;
+    type Row = Option<Vec<Vec<PointState>>>;
     let rows: Vec<Result<Row, ExploreError>> = column
         .into_par_iter()
         .zip(ys.par_iter())
@@ -452,10 +471,11 @@ pub fn phase_diagram(
         match r? {
             Some(row) => {
                 for pts in row {
-                    let stable = pts.iter().filter(|p| p.1).count() as u32;
+                    let stable = pts.iter().filter(|p| p.stable).count() as u32;
                     out.counts.push(Some(Count {
                         stable,
                         unstable: pts.len() as u32 - stable,
+                        oscillatory: pts.iter().filter(|p| p.oscillatory).count() as u32,
                     }));
                     if settings.keep_states {
                         out.states.push(pts);

@@ -280,12 +280,30 @@ pub(crate) fn eigenvalues(a: &[f64], n: usize) -> Vec<Complex64> {
         .unwrap_or_else(|_| vec![Complex64::new(f64::NAN, 0.0); n])
 }
 
-/// Stable when every eigenvalue's real part is below `1e-6 ·` the slowest linear decay rate.
-pub fn is_stable(model: &NumericModel, eig: &[Complex64]) -> bool {
+/// The growth rate a slow-flow eigenvalue must stay below for stability, 1/s: `1e-6 ·` the
+/// slowest linear decay rate (the simulation crate's rule).
+fn growth_threshold(model: &NumericModel) -> f64 {
     let decay = (0..model.n_modes())
         .map(|n| 0.5 * model.gamma(n))
         .fold(f64::INFINITY, f64::min);
-    eig.iter().all(|z| z.re < 1e-6 * decay)
+    1e-6 * decay
+}
+
+/// Stable when every eigenvalue's real part is below `1e-6 ·` the slowest linear decay rate.
+pub fn is_stable(model: &NumericModel, eig: &[Complex64]) -> bool {
+    let threshold = growth_threshold(model);
+    eig.iter().all(|z| z.re < threshold)
+}
+
+/// Whether a state is unstable through a complex pair of its slow flow: an oscillatory
+/// (Hopf-type) instability, where an oscillation at the pair's frequency `|Im λ|/2π` grows
+/// beside the driven response (sidebands at the tone ± that offset; `sweep --limit-cycles`
+/// follows it from a Hopf point), rather than through a real eigenvalue only (a saddle, as on
+/// the middle branch between two folds). False for a stable state.
+pub fn unstable_through_complex_pair(model: &NumericModel, eig: &[Complex64]) -> bool {
+    let threshold = growth_threshold(model);
+    eig.iter()
+        .any(|z| z.re >= threshold && z.im.abs() > 1e-8 * z.norm())
 }
 
 /// Every steady state of `model` under `drive` (one drive tone, one pump, or both with the

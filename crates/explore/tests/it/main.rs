@@ -3,6 +3,7 @@
 
 mod bad_input;
 mod duffing;
+mod hopf_type;
 mod models;
 mod parametron;
 mod two_mode;

@@ -72,20 +72,27 @@ fn inside_the_tongue_the_rest_state_is_unstable_and_the_phase_states_stable() {
             let pts = &d.states[iy * nx + ix];
             let rest = pts
                 .iter()
-                .find(|(a, _)| a[0].norm() == 0.0 || a[0].norm() < 1e-12)
+                .find(|p| p.amplitudes[0].norm() < 1e-12)
                 .expect("the rest state is a state");
             if w {
                 n_in += 1;
-                assert!(!rest.1, "rest state stable inside the tongue at {at}");
+                assert!(!rest.stable, "rest state stable inside the tongue at {at}");
                 assert_eq!((c.stable, c.unstable), (2, 1), "at {at}");
-                let st: Vec<Complex64> = pts.iter().filter(|p| p.1).map(|p| p.0[0]).collect();
+                let st: Vec<Complex64> = pts
+                    .iter()
+                    .filter(|p| p.stable)
+                    .map(|p| p.amplitudes[0])
+                    .collect();
                 assert!(
                     (st[0] + st[1]).norm() < 1e-9 * st[0].norm(),
                     "the stable states are ±X at {at}"
                 );
             } else {
                 n_out += 1;
-                assert!(rest.1, "rest state unstable outside the tongue at {at}");
+                assert!(
+                    rest.stable,
+                    "rest state unstable outside the tongue at {at}"
+                );
                 assert!(c.unstable.is_multiple_of(2), "at {at}: {c:?}");
             }
         }
