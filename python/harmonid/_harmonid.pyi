@@ -156,6 +156,7 @@ def sweep(
     points: int = 2000,
     harmonics: int = 3,
     two_tone_spacing_hz: Optional[float] = None,
+    limit_cycles: bool = False,
 ) -> dict[str, Any]: ...
 def response(
     model: Model,

@@ -91,6 +91,11 @@ fn put_curve<'py, 'a>(
 /// `jumps_up_hz`, `jumps_down_hz` (where an up or down sweep jumps), `hopf` (per Hopf point
 /// `(f_hz, offset_hz, gains_stability)`: a complex pair of slow-flow eigenvalues crosses zero,
 /// a self-oscillation `offset_hz` from the drive's lines stops or starts) and `complete`.
+/// With `limit_cycles=True`, `limit_cycles`: per Hopf point (as `harmonid sweep --limit-cycles`)
+/// a dict with `hopf_hz`, and either `why` (the branch could not start) or the quasi-periodic
+/// branch: `f_hz` (drive), `f2_hz` (the self-oscillation), `f2_abs`, `f_abs` (N, modes: |X|,
+/// m, on the lines `f2` and `f`), `stable` (list: True, False or None where not judged) and
+/// `end` (why it ended).
 ///
 /// `two_tone_spacing_hz=Δ`: a pair of tones at `c ± Δ/2` (each with `force`) whose centre `c`
 /// is swept up and down; returns `up` and `down`, each with `centre_hz`, `stable`,
@@ -102,7 +107,7 @@ fn put_curve<'py, 'a>(
 ///
 /// Runs without holding the GIL.
 #[pyfunction]
-#[pyo3(signature = (model, values, f_from_hz, f_to_hz, force, *, points = 2000, harmonics = 3, two_tone_spacing_hz = None))]
+#[pyo3(signature = (model, values, f_from_hz, f_to_hz, force, *, points = 2000, harmonics = 3, two_tone_spacing_hz = None, limit_cycles = false))]
 #[allow(clippy::too_many_arguments)] // the Python signature, keyword arguments included
 pub fn sweep<'py>(
     py: Python<'py>,
@@ -114,6 +119,7 @@ pub fn sweep<'py>(
     points: usize,
     harmonics: usize,
     two_tone_spacing_hz: Option<f64>,
+    limit_cycles: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let nm = numeric_model(model, values)?;
     let f = force_vector(&nm, &force)?;
@@ -155,6 +161,19 @@ pub fn sweep<'py>(
         r.folds.iter().map(|f| f.f_hz).collect::<Vec<_>>(),
     )?;
     d.set_item("complete", r.complete)?;
+    if limit_cycles {
+        let s = sim::QuasiPeriodicSettings::for_sweep(&r, (f_from_hz, f_to_hz), points);
+        let branches = py.detach(|| {
+            (0..r.hopf.len())
+                .map(|i| sim::quasi_periodic_branch(&nm, &f, &r, i, &s))
+                .collect::<Vec<_>>()
+        });
+        let list = pyo3::types::PyList::empty(py);
+        for (h, b) in r.hopf.iter().zip(branches) {
+            list.append(branch_dict(py, h.f_hz, b, nm.n_modes())?)?;
+        }
+        d.set_item("limit_cycles", list)?;
+    }
     // Hopf points: (Hz, offset of the self-oscillation from the drive's lines in Hz, whether
     // the state gains stability there along the curve).
     d.set_item(
@@ -164,6 +183,56 @@ pub fn sweep<'py>(
             .map(|h| (h.f_hz, h.offset_hz, h.gains_stability))
             .collect::<Vec<_>>(),
     )?;
+    Ok(d)
+}
+
+/// One limit-cycle branch (or why it could not start) as a dict of numpy arrays.
+fn branch_dict<'py>(
+    py: Python<'py>,
+    hopf_hz: f64,
+    b: Result<sim::QuasiPeriodicBranch, sim::SimError>,
+    n_modes: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("hopf_hz", hopf_hz)?;
+    let b = match b {
+        Ok(b) => b,
+        Err(e) => {
+            d.set_item("why", e.to_string())?;
+            return Ok(d);
+        }
+    };
+    let n = b.points.len();
+    let abs_on = |k: (i64, i64)| -> Vec<f64> {
+        let l = b.line(k);
+        b.points
+            .iter()
+            .flat_map(|p| {
+                p.amplitudes
+                    .iter()
+                    .map(move |row| l.map_or(f64::NAN, |l| row[l].norm()))
+            })
+            .collect()
+    };
+    let f: Vec<f64> = b.points.iter().map(|p| p.f_hz).collect();
+    let f2: Vec<f64> = b.points.iter().map(|p| p.f2_hz).collect();
+    d.set_item("f_hz", f.into_pyarray(py))?;
+    d.set_item("f2_hz", f2.into_pyarray(py))?;
+    d.set_item(
+        "f2_abs",
+        abs_on((0, 1)).into_pyarray(py).reshape([n, n_modes])?,
+    )?;
+    d.set_item(
+        "f_abs",
+        abs_on((1, 0)).into_pyarray(py).reshape([n, n_modes])?,
+    )?;
+    let stable: Vec<Option<bool>> = b
+        .points
+        .iter()
+        .map(|p| p.stability.map(|s| s.stable))
+        .collect();
+    d.set_item("stable", stable)?;
+    d.set_item("end", format!("{:?}", b.end))?;
     Ok(d)
 }
 

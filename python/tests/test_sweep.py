@@ -84,3 +84,26 @@ def test_bad_values_and_forces_raise():
         harmonid.sweep(model, VALUES, 207540, 207700, {"q7": 1.0})
     with pytest.raises(harmonid.SimulationError, match="cannot read the values file"):
         harmonid.sweep(model, "nope.toml", 207540, 207700, {"q1": 1.0})
+
+
+def test_limit_cycles_equal_cli(cli, tmp_path):
+    # The driven van der Pol–Duffing: a quasi-periodic branch from each Hopf point, as
+    # `harmonid sweep --limit-cycles` writes them.
+    model_path, values = "examples/vdp_duffing/model.hb", "examples/vdp_duffing/values.toml"
+    out = tmp_path / "lc.csv"
+    cli("sweep", model_path, "--values", values, "--from", "980", "--to", "1020",
+        "--force", "q1=0.446", "--points", "400", "--limit-cycles", out)
+    rows = read_csv(out)
+    model = harmonid.Model.from_file(model_path)
+    r = harmonid.sweep(model, values, 980, 1020, {"q1": 0.446}, points=400, limit_cycles=True)
+    branches = r["limit_cycles"]
+    assert len(branches) == len(r["hopf"]) == 2
+    for h, b in enumerate(branches, start=1):
+        assert "why" not in b, b.get("why")
+        want = [x for x in rows if x["hopf"] == str(h)]
+        assert len(b["f_hz"]) == len(want) > 0
+        np.testing.assert_allclose(b["f2_hz"], [float(x["f2_hz"]) for x in want], rtol=1e-9)
+        np.testing.assert_allclose(b["f2_abs"][:, 0], [float(x["q1_f2_abs"]) for x in want], rtol=1e-6)
+        assert b["stable"] == [None if x["stable"] == "" else x["stable"] == "1" for x in want]
+    # Without the option, no branches are computed.
+    assert "limit_cycles" not in harmonid.sweep(model, values, 980, 1020, {"q1": 0.446}, points=400)

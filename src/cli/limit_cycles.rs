@@ -8,8 +8,7 @@ use harmonid_sim::{self as sim, BranchEnd, QuasiPeriodicBranch, QuasiPeriodicSet
 use num_complex::Complex64;
 use std::fmt::Write as _;
 
-/// The branches from every Hopf point of `r`: the lattice order `|k1| + |k2|` is the sweep's
-/// highest harmonic, at least 5 and at most 15; about a quarter of the sweep's points. A
+/// The branches from every Hopf point of `r`, with [`QuasiPeriodicSettings::for_sweep`]. A
 /// branch that cannot start is reported on stderr and left out.
 pub fn branches(
     model: &sim::NumericModel,
@@ -18,13 +17,7 @@ pub fn branches(
     (from, to): (f64, f64),
     points: usize,
 ) -> Vec<QuasiPeriodicBranch> {
-    let order = r.harmonics.iter().copied().max().unwrap_or(1).clamp(5, 15);
-    let s = QuasiPeriodicSettings {
-        harmonics: order,
-        points: (points / 4).clamp(20, 1000),
-        f_range_hz: (from, to),
-        ..QuasiPeriodicSettings::default()
-    };
+    let s = QuasiPeriodicSettings::for_sweep(r, (from, to), points);
     let mut out = Vec::new();
     for (i, h) in r.hopf.iter().enumerate() {
         match sim::quasi_periodic_branch(model, force, r, i, &s) {

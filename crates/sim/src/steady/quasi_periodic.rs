@@ -36,6 +36,21 @@ pub struct QuasiPeriodicSettings {
     pub tol: f64,
 }
 
+impl QuasiPeriodicSettings {
+    /// The settings for the branches from a sweep's Hopf points (`harmonid sweep
+    /// --limit-cycles`, Python `sweep(limit_cycles=True)`): lattice order `|k₁| + |k₂|` the
+    /// sweep's highest harmonic, at least 5 and at most 15; about a quarter of the sweep's
+    /// `points` (20 to 1000); the drive within the sweep's range `f_range_hz`.
+    pub fn for_sweep(r: &SweepResult, f_range_hz: (f64, f64), points: usize) -> Self {
+        Self {
+            harmonics: r.harmonics.iter().copied().max().unwrap_or(1).clamp(5, 15),
+            points: (points / 4).clamp(20, 1000),
+            f_range_hz,
+            ..Self::default()
+        }
+    }
+}
+
 impl Default for QuasiPeriodicSettings {
     fn default() -> Self {
         Self {
