@@ -11,9 +11,8 @@
 
 use harmonid::ident::{discover, DiscoverSettings, ForceModel, Library, LibraryForm};
 use harmonid_data::Dataset;
-use harmonid_experiment::{Plan, PlanMeasurement, PlanNoise, Settings};
+use harmonid_experiment::{Plan, PlanNoise, Settings};
 use harmonid_testgen as gen;
-use std::collections::BTreeMap;
 
 /// The device: two modes at 1 and 1.7 MHz, Q = 100, Duffing shifts of about half a linewidth
 /// and nonlinear damping of about a third of a linewidth at 10 nm.
@@ -114,31 +113,7 @@ fn simulate(model: &str, v: &gen::Values, designs: &[gen::Design], sigma: f64) -
             sigma_per_quadrature: sigma,
             shots: 5,
         },
-        measurements: designs
-            .iter()
-            .map(|d| {
-                let mut force = BTreeMap::new();
-                for (k, &(_, n, f)) in d.tones.iter().enumerate() {
-                    force
-                        .entry(names[n].clone())
-                        .or_insert_with(|| vec![0.0; d.tones.len()])[k] = f;
-                }
-                PlanMeasurement {
-                    name: d.name.clone(),
-                    drives_hz: d.tones.iter().map(|t| t.0).collect(),
-                    force,
-                    phase_rad: BTreeMap::new(),
-                    measure_hz: None,
-                    drive_levels_v: Some(d.tones.iter().map(|t| t.2).collect()),
-                    drive_phases_rad: Some(vec![0.0; d.tones.len()]),
-                    pumps_hz: Vec::new(),
-                    pump_levels: None,
-                    pump_phases_rad: None,
-                    bandwidth_hz: None,
-                    levels: Vec::new(),
-                }
-            })
-            .collect(),
+        measurements: gen::plan_measurements(designs, &names),
         instrument: None,
     };
     let settings = Settings {

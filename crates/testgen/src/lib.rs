@@ -123,6 +123,36 @@ pub fn simulate(
     )
 }
 
+/// The plan measurements of `designs` for modes `names`: each tone's force on its mode (N/kg,
+/// phase 0), its drive level the force itself (so the gains are one), no pumps, no ladder.
+pub fn plan_measurements(designs: &[Design], names: &[String]) -> Vec<PlanMeasurement> {
+    designs
+        .iter()
+        .map(|d| {
+            let mut force = BTreeMap::new();
+            for (k, &(_, n, f)) in d.tones.iter().enumerate() {
+                force
+                    .entry(names[n].clone())
+                    .or_insert_with(|| vec![0.0; d.tones.len()])[k] = f;
+            }
+            PlanMeasurement {
+                name: d.name.clone(),
+                drives_hz: d.tones.iter().map(|t| t.0).collect(),
+                force,
+                phase_rad: BTreeMap::new(),
+                measure_hz: None,
+                drive_levels_v: Some(d.tones.iter().map(|t| t.2).collect()),
+                drive_phases_rad: Some(vec![0.0; d.tones.len()]),
+                pumps_hz: Vec::new(),
+                pump_levels: None,
+                pump_phases_rad: None,
+                bandwidth_hz: None,
+                levels: Vec::new(),
+            }
+        })
+        .collect()
+}
+
 /// [`simulate`] without noise: every shot is the noise-free steady state (the truth's noise
 /// is 0). The steady state does not depend on the noise, so a Monte Carlo simulates it once
 /// and draws each realisation by [`add_noise`].
@@ -155,31 +185,7 @@ pub fn simulate_clean(
             sigma_per_quadrature: 1e-12,
             shots,
         },
-        measurements: designs
-            .iter()
-            .map(|d| {
-                let mut force = BTreeMap::new();
-                for (k, &(_, n, f)) in d.tones.iter().enumerate() {
-                    force
-                        .entry(names[n].clone())
-                        .or_insert_with(|| vec![0.0; d.tones.len()])[k] = f;
-                }
-                PlanMeasurement {
-                    name: d.name.clone(),
-                    drives_hz: d.tones.iter().map(|t| t.0).collect(),
-                    force,
-                    phase_rad: BTreeMap::new(),
-                    measure_hz: None,
-                    drive_levels_v: Some(d.tones.iter().map(|t| t.2).collect()),
-                    drive_phases_rad: Some(vec![0.0; d.tones.len()]),
-                    pumps_hz: Vec::new(),
-                    pump_levels: None,
-                    pump_phases_rad: None,
-                    bandwidth_hz: None,
-                    levels: Vec::new(),
-                }
-            })
-            .collect(),
+        measurements: plan_measurements(designs, &names),
         instrument: None,
     };
     let mut ds = plan
