@@ -258,11 +258,18 @@ fn potential_terms_of_eom(m: &Model) -> usize {
     m.eom.iter().map(|e| e.terms().count()).sum()
 }
 
-/// The velocity library (issue 36, item 4): on the softened, nonlinearly damped mode's stepped
-/// sweeps (four levels up and down, 3 shots, 0.02 nm), started from the Duffing term alone,
-/// discover adds `q1^2*d(q1)` (the truth's damping) and no other term.
-#[test]
-fn velocity_library_finds_the_nonlinear_damping() {
+/// The softened, nonlinearly damped mode's stepped sweeps (four levels up and down, 3 shots,
+/// 0.02 nm) with what discovery starts from: the Duffing term alone, the cubic velocity
+/// library, a gain per mode.
+struct DampedFromDuffing {
+    v: gen::Values,
+    ds: Dataset,
+    start: Model,
+    library: Library,
+    settings: DiscoverSettings,
+}
+
+fn damped_from_duffing() -> DampedFromDuffing {
     let damped = harmonid::model::parse_str(gen::DAMPED_DUFFING, "damped.hb").expect("model");
     let (v, sweeps) = gen::hysteretic_sweeps(4, 24);
     let clean = gen::simulate_sweeps_clean(&damped, &v, &sweeps, &[1.0], 3);
@@ -279,6 +286,27 @@ fn velocity_library_finds_the_nonlinear_damping() {
     };
     let mut settings = DiscoverSettings::default();
     settings.identify.force_model = harmonid::ident::ForceModel::GainPerMode;
+    DampedFromDuffing {
+        v,
+        ds,
+        start,
+        library,
+        settings,
+    }
+}
+
+/// The velocity library (issue 36, item 4): on the softened, nonlinearly damped mode's stepped
+/// sweeps (four levels up and down, 3 shots, 0.02 nm), started from the Duffing term alone,
+/// discover adds `q1^2*d(q1)` (the truth's damping) and no other term.
+#[test]
+fn velocity_library_finds_the_nonlinear_damping() {
+    let DampedFromDuffing {
+        v,
+        ds,
+        start,
+        library,
+        settings,
+    } = damped_from_duffing();
     let found = discover(&start, &ds, &library, &settings, |_, _| {}).expect("discover");
     let steps: Vec<String> = found
         .steps
@@ -316,22 +344,13 @@ fn velocity_library_finds_the_nonlinear_damping() {
 /// refused, naming the option.
 #[test]
 fn under_an_error_floor_the_held_out_prediction_selects_the_damping() {
-    let damped = harmonid::model::parse_str(gen::DAMPED_DUFFING, "damped.hb").expect("model");
-    let (v, sweeps) = gen::hysteretic_sweeps(4, 24);
-    let clean = gen::simulate_sweeps_clean(&damped, &v, &sweeps, &[1.0], 3);
-    let ds = gen::add_noise(&clean, 2e-11, 5);
-    let start = harmonid::model::parse_str(
-        "mode q1 at 1 MHz\nparam beta1\npotential: beta1/4*q1^4\n",
-        "duffing.hb",
-    )
-    .expect("model");
-    let library = Library {
-        degrees: vec![3],
-        form: LibraryForm::Equation,
-        velocities: true,
-    };
-    let mut settings = DiscoverSettings::default();
-    settings.identify.force_model = harmonid::ident::ForceModel::GainPerMode;
+    let DampedFromDuffing {
+        ds,
+        start,
+        library,
+        mut settings,
+        ..
+    } = damped_from_duffing();
     settings.identify.error_floor = true;
     let err = discover(&start, &ds, &library, &settings, |_, _| {}).expect_err("no holdout");
     assert!(err.to_string().contains("--holdout"), "{err}");
