@@ -751,50 +751,110 @@ impl NumericModel {
         }
     }
 
-    /// Checks that along each mode's own axis the restoring force `ω² q + Σ b q^k` does not
-    /// turn negative for large `q`: the highest pure power must be odd with a positive
-    /// coefficient, or absent with nothing else making the linear stiffness negative.
+    /// Checks that no mode runs away along its own axis. Where the stiffness at rest
+    /// (`ω² + b` of the linear own term, plus `c/τ` of a `c·tanh(q/τ)` term, s⁻²) is positive
+    /// the mode has a well to oscillate in and is accepted (a softening Duffing or `|q|q`
+    /// term bounds it only locally, as the sweeps need). Otherwise the force along `±q`
+    /// must grow back towards rest in both directions: its leading power at large `|q|`,
+    /// polynomial own powers and position-only non-smooth terms together (`abs(q)*q`
+    /// grows like `q²` and is odd, `sign(q)` and `tanh(q/τ)` like `q⁰`), must push back.
     fn check_bounded(&self) -> Result<(), SimError> {
         for n in 0..self.n_modes() {
+            let name = &self.mode_names[n];
             let mut lin = self.omega(n).powi(2);
-            let mut lead: Option<(u32, f64)> = None;
+            let mut at_rest = lin;
+            // (degree, coefficient along +q, along −q, term) of the force at large |q|.
+            let mut growth: Vec<(u32, f64, f64, String)> = Vec::new();
             for t in self.eq_terms(n) {
-                if t.factors.len() == 1 && t.factors[0].0 == n {
-                    let k = t.factors[0].1;
-                    if k == 1 {
+                if let [(m, k)] = t.factors[..] {
+                    if m == n && k == 1 {
                         lin += t.coef;
-                    } else if lead.is_none_or(|(d, _)| k > d) {
-                        lead = Some((k, t.coef));
+                        at_rest += t.coef;
+                    } else if m == n {
+                        let minus = if k % 2 == 0 { t.coef } else { -t.coef };
+                        growth.push((k, t.coef, minus, format!("{name}^{k}")));
                     }
                 }
             }
-            let name = &self.mode_names[n];
-            match lead {
-                None if lin <= 0.0 => {
-                    return Err(SimError::Unbounded {
-                        mode: name.clone(),
-                        why: format!(
-                            "its linear stiffness ω² + b = {lin:.3e} s⁻² is not positive and no higher power of {name} stops it"
-                        ),
-                    })
+            for t in self.rough.iter().filter(|t| t.eq == n) {
+                if let Some((g, slope)) = own_axis_growth(t, n) {
+                    at_rest += slope;
+                    growth.push(g);
                 }
-                Some((k, c)) if k % 2 == 0 && lin <= 0.0 => {
-                    return Err(SimError::Unbounded {
-                        mode: name.clone(),
-                        why: format!("its stiffness is negative and its highest own power {name}^{k} (coefficient {c:.3e}) is even"),
-                    })
-                }
-                Some((k, c)) if k % 2 == 1 && c < 0.0 && lin <= 0.0 => {
-                    return Err(SimError::Unbounded {
-                        mode: name.clone(),
-                        why: format!("its stiffness is negative and its highest own power {name}^{k} has a negative coefficient {c:.3e}"),
-                    })
-                }
-                _ => {}
+            }
+            if at_rest > 0.0 {
+                continue;
+            }
+            growth.push((1, lin, -lin, format!("ω²·{name}")));
+            if let Some(why) = runaway(&growth, name, at_rest) {
+                return Err(SimError::Unbounded {
+                    mode: name.clone(),
+                    why,
+                });
             }
         }
         Ok(())
     }
+}
+
+/// A position-only term of mode `n`'s own equation (`c·|q|^a·q^m·sign(q)^s·tanh(q/τ)^h`):
+/// its growth at large `|q|` as `(degree a + m, coefficient along +q, along −q, name)`,
+/// and its stiffness at rest (`c/τ` for `c·tanh(q/τ)`, else 0). `None` for a term holding
+/// another variable.
+fn own_axis_growth(t: &RoughTerm, n: usize) -> Option<((u32, f64, f64, String), f64)> {
+    if t.factors.iter().any(|&(m, _)| m != n)
+        || t.nonsmooth.iter().any(|(f, _)| f.var().index() != n)
+    {
+        return None;
+    }
+    let mut degree: u32 = t.factors.iter().map(|&(_, k)| k).sum();
+    let mut odd = degree % 2 == 1;
+    for &(f, k) in &t.nonsmooth {
+        match f {
+            harmonid_model::NonSmooth::Abs(_) => degree += k,
+            _ => odd ^= k % 2 == 1,
+        }
+    }
+    let slope = match (&t.factors[..], &t.nonsmooth[..]) {
+        ([], [(harmonid_model::NonSmooth::Tanh(_, c), 1)]) => t.coef / c,
+        _ => 0.0,
+    };
+    let minus = if odd { -t.coef } else { t.coef };
+    Some(((degree, t.coef, minus, t.name.clone()), slope))
+}
+
+/// Why the force `Σ c_s |q|^d` (entries of `growth`: degree, coefficient along +q, along
+/// −q, term) fails to push a mode back from large `|q|` in some direction, if it does: the
+/// leading degree whose coefficients do not cancel must have `c₊ > 0` and `c₋ < 0`.
+fn runaway(growth: &[(u32, f64, f64, String)], name: &str, at_rest: f64) -> Option<String> {
+    let top = |sign: f64| {
+        let mut degrees: Vec<u32> = growth.iter().map(|g| g.0).collect();
+        degrees.sort_unstable();
+        degrees.dedup();
+        degrees.into_iter().rev().find_map(|d| {
+            let of_d = growth.iter().filter(|g| g.0 == d);
+            let c: f64 = of_d
+                .clone()
+                .map(|g| if sign > 0.0 { g.1 } else { g.2 })
+                .sum();
+            let scale: f64 = of_d.clone().map(|g| g.1.abs()).sum();
+            let names: Vec<&str> = of_d.map(|g| g.3.as_str()).collect();
+            (c.abs() > 1e-12 * scale).then(|| (d, c, names.join(" + ")))
+        })
+    };
+    for (sign, dir) in [(1.0, "+"), (-1.0, "−")] {
+        let head = format!("its stiffness at rest {at_rest:.3e} s⁻² is not positive and");
+        match top(sign) {
+            None => return Some(format!("{head} no higher power of {name} stops it")),
+            Some((d, c, terms)) if c * sign <= 0.0 => {
+                return Some(format!(
+                    "{head} along {dir}{name} its leading force {terms} (degree {d}, {c:.3e} per unit |{name}|^{d}) pushes away from rest"
+                ))
+            }
+            _ => {}
+        }
+    }
+    None
 }
 
 fn flat_pp(m: &PowerProduct) -> Vec<(usize, u32)> {

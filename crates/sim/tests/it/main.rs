@@ -1,6 +1,7 @@
 //! The integration tests of `harmonid-sim`, one test binary (`cargo test --release -p harmonid-sim --test it`):
 //! one module per subject, built and linked once.
 
+mod bounded;
 mod decoupled_modes;
 mod finite_inputs;
 mod hopf;
