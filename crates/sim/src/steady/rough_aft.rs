@@ -1,44 +1,40 @@
 //! Alternating frequency–time for the non-smooth terms on a lattice (issue 36).
 //!
-//! The lattice's lines must be harmonics `k_r f_0` of one common frequency `f_0` (one drive
-//! tone and its harmonics, or commensurate tones); the signals are then periodic with period
-//! `1/f_0`. Each evaluation synthesises the modes, velocities and pump at `N_t` equally
-//! spaced instants of that period, evaluates the non-smooth terms there, and projects back
-//! onto the lines: `F_r = (2/N_t) Σ_j f(t_j) e^{−i 2π k_r j/N_t}` (`F_0 = (1/N_t) Σ_j f(t_j)`
-//! for the static line), the convention of the exact spectral products (`x(t) = Σ_r Re(X_r
-//! e^{iΩ_r t})`).
+//! The signals are sampled on a grid (see [`grid`]): over one common period when the lattice's
+//! lines are harmonics `k_r f_0` of one frequency, else on the torus of the drive's generators
+//! (`θ_i = ω_i t`, each line a combination `k_r·ω`), whose average equals the time average of a
+//! quasi-periodic signal. Each evaluation synthesises the modes, velocities and pump at the
+//! `N` samples, `x_j = Σ_r Re(X_r e^{iφ_{j,r}})` with `φ_{j,r} = k_r·θ_j`, evaluates the
+//! non-smooth terms there, and projects back onto the lines: `F_r = (2/N) Σ_j f_j
+//! e^{−iφ_{j,r}}` (`F_0 = (1/N) Σ_j f_j` for the static line), the convention of the exact
+//! spectral products (`x(t) = Σ_r Re(X_r e^{iΩ_r t})`).
 //!
-//! `N_t` is a power of two, at least [`ROUGH_MIN_SAMPLES`] and [`ROUGH_SAMPLES_PER_HARMONIC`]
-//! times the highest harmonic `k_r`, at most 2^17 (16 samples per harmonic at the highest
-//! harmonic accepted, the 8192nd: two tones 5 Hz apart near 10 kHz are harmonics ~2000 of 5 Hz). A non-smooth spectrum never ends, so some aliasing is
-//! always left: for `|x| x` (a jump in the second derivative) the error of the fundamental
-//! falls like `N_t^{-3}`, far below 1e-9 relative at 4096 samples. A jump (`sign`) or a
-//! near-jump (`tanh` of a small scale) is evaluated as its average over each sample's cell,
-//! the variable interpolated linearly across the cell (`sign`: the crossing's position;
-//! `tanh(x/c)`: `c·ln cosh(x/c)` differenced): the coefficients then move continuously with
-//! the amplitudes, so Newton converges, and the error is `O(N_t^{-2})` (about 2e-7 relative
-//! for Coulomb friction at 4096 samples).
+//! A non-smooth spectrum never ends, so some aliasing is always left: for `|x| x` (a jump in
+//! the second derivative) the error falls like `N^{-3}` along each axis, far below 1e-9
+//! relative at 4096 samples of one period, about 1e-8 with 128 samples per axis of a two-tone
+//! torus. A jump (`sign`) or a near-jump (`tanh` of a small scale) is evaluated as its average
+//! over each sample's cell along the grid's diagonal (the time axis of one period; on a torus
+//! the straight line `(1, …, 1)` in samples, close to the flow `θ = ω t` of tones near one
+//! frequency), the variable interpolated linearly across the cell (`sign`: the crossing's
+//! position; `tanh(x/c)`: `c·ln cosh(x/c)` differenced): the coefficients then move
+//! continuously with the amplitudes, so Newton converges, and the error is `O(h^2)` in the cell
+//! width `h` (about 2e-7 relative for Coulomb friction at 4096 samples of one period).
 //!
 //! The Jacobian of these terms is taken by central differences of the projected forces in
 //! each real unknown (the pointwise derivative of `sign` is zero, which the harmonic
 //! coefficients' derivative is not).
 
+mod grid;
+
 use super::{HbSettings, HbSolver, HbStatus, SteadyState};
 use crate::lattice::LINE_TOL_HZ;
 use crate::rough::RoughTerm;
-use crate::{NumericModel, SimError};
+use crate::{Excitation, NumericModel, SimError};
+pub(crate) use grid::Grid;
+pub use grid::ROUGH_MIN_SAMPLES;
 use harmonid_model::NonSmooth;
 use num_complex::Complex64;
 use std::f64::consts::TAU;
-
-/// Fewest samples of the common period.
-pub const ROUGH_MIN_SAMPLES: usize = 4096;
-/// Fewest samples per period of the highest harmonic on the lattice.
-pub const ROUGH_SAMPLES_PER_HARMONIC: usize = 32;
-/// Highest harmonic of the common frequency a lattice line may be.
-const MAX_HARMONIC: usize = 8192;
-/// Most samples of the common period (the tables hold `samples × lines` sines and cosines).
-const MAX_SAMPLES: usize = 1 << 17;
 
 /// The non-smooth terms of a model on one lattice: tables and buffers, allocated once.
 #[derive(Debug, Clone)]
@@ -48,8 +44,11 @@ pub(crate) struct RoughAft {
     nr: usize,
     nv: usize,
     nt: usize,
-    /// `cos(2π k_r j/N_t)`, `sin(...)` at `[j·R + r]`.
+    /// `cos(k_r·θ_j)`, `sin(...)` at `[j·R + r]`.
     cos: Vec<f64>,
+    /// The samples one step back and on along the grid's diagonal (cell averages of jumps).
+    prev: Vec<u32>,
+    next: Vec<u32>,
     sin: Vec<f64>,
     /// Angular frequency of each line, rad/s.
     omega: Vec<f64>,
@@ -63,51 +62,53 @@ pub(crate) struct RoughAft {
 }
 
 impl RoughAft {
-    /// The set-up for `model`'s non-smooth terms on `lattice` (Hz, sorted), or `None` for a
-    /// model without. Errors: lines that are not harmonics of one frequency.
-    pub(crate) fn new(model: &NumericModel, lattice: &[f64]) -> Result<Option<Self>, SimError> {
+    /// The set-up for `model`'s non-smooth terms on `lattice` (Hz, sorted) under `drive`'s
+    /// generators, or `None` for a model without. Errors: lines that are neither harmonics of
+    /// one frequency nor combinations of the generators, or a torus grid too large.
+    pub(crate) fn new(
+        model: &NumericModel,
+        drive: &Excitation,
+        lattice: &[f64],
+    ) -> Result<Option<Self>, SimError> {
         if !model.has_nonsmooth() {
             return Ok(None);
         }
-        let harm = common_harmonics(lattice).ok_or_else(|| SimError::NonSmooth {
-            what: "harmonic balance",
-            terms: names(model),
-            why: format!(
-                "they are evaluated by sampling one common period, and the lattice's lines ({}) are not harmonics of one frequency (up to the {MAX_HARMONIC}th harmonic of their common divisor); drive one tone, or tones whose spacing divides their frequencies",
-                line_list(lattice)
-            ),
-        })?;
-        let kmax = harm.iter().copied().max().unwrap_or(1).max(1);
-        let nt = (ROUGH_SAMPLES_PER_HARMONIC * kmax)
-            .max(ROUGH_MIN_SAMPLES)
-            .next_power_of_two()
-            .min(MAX_SAMPLES);
-        let nr = lattice.len();
-        let mut cos = vec![0.0; nt * nr];
-        let mut sin = vec![0.0; nt * nr];
-        for j in 0..nt {
-            for (r, &k) in harm.iter().enumerate() {
-                let th = TAU * ((k * j) % nt) as f64 / nt as f64;
-                cos[j * nr + r] = th.cos();
-                sin[j * nr + r] = th.sin();
+        let grid = Grid::choose(&drive.generators_hz(), lattice).map_err(|why| {
+            SimError::NonSmooth {
+                what: "harmonic balance",
+                terms: names(model),
+                why: format!(
+                    "they are evaluated by sampling the signals, and the lattice ({}) has no grid: {why}",
+                    line_list(lattice)
+                ),
             }
-        }
+        })?;
+        Ok(Some(Self::with_grid(model, &grid, lattice)))
+    }
+
+    /// The set-up on a given grid (whose lines are `lattice`'s, Hz).
+    pub(crate) fn with_grid(model: &NumericModel, grid: &Grid, lattice: &[f64]) -> Self {
+        let nt = grid.samples();
+        let (cos, sin) = grid.tables();
+        let (prev, next) = grid.neighbours();
         let nm = model.n_modes();
         let nv = model.n_vars();
-        Ok(Some(Self {
+        Self {
             terms: model.rough_terms().to_vec(),
             nm,
-            nr,
+            nr: lattice.len(),
             nv,
             nt,
             cos,
             sin,
+            prev,
+            next,
             omega: lattice.iter().map(|&f| TAU * f).collect(),
             xs: vec![0.0; nt * nv],
             fs: vec![0.0; nt * nm],
-            plus: vec![Complex64::new(0.0, 0.0); nm * nr],
-            minus: vec![Complex64::new(0.0, 0.0); nm * nr],
-        }))
+            plus: vec![Complex64::new(0.0, 0.0); nm * lattice.len()],
+            minus: vec![Complex64::new(0.0, 0.0); nm * lattice.len()],
+        }
     }
 
     /// Whether a term holds a jump (`sign`) or a near-jump (`tanh`).
@@ -170,8 +171,8 @@ impl RoughAft {
                     let y = match f {
                         NonSmooth::Abs(_) => f.value(x[i]),
                         _ => {
-                            let prev = self.xs[((j + nt - 1) % nt) * nv + i];
-                            let next = self.xs[((j + 1) % nt) * nv + i];
+                            let prev = self.xs[self.prev[j] as usize * nv + i];
+                            let next = self.xs[self.next[j] as usize * nv + i];
                             cell_average(f, prev, x[i], next)
                         }
                     };
@@ -382,50 +383,6 @@ fn log_cosh(y: f64) -> f64 {
     }
 }
 
-/// The whole numbers `k_r` with `lattice[r] = k_r f_0` for one common frequency `f_0` (the
-/// greatest common divisor of the lines, by Euclid's algorithm to the line tolerance), or
-/// `None` when the lines are not harmonics of one frequency up to [`MAX_HARMONIC`].
-fn common_harmonics(lattice: &[f64]) -> Option<Vec<usize>> {
-    let tol = LINE_TOL_HZ.max(1e-9 * lattice.iter().copied().fold(0.0, f64::max));
-    let mut f0 = 0.0f64;
-    for &f in lattice.iter().filter(|&&f| f > tol) {
-        f0 = if f0 == 0.0 { f } else { float_gcd(f0, f, tol) };
-    }
-    if f0 == 0.0 {
-        return Some(vec![0; lattice.len()]);
-    }
-    if f0 <= tol {
-        return None;
-    }
-    let mut ks = Vec::with_capacity(lattice.len());
-    for &f in lattice {
-        let k = (f / f0).round();
-        if k > MAX_HARMONIC as f64 || (f - k * f0).abs() > tol {
-            return None;
-        }
-        ks.push(k as usize);
-    }
-    Some(ks)
-}
-
-/// The greatest common divisor of two positive frequencies to within `tol` (Hz): Euclid's
-/// algorithm, a remainder within `tol` of 0 or of the divisor counting as none.
-fn float_gcd(a: f64, b: f64, tol: f64) -> f64 {
-    let (mut a, mut b) = (a.max(b), a.min(b));
-    for _ in 0..200 {
-        if b <= tol {
-            return a;
-        }
-        let mut r = a % b;
-        if r <= tol || b - r <= tol {
-            r = 0.0;
-        }
-        a = b;
-        b = r;
-    }
-    0.0
-}
-
 /// The lattice's lines for a message, the first eight and a count.
 fn line_list(lattice: &[f64]) -> String {
     let mut out: Vec<String> = lattice.iter().take(8).map(|f| format!("{f} Hz")).collect();
@@ -447,13 +404,64 @@ fn names(model: &NumericModel) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::ModelValues;
+
+    fn abs_model() -> NumericModel {
+        let src = "mode q1, f = 10 kHz, Q = 1000\nparam kappa1, drag1\neom q1 += kappa1*abs(q1)*q1 + drag1*abs(d(q1))*d(q1)\n";
+        let m = harmonid_model::parse_str(src, "test.hb").expect("parses");
+        let mut v = ModelValues::default();
+        v.parameters.insert("kappa1".into(), 3e13);
+        v.parameters.insert("drag1".into(), 7e2);
+        NumericModel::from_model(&m, &v).expect("numeric model")
+    }
+
+    fn forces(grid: &Grid, lattice: &[f64], x: &[Complex64]) -> Vec<Complex64> {
+        let mut aft = RoughAft::with_grid(&abs_model(), grid, lattice);
+        let mut out = vec![Complex64::new(0.0, 0.0); x.len()];
+        aft.add_forces(x, &[], &mut out);
+        out
+    }
 
     #[test]
-    fn harmonics_of_a_common_frequency() {
-        assert_eq!(common_harmonics(&[0.0, 100.0, 300.0]), Some(vec![0, 1, 3]));
-        assert_eq!(common_harmonics(&[200.0, 300.0]), Some(vec![2, 3]));
-        assert_eq!(common_harmonics(&[9990.0, 9995.0]), Some(vec![1998, 1999]));
-        assert_eq!(common_harmonics(&[100.0, 100.0 * 2f64.sqrt()]), None);
+    fn torus_grids_agree_with_one_period_on_harmonic_lattices() {
+        // One tone and its harmonics 3 and 5: one period of 4096 samples against the torus
+        // rule's 256 (32 per period of the 5th harmonic) and against a two-axis torus whose
+        // second generator no line excites (its average over θ2 is trivial).
+        let f = 10_003.7;
+        let lattice = [f, 3.0 * f, 5.0 * f];
+        let x = [
+            Complex64::new(0.7e-6, -0.4e-6),
+            Complex64::new(2e-8, 1e-8),
+            Complex64::new(-3e-9, 0.0),
+        ];
+        let one = Grid::choose(&[f], &lattice).expect("a grid");
+        assert_eq!(one.dims, vec![4096]);
+        let reference = forces(&one, &lattice, &x);
+        let coarse = Grid {
+            dims: vec![256],
+            k: vec![1, 3, 5],
+        };
+        let mut lat2 = lattice.to_vec();
+        lat2.push(f * 1.37);
+        let mut x2 = x.to_vec();
+        x2.push(Complex64::new(0.0, 0.0));
+        let two = Grid {
+            dims: vec![256, 8],
+            k: vec![1, 0, 3, 0, 5, 0, 0, 1],
+        };
+        let big = reference[0].norm();
+        let a = forces(&coarse, &lattice, &x);
+        let b = forces(&two, &lat2, &x2);
+        for r in 0..3 {
+            let (ea, eb) = ((a[r] - reference[r]).norm(), (b[r] - a[r]).norm());
+            assert!(
+                ea < 1e-6 * big,
+                "line {r}: 256 vs 4096 samples {:e}",
+                ea / big
+            );
+            assert!(eb < 1e-12 * big, "line {r}: two axes vs one {:e}", eb / big);
+        }
+        assert!(b[3].norm() < 1e-12 * big);
     }
 
     #[test]

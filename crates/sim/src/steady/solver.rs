@@ -211,7 +211,7 @@ impl HbSolver {
         let nr = lattice.len();
         let ops = Operators::new(model, drive, &lattice, plan)?;
         let nu = 2 * nm * nr;
-        let rough = RoughAft::new(model, &lattice)?;
+        let rough = RoughAft::new(model, drive, &lattice)?;
         Ok(Self {
             rough,
             model: model.clone(),
