@@ -137,6 +137,12 @@ pub enum SimError {
         /// Parameters the terms depend on.
         params: usize,
     },
+    /// A sensitivity to the force on a mode the reduced solver leaves idle.
+    #[error("the sensitivity to a force on mode {mode} (index from 0) is asked of a solver that leaves that mode idle (the drive does not reach it): set the solver up with the mode among its forced modes")]
+    IdleForce {
+        /// The mode (0-based).
+        mode: usize,
+    },
     /// A solver, or a set-up made for one, is used with another model or lattice.
     #[error("{what}: the model's modes, terms or lattice differ from the ones it was set up for")]
     SetUpFor {

@@ -46,6 +46,20 @@ impl Excitation {
         }
     }
 
+    /// The same tones and pump on the modes `modes` alone (indices into this drive's modes;
+    /// out-of-range ones get no force): the drive of [`crate::NumericModel::restricted`].
+    pub fn restricted(&self, modes: &[usize]) -> Excitation {
+        let none = vec![Complex64::new(0.0, 0.0); self.tones_hz.len()];
+        Excitation {
+            tones_hz: self.tones_hz.clone(),
+            force: modes
+                .iter()
+                .map(|&m| self.force.get(m).unwrap_or(&none).clone())
+                .collect(),
+            pumps: self.pumps.clone(),
+        }
+    }
+
     /// The pump frequencies, Hz.
     pub fn pump_hz(&self) -> Vec<f64> {
         self.pumps.iter().map(|p| p.hz).collect()

@@ -48,13 +48,13 @@ pub use response::{
     MAX_RESPONSE_UNKNOWNS, RESPONSE_DEPTH,
 };
 pub use rough::RoughTerm;
-pub use sensitivity::{Observation, SensParam, Sensitivity};
+pub use sensitivity::{Observation, ReducedSensitivity, SensParam, Sensitivity};
 pub use steady::{
     backbone, check_stability, convergence_report, limit_cycle, quasi_periodic_branch,
-    steady_state, steady_state_from, stepped_sweep, sweep, sweep_two_tone, BranchEnd,
+    steady_state, steady_state_from, stepped_sweep, sweep, sweep_two_tone, ActiveModes, BranchEnd,
     ConvergenceReport, Fold, HbSettings, HbSolver, HbStatus, Hopf, LimitCycle, ModeLine,
-    QuasiPeriodicBranch, QuasiPeriodicPoint, QuasiPeriodicSettings, Stability, SteadyState,
-    SweepPoint, SweepResult, SweepSettings, TwoToneCurve, TwoToneJump, TwoTonePoint,
+    QuasiPeriodicBranch, QuasiPeriodicPoint, QuasiPeriodicSettings, ReducedSolver, Stability,
+    SteadyState, SweepPoint, SweepResult, SweepSettings, TwoToneCurve, TwoToneJump, TwoTonePoint,
     TwoToneSettings, TwoToneStatus, TwoToneSweep, CONDENSE_SEPARATION, MAX_MODES,
     MAX_SWEEP_HARMONICS, MAX_SWEEP_HZ, MAX_SWEEP_POINTS,
 };

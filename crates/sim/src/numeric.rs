@@ -523,6 +523,84 @@ impl NumericModel {
         Self::with_rough_terms(mode_names.to_vec(), f_hz, q, terms, rough)
     }
 
+    /// The model on the modes `modes` alone (indices into this model's modes, ascending,
+    /// distinct): their equations, with the terms whose every factor (position, velocity, or
+    /// non-smooth function of one) is a kept mode; the pump stays. Each term keeps its
+    /// coefficient and parameter gradient, and variables are renumbered in the order of
+    /// `modes`. Where every other mode is identically zero (the modes a drive cannot reach,
+    /// [`crate::ActiveModes`]) the dropped terms vanish, and the kept equations are exactly
+    /// the full model's. Errors: an index out of range or out of order.
+    pub fn restricted(&self, modes: &[usize]) -> Result<NumericModel, SimError> {
+        let n = self.n_modes();
+        if let Some(&index) = modes
+            .iter()
+            .enumerate()
+            .find(|&(i, &m)| m >= n || (i > 0 && modes[i - 1] >= m))
+            .map(|(_, m)| m)
+        {
+            return Err(SimError::ModeIndex { index, n_modes: n });
+        }
+        let k = modes.len();
+        // Old variable -> new variable (modes, velocities, pump), `None` when dropped.
+        let mut map = vec![None; 2 * n + 1];
+        for (i, &m) in modes.iter().enumerate() {
+            map[m] = Some(i);
+            map[n + m] = Some(k + i);
+        }
+        map[2 * n] = Some(2 * k);
+        let eq_of = |e: usize| modes.iter().position(|&m| m == e);
+        let remap = |factors: &[(usize, u32)]| -> Option<Vec<(usize, u32)>> {
+            factors.iter().map(|&(v, e)| Some((map[v]?, e))).collect()
+        };
+        let mut terms = Vec::new();
+        for (t, grad) in self.terms.iter().zip(&self.param_grad) {
+            if let (Some(eq), Some(factors)) = (eq_of(t.eq), remap(&t.factors)) {
+                let term = Term {
+                    eq,
+                    coef: t.coef,
+                    factors,
+                };
+                terms.push((term, grad.clone()));
+            }
+        }
+        let mut rough = Vec::new();
+        for (t, grad) in self.rough.iter().zip(&self.rough_grad) {
+            let nonsmooth: Option<Vec<_>> = t
+                .nonsmooth
+                .iter()
+                .map(|&(f, e)| {
+                    use harmonid_model::NonSmooth;
+                    let v = harmonid_poly::VarId(map[f.var().index()]? as u32);
+                    let f = match f {
+                        NonSmooth::Abs(_) => NonSmooth::Abs(v),
+                        NonSmooth::Sign(_) => NonSmooth::Sign(v),
+                        NonSmooth::Tanh(_, c) => NonSmooth::Tanh(v, c),
+                    };
+                    Some((f, e))
+                })
+                .collect();
+            if let (Some(eq), Some(factors), Some(nonsmooth)) =
+                (eq_of(t.eq), remap(&t.factors), nonsmooth)
+            {
+                let term = RoughTerm {
+                    eq,
+                    coef: t.coef,
+                    factors,
+                    nonsmooth,
+                    name: t.name.clone(),
+                };
+                rough.push((term, grad.clone()));
+            }
+        }
+        Self::with_gradients(
+            modes.iter().map(|&m| self.mode_names[m].clone()).collect(),
+            modes.iter().map(|&m| self.f_hz[m]).collect(),
+            modes.iter().map(|&m| self.q_factor[m]).collect(),
+            terms,
+            rough,
+        )
+    }
+
     /// Number of modes.
     pub fn n_modes(&self) -> usize {
         self.mode_names.len()

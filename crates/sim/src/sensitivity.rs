@@ -25,7 +25,7 @@
 
 use crate::lattice::LINE_TOL_HZ;
 use crate::linalg::ColumnScratch;
-use crate::steady::{variable_spectra, HbSolver, SteadyState};
+use crate::steady::{variable_spectra, HbSolver, ReducedSolver, SteadyState};
 use crate::SimError;
 use harmonid_poly::PowerProduct;
 use harmonid_spectral::{SystemPlan, SystemScratch};
@@ -334,6 +334,150 @@ impl Sensitivity {
                     s += Complex64::new(col[2 * i], col[2 * i + 1]) * self.obs_shape[o * nm + n];
                 }
                 out[k * n_obs + o] = s;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// [`Sensitivity`] of a [`ReducedSolver`]'s steady states: the same parameters and
+/// observations over the whole model, computed on the modes the solver solves for. A
+/// quantity of an idle mode (its `ω²`, `γ`, a parameter only terms with an idle factor
+/// hold) moves nothing, since the idle modes stay exactly
+/// zero for every value of the parameters: its sensitivities are zero. A force on an idle mode
+/// would move it: it is refused ([`SimError::IdleForce`]; name the mode among the solver's
+/// forced modes). When the solver was set up again on other modes (its drive now reaches
+/// others), the set-up follows.
+#[derive(Debug, Clone)]
+pub struct ReducedSensitivity {
+    tones_hz: Vec<f64>,
+    params: Vec<SensParam>,
+    observations: Vec<Observation>,
+    /// The active modes the set-up is for.
+    modes: Vec<usize>,
+    inner: Sensitivity,
+    /// Per parameter, its block in `inner`'s output (`None`: zero).
+    slot: Vec<Option<usize>>,
+    buf: Vec<Complex64>,
+}
+
+impl ReducedSensitivity {
+    /// As [`Sensitivity::new`] for `solver`, with `params` and `observations` (shapes) of the
+    /// whole model. Errors: those of [`Sensitivity::new`], a mode index beyond the model, a
+    /// force on an idle mode.
+    pub fn new(
+        solver: &ReducedSolver,
+        tones_hz: &[f64],
+        params: &[SensParam],
+        observations: &[Observation],
+    ) -> Result<Self, SimError> {
+        let nm = solver.model().n_modes();
+        let modes = solver.active().modes().to_vec();
+        let local = |n: usize| -> Result<Option<usize>, SimError> {
+            if n >= nm {
+                return Err(SimError::ModeIndex {
+                    index: n,
+                    n_modes: nm,
+                });
+            }
+            Ok(modes.iter().position(|&m| m == n))
+        };
+        // The parameters a kept term depends on (the others' terms all hold an idle factor).
+        let sub = solver.inner.model();
+        let used: std::collections::BTreeSet<usize> = (0..sub.terms().len())
+            .flat_map(|t| sub.term_param_grad(t).iter().map(|&(p, _)| p))
+            .chain(
+                (0..sub.rough_terms().len())
+                    .flat_map(|t| sub.rough_param_grad(t).iter().map(|&(p, _)| p)),
+            )
+            .collect();
+        let mut inner_params = Vec::new();
+        let mut slot = Vec::with_capacity(params.len());
+        for &p in params {
+            let q = match p {
+                SensParam::OmegaSq(n) => local(n)?.map(SensParam::OmegaSq),
+                SensParam::Gamma(n) => local(n)?.map(SensParam::Gamma),
+                SensParam::Param(k) => used.contains(&k).then_some(p),
+                SensParam::Force { tone, mode, quad } => match local(mode)? {
+                    Some(m) => Some(SensParam::Force {
+                        tone,
+                        mode: m,
+                        quad,
+                    }),
+                    None => return Err(SimError::IdleForce { mode }),
+                },
+            };
+            slot.push(q.map(|q| {
+                inner_params.push(q);
+                inner_params.len() - 1
+            }));
+        }
+        let mut local_obs = Vec::with_capacity(observations.len());
+        for o in observations {
+            if o.shape.len() > nm {
+                return Err(SimError::Length {
+                    what: "an observation's mode shape",
+                    found: o.shape.len(),
+                    expected: nm,
+                    per: "at most one per mode".into(),
+                });
+            }
+            local_obs.push(Observation {
+                f_hz: o.f_hz,
+                shape: modes
+                    .iter()
+                    .map(|&m| o.shape.get(m).copied().unwrap_or(0.0))
+                    .collect(),
+            });
+        }
+        let inner = Sensitivity::new(&solver.inner, tones_hz, &inner_params, &local_obs)?;
+        Ok(Self {
+            tones_hz: tones_hz.to_vec(),
+            params: params.to_vec(),
+            observations: observations.to_vec(),
+            modes,
+            buf: vec![Z; inner_params.len() * observations.len()],
+            inner,
+            slot,
+        })
+    }
+
+    /// The parameters, in the order of the output's blocks.
+    pub fn params(&self) -> &[SensParam] {
+        &self.params
+    }
+
+    /// As [`Sensitivity::compute`]: `out[k·O + o] = ∂X_o/∂θ_k` at `state` (every mode of the
+    /// model), a steady state `solver` converged to.
+    pub fn compute(
+        &mut self,
+        solver: &mut ReducedSolver,
+        state: &SteadyState,
+        out: &mut [Complex64],
+    ) -> Result<(), SimError> {
+        if solver.active().modes() != self.modes {
+            *self = Self::new(solver, &self.tones_hz, &self.params, &self.observations)?;
+        }
+        let n_obs = self.observations.len();
+        if out.len() != self.params.len() * n_obs {
+            return Err(SimError::Length {
+                what: "the sensitivity output",
+                found: out.len(),
+                expected: self.params.len() * n_obs,
+                per: format!("{} parameters × {n_obs} observations", self.params.len()),
+            });
+        }
+        if state.amplitudes.len() != solver.model().n_modes() {
+            return Err(SimError::OtherLattice);
+        }
+        let local = solver.active().restrict_state(state);
+        self.inner
+            .compute(&mut solver.inner, &local, &mut self.buf)?;
+        for (k, s) in self.slot.iter().enumerate() {
+            let block = &mut out[k * n_obs..(k + 1) * n_obs];
+            match s {
+                Some(j) => block.copy_from_slice(&self.buf[j * n_obs..(j + 1) * n_obs]),
+                None => block.fill(Z),
             }
         }
         Ok(())

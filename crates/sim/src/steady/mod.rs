@@ -32,6 +32,7 @@
 //! backbones (`backbone`) and the two-tone sweep on [`HbSolver`] (`two_tone`). Every
 //! continuation has one shape: a `step()` that returns a [`Step`].
 
+mod active;
 mod aft;
 mod backbone;
 mod convergence;
@@ -42,6 +43,7 @@ mod newton;
 mod pumped;
 mod quasi_periodic;
 mod ramp;
+mod reduced;
 mod rough_aft;
 mod solver;
 mod stability;
@@ -57,6 +59,7 @@ mod tests;
 mod torus;
 mod two_tone;
 
+pub use active::ActiveModes;
 pub use backbone::backbone;
 pub use convergence::{convergence_report, ConvergenceReport};
 pub use hopf::Hopf;
@@ -65,6 +68,7 @@ pub use quasi_periodic::{
     quasi_periodic_branch, BranchEnd, QuasiPeriodicBranch, QuasiPeriodicPoint,
     QuasiPeriodicSettings,
 };
+pub use reduced::ReducedSolver;
 pub(crate) use solver::variable_spectra;
 pub use solver::{steady_state, steady_state_from, HbSolver, MAX_MODES};
 pub use stability::{check_stability, CONDENSE_SEPARATION};

@@ -2,7 +2,7 @@
 
 use super::ramp::{RAMP_MAX_TONES, RAMP_MIN_SAVING, RAMP_ORDER};
 use super::rough_aft::RoughAft;
-use super::{HbSettings, HbStatus, SteadyState, Z};
+use super::{HbSettings, HbStatus, ReducedSolver, SteadyState, Z};
 use crate::lattice::{choose_lattice, low_order_lines, LatticeSettings, LINE_TOL_HZ};
 use crate::linalg::DenseLu;
 use crate::{Excitation, NumericModel, SimError};
@@ -194,6 +194,18 @@ impl HbSolver {
         drive: &Excitation,
         lattice: Vec<f64>,
     ) -> Result<Self, SimError> {
+        Self::single_sharing(model, drive, lattice, None)
+    }
+
+    /// [`HbSolver::single`], with the product plan of `other` (a solver on the same lattice)
+    /// when it covers every degree of `model`'s terms: planning a large lattice's products
+    /// costs more than the rest of the set-up.
+    pub(super) fn single_sharing(
+        model: &NumericModel,
+        drive: &Excitation,
+        lattice: Vec<f64>,
+        other: Option<&HbSolver>,
+    ) -> Result<Self, SimError> {
         let nm = model.n_modes();
         drive.check(nm)?;
         if nm > MAX_MODES {
@@ -207,7 +219,16 @@ impl HbSolver {
         let mut degrees: Vec<usize> = model.terms().iter().map(|t| t.degree() as usize).collect();
         degrees.sort_unstable();
         degrees.dedup();
-        let plan = ProductPlan::for_degrees(&lattice, &lattice, &degrees)?;
+        let shared = other.filter(|o| {
+            o.lattice == lattice
+                && degrees
+                    .iter()
+                    .all(|&d| o.model.terms().iter().any(|t| t.degree() as usize == d))
+        });
+        let plan = match shared {
+            Some(o) => o.system.plan().clone(),
+            None => ProductPlan::for_degrees(&lattice, &lattice, &degrees)?,
+        };
         let nr = lattice.len();
         let ops = Operators::new(model, drive, &lattice, plan)?;
         let nu = 2 * nm * nr;
@@ -471,13 +492,14 @@ impl HbSolver {
     }
 }
 
-/// Solves the steady state under `drive` with the lattice chosen by `settings.lattice`.
+/// Solves the steady state under `drive` with the lattice chosen by `settings.lattice`, on
+/// the modes the drive reaches ([`ReducedSolver`]; the others are exactly zero).
 pub fn steady_state(
     model: &NumericModel,
     drive: &Excitation,
     settings: &HbSettings,
 ) -> Result<SteadyState, SimError> {
-    let mut solver = HbSolver::new(model, drive, &settings.lattice)?;
+    let mut solver = ReducedSolver::new(model, drive, &settings.lattice, &[])?;
     Ok(solver.solve(settings))
 }
 
@@ -493,12 +515,12 @@ pub fn steady_state_from(
     settings: &HbSettings,
     start: &SteadyState,
 ) -> Result<SteadyState, SimError> {
-    let mut solver = HbSolver::new(model, drive, &settings.lattice)?;
+    let mut solver = ReducedSolver::new(model, drive, &settings.lattice, &[])?;
     if start.converged() && !start.pump_sustained {
         let guess: Vec<Vec<Complex64>> = (0..model.n_modes())
             .map(|n| {
                 solver
-                    .lattice
+                    .lattice()
                     .iter()
                     .map(|&f| start.amplitude(n, f))
                     .collect()

@@ -67,12 +67,39 @@ impl HbSolver {
         })
     }
 
+    /// The largest growth rate (1/s) of the slow flow's block of the modes `modes` alone (this
+    /// solver's indices), the far lines condensed: the spectrum of an idle block of a
+    /// block-triangular Jacobian (modes a drive does not reach, [`super::ActiveModes`]), which
+    /// no other block feeds.
+    pub(super) fn part_growth(
+        &mut self,
+        state: &SteadyState,
+        modes: &[usize],
+    ) -> Result<f64, SimError> {
+        Ok(self
+            .slow_flow_spectrum_of(state, true, Some(modes))?
+            .iter()
+            .map(|z| z.re)
+            .fold(f64::NEG_INFINITY, f64::max))
+    }
+
     /// The slow flow's eigenvalues over every coupled part of the modes (see
     /// [`HbSolver::slow_flow_eigenvalues`]).
     fn slow_flow_spectrum(
         &mut self,
         state: &SteadyState,
         condense: bool,
+    ) -> Result<Vec<Complex64>, SimError> {
+        self.slow_flow_spectrum_of(state, condense, None)
+    }
+
+    /// [`HbSolver::slow_flow_spectrum`] over every coupled part, or over the one block of the
+    /// modes `only`.
+    fn slow_flow_spectrum_of(
+        &mut self,
+        state: &SteadyState,
+        condense: bool,
+        only: Option<&[usize]>,
     ) -> Result<Vec<Complex64>, SimError> {
         let nm = self.model.n_modes();
         let nr = self.lattice.len();
@@ -99,6 +126,9 @@ impl HbSolver {
                 p.push(n);
             }
         });
+        if let Some(modes) = only {
+            parts = vec![modes.to_vec()];
+        }
         let mut spectrum = Vec::new();
         for part in parts {
             let all: Vec<usize> = part.iter().flat_map(|&n| n * nr..(n + 1) * nr).collect();
@@ -227,12 +257,14 @@ impl HbSolver {
 }
 
 /// Stability of `state`, a steady state of `model` under `drive` (solved on its own lattice),
-/// by Hill's method in slow-flow form (see [`HbSolver::stability`]).
+/// by Hill's method in slow-flow form (see [`HbSolver::stability`]), on the modes the drive
+/// reaches and the idle modes' own block ([`super::ReducedSolver::stability`]).
 pub fn check_stability(
     model: &NumericModel,
     drive: &Excitation,
     state: &SteadyState,
 ) -> Result<Stability, SimError> {
-    let mut solver = HbSolver::with_lattice(model, drive, state.lattice_hz.clone())?;
+    let mut solver =
+        super::ReducedSolver::with_lattice(model, drive, state.lattice_hz.clone(), &[])?;
     solver.stability(state)
 }

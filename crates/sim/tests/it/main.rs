@@ -10,6 +10,7 @@ mod nonsmooth;
 mod pumping;
 mod quasi_periodic;
 mod ramp_past_fold;
+mod reduced_modes;
 mod sensitivity;
 mod stop_at_fold;
 mod velocity_terms;
