@@ -60,6 +60,40 @@ impl NonSmooth {
         }
     }
 
+    /// The average of the function over a sample's cell, the variable linear from the
+    /// midpoint `(prev + x)/2` with the previous sample through `x` to the midpoint with the
+    /// next: the value a time-sampled harmonic balance uses for a jump (`sign`) or a near-jump
+    /// (`tanh` of a small scale), so that the harmonic coefficients move continuously with
+    /// the amplitudes (Newton converges) and the error falls like the square of the cell
+    /// width. `abs` is its midpoint value (no jump: sampled pointwise).
+    pub fn cell_average(&self, prev: f64, x: f64, next: f64) -> f64 {
+        let a = 0.5 * (prev + x);
+        let b = 0.5 * (x + next);
+        0.5 * (self.segment_average(a, x) + self.segment_average(x, b))
+    }
+
+    /// The average of the function over a variable that runs linearly from `a` to `b`.
+    pub fn segment_average(&self, a: f64, b: f64) -> f64 {
+        let d = b - a;
+        let tiny = 1e-12 * (a.abs() + b.abs());
+        if d.abs() <= tiny {
+            return self.value(0.5 * (a + b));
+        }
+        match *self {
+            // ∫ sign = |u|.
+            NonSmooth::Sign(_) => (b.abs() - a.abs()) / d,
+            // Across a small part of the scale: the midpoint value and its curvature term (the
+            // difference of logarithms below would cancel).
+            NonSmooth::Tanh(_, c) if d.abs() < 1e-2 * c => {
+                let t = (0.5 * (a + b) / c).tanh();
+                t - d * d / 12.0 * t * (1.0 - t * t) / (c * c)
+            }
+            // ∫ tanh(u/c) du = c ln cosh(u/c).
+            NonSmooth::Tanh(_, c) => c * (log_cosh(b / c) - log_cosh(a / c)) / d,
+            NonSmooth::Abs(_) => self.value(0.5 * (a + b)),
+        }
+    }
+
     /// Whether the pointwise derivative misses a jump (`sign`): a Jacobian in harmonic
     /// coefficients must then be taken by differences, not sampled pointwise.
     pub fn has_jump(&self) -> bool {
@@ -97,6 +131,18 @@ impl NonSmooth {
     }
 }
 
+/// `ln cosh y` without overflow (`|y| + ln(1 + e^{−2|y|}) − ln 2`) or cancellation near 0
+/// (`ln(1 + 2 sinh²(y/2))`).
+fn log_cosh(y: f64) -> f64 {
+    let a = y.abs();
+    if a < 1.0 {
+        let s = (0.5 * a).sinh();
+        (2.0 * s * s).ln_1p()
+    } else {
+        a + (-2.0 * a).exp().ln_1p() - std::f64::consts::LN_2
+    }
+}
+
 /// `sign(x)`: −1, 0 or 1 (0 at 0, unlike `f64::signum`).
 #[inline]
 pub fn sign(x: f64) -> f64 {
@@ -116,5 +162,48 @@ pub fn format_scale(c: f64) -> String {
         format!("{c}")
     } else {
         format!("{c:e}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cell_averages_of_jumps() {
+        let s = NonSmooth::Sign(VarId(0));
+        // First half from 1.5 to 1: +1; second half from 1 to −1, crossing at its middle: 0.
+        assert!((s.cell_average(2.0, 1.0, -3.0) - 0.5).abs() < 1e-15);
+        assert_eq!(s.cell_average(1.0, 2.0, 3.0), 1.0);
+        // tanh of a scale far below the cell's excursion is sign; far above, linear.
+        let t = NonSmooth::Tanh(VarId(0), 1e-3);
+        assert!((t.cell_average(2.0, 1.0, -3.0) - 0.5).abs() < 1e-3);
+        let t = NonSmooth::Tanh(VarId(0), 1e3);
+        let v = t.cell_average(0.2, 0.3, 0.5);
+        // Nearly linear in u: the cell's mean variable, (0.25 + 0.3 + 0.3 + 0.4)/4 / c, less
+        // the cubic term (u/c)³/3 ≈ 1e-11.
+        assert!((v - 0.3125e-3).abs() < 2e-11, "{v}");
+        assert!((log_cosh(800.0) - (800.0 - std::f64::consts::LN_2)).abs() < 1e-12);
+        assert!(
+            (log_cosh(1e-5) - 0.5e-10).abs() < 1e-20,
+            "no cancellation near 0"
+        );
+    }
+
+    #[test]
+    fn segment_average_of_tanh_is_its_integral_over_the_segment() {
+        // Midpoint rule with 200 000 panels against the closed form, across the scale.
+        let c = 0.3;
+        let t = NonSmooth::Tanh(VarId(0), c);
+        for (a, b) in [(-1.0, 0.7), (0.1, 0.1 + 1e-4), (2.0, -0.05)] {
+            let n = 200_000;
+            let h = (b - a) / n as f64;
+            let sum: f64 = (0..n)
+                .map(|i| ((a + (i as f64 + 0.5) * h) / c).tanh())
+                .sum();
+            let want = sum / n as f64;
+            let got = t.segment_average(a, b);
+            assert!((got - want).abs() < 1e-9, "({a}, {b}): {got} vs {want}");
+        }
     }
 }
