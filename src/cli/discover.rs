@@ -1,4 +1,5 @@
-//! `harmonid discover DATASET MODEL --degrees 2,3 [--potential] --out selected.hb`: which
+//! `harmonid discover DATASET MODEL --degrees 2,3 [--potential] [--velocities] [--nonsmooth]
+//! --out selected.hb`: which
 //! candidate terms the data support (`harmonid_ident::discover`); with `--holdout` (which
 //! `--error-floor` needs) selected by the prediction of the held-out data.
 
@@ -15,8 +16,8 @@ pub struct Args {
     /// The starting model (`*.hb`): its modes, and the terms it already has.
     pub model: PathBuf,
     /// Degrees of the candidate equation terms: `--degrees 3` (cubic), `--degrees 2,3` (a
-    /// repeated degree counts once).
-    #[arg(long, value_delimiter = ',', required = true)]
+    /// repeated degree counts once). Optional with --nonsmooth (that family alone).
+    #[arg(long, value_delimiter = ',', required_unless_present = "nonsmooth")]
     pub degrees: Vec<u32>,
     /// Candidates as potential terms (one parameter per monomial of degree + 1, its
     /// derivatives in every equation) instead of one parameter per equation and monomial.
@@ -26,6 +27,12 @@ pub struct Args {
     /// `q2^2*d(q1)`: nonlinear damping, own and cross), per equation even with --potential.
     #[arg(long)]
     pub velocities: bool,
+    /// Also the non-analytic family of each mode in its own equation, one parameter each:
+    /// `abs(q1)*q1` (b1_absq: a stiffness growing like the amplitude, a frequency shift
+    /// proportional to it), `abs(d(q1))*d(q1)` (b1_absdq: quadratic drag) and `sign(d(q1))`
+    /// (b1_signdq: Coulomb friction). No cross forms between modes.
+    #[arg(long)]
+    pub nonsmooth: bool,
     /// Family-wise error per step: a term is added when its likelihood-ratio p-value times
     /// the number of candidates tried is below this.
     #[arg(long, default_value_t = 0.01)]
@@ -101,6 +108,7 @@ pub fn run(args: Args) -> miette::Result<()> {
             LibraryForm::Equation
         },
         velocities: args.velocities,
+        nonsmooth: args.nonsmooth,
     };
     let pb = super::progress::bar(0, "discover: identifications", false);
     let found = discover(&model, &ds, &library, &settings, |done, total| {

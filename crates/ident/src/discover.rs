@@ -10,7 +10,15 @@
 //! conservative couplings, tied as the method's paper ties them). Terms the model already has
 //! are left out. With [`Library::velocities`], also every monomial of the positions and
 //! velocities that holds a velocity, per equation (`b1_2_1` is `q1²·d(q1)` in the equation of
-//! q1, one mode): nonlinear damping and velocity couplings.
+//! q1, one mode): nonlinear damping and velocity couplings. With [`Library::nonsmooth`], also
+//! the non-analytic family of each mode in its own equation (one parameter each):
+//! `abs(qn)*qn` (`b{n}_absq`, a stiffness growing like the amplitude), `abs(d(qn))*d(qn)`
+//! (`b{n}_absdq`, quadratic drag) and `sign(d(qn))` (`b{n}_signdq`, Coulomb friction). No cross
+//! forms (`abs(q2)*q1`, `abs(d(q1))*d(q2)`): a non-smooth force comes from one place on the
+//! structure (a contact, a clamp, the fluid at the tip) and acts on the displacement there,
+//! `u = Σ φₙ qₙ`; its `|u|·u` projected on the modes is not a sum of products of per-mode
+//! factors, so a per-mode cross product would be a guess, not a physical term. On one driven
+//! mode (the sweeps these terms are found on) the own forms are what the data can tell.
 //!
 //! **Test.** Adding a candidate to the current model lowers the fit's `χ²` by `Δ`. With the
 //! noise from the shots, `Δ/E₀` (`E₀` a correct model's `χ²/dof`) is `χ²₁` when the candidate
@@ -45,7 +53,7 @@ use crate::problem::IdentError;
 use crate::settings::{Estimator, Settings};
 use crate::uncertainty::chi2_tail;
 use harmonid_data::Dataset;
-use harmonid_model::{Bounds, Model, ParamKind, Parameter};
+use harmonid_model::{Bounds, Model, NonSmooth, ParamKind, Parameter};
 use harmonid_poly::{Coeff, Poly, PowerProduct, Rational, VarId};
 use serde::Serialize;
 
@@ -74,6 +82,10 @@ pub struct Library {
     /// `d(q1)^3`, `q2^2*d(q1)`: nonlinear damping, own and cross), always per equation (a
     /// potential has no velocities): `b{n}_{position exponents}_{velocity exponents}`.
     pub velocities: bool,
+    /// Also the non-analytic family of each mode in its own equation: `abs(qn)*qn`
+    /// (`b{n}_absq`), `abs(d(qn))*d(qn)` (`b{n}_absdq`), `sign(d(qn))` (`b{n}_signdq`); no cross
+    /// forms (see the module documentation). With it `degrees` may be empty (this family alone).
+    pub nonsmooth: bool,
 }
 
 /// Settings of a discovery.
@@ -169,7 +181,7 @@ pub enum DiscoverError {
     #[error("the library (degrees {degrees:?}, {form:?} form) has no candidate term the model does not already have")]
     #[diagnostic(
         code(harmonid::discover::no_candidates),
-        help("widen it: other degrees (--degrees 2,3), or the per-equation form")
+        help("widen it: other degrees (--degrees 2,3), the per-equation form, velocity terms (--velocities) or the non-analytic family (--nonsmooth)")
     )]
     NoCandidates {
         /// The degrees.
@@ -206,12 +218,14 @@ pub enum DiscoverError {
 }
 
 /// One candidate: its parameter name, its terms per equation and, for a potential, the
-/// monomial.
+/// monomial; with `factor`, every term's monomial is multiplied by that non-smooth factor
+/// (the term goes into `Model::nonsmooth`).
 #[derive(Debug, Clone)]
 struct Candidate {
     name: String,
     terms: Vec<(usize, PowerProduct, Rational)>,
     potential: Option<PowerProduct>,
+    factor: Option<NonSmooth>,
     words: String,
 }
 
@@ -425,9 +439,11 @@ fn check_settings(settings: &DiscoverSettings, library: &Library) -> Result<(), 
             settings.alpha
         )));
     }
-    if library.degrees.is_empty() || library.degrees.iter().any(|&d| d == 0 || d > 7) {
+    if (library.degrees.is_empty() && !library.nonsmooth)
+        || library.degrees.iter().any(|&d| d == 0 || d > 7)
+    {
         return Err(DiscoverError::Setting(format!(
-            "degrees {:?}: give equation-term degrees from 1 to 7, e.g. 2,3",
+            "degrees {:?}: give equation-term degrees from 1 to 7, e.g. 2,3 (or none with --nonsmooth, Python nonsmooth=True: that family alone)",
             library.degrees
         )));
     }
@@ -656,6 +672,7 @@ fn candidates(model: &Model, library: &Library) -> Vec<Candidate> {
                             ),
                             terms: vec![(n, m.clone(), Rational::from_integer(1))],
                             potential: None,
+                            factor: None,
                         });
                     }
                 }
@@ -683,12 +700,62 @@ fn candidates(model: &Model, library: &Library) -> Vec<Candidate> {
                         words: format!("potential {}", m.name(&vars)),
                         terms,
                         potential: Some(m),
+                        factor: None,
                     });
                 }
             }
         }
     }
+    if library.nonsmooth {
+        nonsmooth_candidates(model, &vars, &unique, &mut out);
+    }
     out
+}
+
+/// The non-analytic family of each mode in its own equation: `abs(qn)*qn`,
+/// `abs(d(qn))*d(qn)`, `sign(d(qn))` (those the model does not have).
+fn nonsmooth_candidates(
+    model: &Model,
+    vars: &[String],
+    unique: &dyn Fn(String) -> String,
+    out: &mut Vec<Candidate>,
+) {
+    let nm = model.modes.len();
+    for n in 0..nm {
+        let (q, dq) = (VarId(n as u32), VarId((nm + n) as u32));
+        for (tag, factor, poly) in [
+            ("absq", NonSmooth::Abs(q), PowerProduct::var(q)),
+            ("absdq", NonSmooth::Abs(dq), PowerProduct::var(dq)),
+            ("signdq", NonSmooth::Sign(dq), PowerProduct::one()),
+        ] {
+            if has_nonsmooth_term(model, n, factor, &poly) {
+                continue;
+            }
+            let mut words = factor.name(vars);
+            if !poly.is_one() {
+                words = format!("{words}*{}", poly.name(vars));
+            }
+            out.push(Candidate {
+                name: unique(format!("b{}_{tag}", n + 1)),
+                words: format!("{words} in the equation of {}", model.modes[n].name),
+                terms: vec![(n, poly, Rational::from_integer(1))],
+                potential: None,
+                factor: Some(factor),
+            });
+        }
+    }
+}
+
+/// Whether the equation of mode `n` has the term `factor · poly` (one factor, to the first
+/// power, times the polynomial part `poly`).
+fn has_nonsmooth_term(model: &Model, n: usize, factor: NonSmooth, poly: &PowerProduct) -> bool {
+    model.nonsmooth.get(n).is_some_and(|eq| {
+        eq.terms().any(|(m, _)| {
+            let (p, fs) = model.split_nonsmooth(m);
+            p == *poly
+                && matches!(fs.as_slice(), [(k, 1)] if model.nonsmooth_factors.get(*k) == Some(&factor))
+        })
+    })
 }
 
 /// The per-equation candidates of degree `d` that hold a velocity (variables `nm..2nm`).
@@ -722,6 +789,7 @@ fn velocity_candidates(
                 ),
                 terms: vec![(n, m.clone(), Rational::from_integer(1))],
                 potential: None,
+                factor: None,
             });
         }
     }
@@ -756,11 +824,35 @@ fn with_candidate(model: &Model, c: &Candidate) -> Option<Model> {
         kind: ParamKind::Unknown,
         bounds: Bounds::default(),
     });
+    // A non-smooth factor: its variable (an existing one, or a new one after the others).
+    let factor_var = c.factor.map(|f| {
+        let k = match m.nonsmooth_factors.iter().position(|g| *g == f) {
+            Some(k) => k,
+            None => {
+                m.nonsmooth_factors.push(f);
+                m.nonsmooth_factors.len() - 1
+            }
+        };
+        m.nonsmooth_var(k)
+    });
+    if m.nonsmooth.len() < m.modes.len() {
+        m.nonsmooth.resize(m.modes.len(), Poly::zero());
+    }
     for (n, mono, k) in &c.terms {
         let coeff = Coeff::param(p).checked_scale_rational(k).ok()?;
-        m.eom[*n] = m.eom[*n]
-            .checked_add(&Poly::term(mono.clone(), coeff))
-            .ok()?;
+        match factor_var {
+            None => {
+                m.eom[*n] = m.eom[*n]
+                    .checked_add(&Poly::term(mono.clone(), coeff))
+                    .ok()?;
+            }
+            Some(v) => {
+                // The factor's variable comes after every polynomial one: the product's
+                // factors stay sorted.
+                let mono = mono.checked_mul(&PowerProduct::var(v)).ok()?;
+                m.nonsmooth[*n] = m.nonsmooth[*n].checked_add(&Poly::term(mono, coeff)).ok()?;
+            }
+        }
     }
     if let Some(pm) = &c.potential {
         m.potential = m
@@ -773,17 +865,14 @@ fn with_candidate(model: &Model, c: &Candidate) -> Option<Model> {
 
 /// The terms parameter `p` enters, in words.
 fn terms_of(model: &Model, p: usize) -> String {
-    let vars = model.variable_names();
     let mut out = Vec::new();
-    for (n, eq) in model.eom.iter().enumerate() {
-        for (m, c) in eq.terms() {
-            if c.variables().iter().any(|v| v.index() == p) {
-                out.push(format!(
-                    "{} in the equation of {}",
-                    m.name(&vars),
-                    model.modes[n].name
-                ));
-            }
+    for (n, m, c) in model.all_terms() {
+        if c.variables().iter().any(|v| v.index() == p) {
+            out.push(format!(
+                "{} in the equation of {}",
+                model.monomial_name(m),
+                model.modes[n].name
+            ));
         }
     }
     out.join(", ")
@@ -804,6 +893,11 @@ fn without(model: &Model, p: usize) -> Option<Model> {
     };
     let mut m = model.clone();
     m.eom = m.eom.iter().map(zero_and_shift).collect::<Option<_>>()?;
+    m.nonsmooth = m
+        .nonsmooth
+        .iter()
+        .map(zero_and_shift)
+        .collect::<Option<_>>()?;
     m.potential = zero_and_shift(&m.potential)?;
     m.dissipation = zero_and_shift(&m.dissipation)?;
     m.params.remove(p);
@@ -947,6 +1041,7 @@ mod tests {
                 degrees: vec![3],
                 form: LibraryForm::Equation,
                 velocities: false,
+                nonsmooth: false,
             },
         );
         // 4 cubic monomials × 2 equations, less q1^3 in the equation of q1.
@@ -956,6 +1051,7 @@ mod tests {
             degrees: vec![3, 3, 3],
             form: LibraryForm::Equation,
             velocities: false,
+            nonsmooth: false,
         };
         let names = |c: &[Candidate]| c.iter().map(|c| c.name.clone()).collect::<Vec<_>>();
         assert_eq!(names(&candidates(&m, &repeated)), names(&per_eq));
@@ -968,6 +1064,7 @@ mod tests {
                 degrees: vec![3],
                 form: LibraryForm::Potential,
                 velocities: false,
+                nonsmooth: false,
             },
         );
         // 5 quartic monomials; q1^4 would only give q1^3 in q1's equation, which it has.
@@ -999,6 +1096,7 @@ mod tests {
             degrees: vec![3],
             form,
             velocities: true,
+            nonsmooth: false,
         };
         let one = model("mode q1 at 1 MHz\nparam b\npotential: b/4*q1^4\n");
         let c = candidates(&one, &lib(LibraryForm::Potential));
@@ -1028,6 +1126,79 @@ mod tests {
         assert!(c
             .iter()
             .any(|c| c.name == "b2_20_10" && c.words == "q1^2*d(q1) in the equation of q2"));
+    }
+
+    #[test]
+    fn nonsmooth_libraries_hold_each_modes_own_family() {
+        let lib = Library {
+            degrees: Vec::new(),
+            form: LibraryForm::Equation,
+            velocities: false,
+            nonsmooth: true,
+        };
+        // The model has abs(q1)*q1 already, and abs(q2) as a factor of another term.
+        let m = model(
+            "mode q1 at 1 MHz\nmode q2 at 2 MHz\nparam k, c\neom q1 += k*abs(q1)*q1\neom q2 += c*abs(q2)*q2^2\n",
+        );
+        let c = candidates(&m, &lib);
+        let got: Vec<(&str, &str)> = c
+            .iter()
+            .map(|c| (c.name.as_str(), c.words.as_str()))
+            .collect();
+        assert_eq!(
+            got,
+            [
+                ("b1_absdq", "abs(d(q1))*d(q1) in the equation of q1"),
+                ("b1_signdq", "sign(d(q1)) in the equation of q1"),
+                ("b2_absq", "abs(q2)*q2 in the equation of q2"),
+                ("b2_absdq", "abs(d(q2))*d(q2) in the equation of q2"),
+                ("b2_signdq", "sign(d(q2)) in the equation of q2"),
+            ]
+        );
+        // Added: the model reads back through its source with the term, the factor abs(q2)
+        // shared; removed: the term goes, the rest stays.
+        let with = |name: &str, m: &Model| {
+            let cand = c.iter().find(|c| c.name == name).expect("candidate");
+            with_candidate(m, cand).expect("no overflow")
+        };
+        let w = with("b2_absq", &with("b1_signdq", &m));
+        assert_eq!(w.nonsmooth_factors.len(), 3);
+        let src = w.to_source("test");
+        let back = model(&src);
+        let mut names: Vec<String> = back
+            .all_terms()
+            .map(|(n, mono, _)| format!("{n}:{}", back.monomial_name(mono)))
+            .collect();
+        names.sort();
+        assert_eq!(
+            names,
+            [
+                "0:abs(q1)*q1",
+                "0:sign(d(q1))",
+                "1:abs(q2)*q2",
+                "1:abs(q2)*q2^2"
+            ],
+            "{src}"
+        );
+        assert_eq!(
+            terms_of(&w, w.param_index("b1_signdq").expect("p")),
+            "sign(d(q1)) in the equation of q1"
+        );
+        let p = w.param_index("k").expect("k");
+        let wo = without(&w, p).expect("no overflow");
+        let left: Vec<String> = wo
+            .all_terms()
+            .map(|(_, mono, _)| wo.monomial_name(mono))
+            .collect();
+        assert_eq!(left.len(), 3, "{left:?}");
+        assert!(!left.contains(&"abs(q1)*q1".to_string()));
+        // Without degrees and without the family, the library is refused.
+        let bad = Library {
+            nonsmooth: false,
+            ..lib
+        };
+        let err = check_settings(&DiscoverSettings::default(), &bad).expect_err("empty");
+        assert!(err.to_string().contains("--nonsmooth"), "{err}");
     }
 
     #[test]
