@@ -89,6 +89,8 @@ class IdentifyResult:
     @property
     def background(self) -> dict[str, Any]: ...
     @property
+    def unfit(self) -> Optional[list[dict[str, Any]]]: ...
+    @property
     def warnings(self) -> list[str]: ...
     @property
     def per_shot(self) -> dict[str, npt.NDArray[Any]]: ...
@@ -138,6 +140,7 @@ def discover(
     error_floor: bool = False,
     min_improvement: float = 0.05,
     background: Optional[str] = None,
+    nonsmooth: bool = False,
 ) -> dict[str, Any]: ...
 def mix(
     model: Model,

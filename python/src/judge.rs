@@ -71,7 +71,9 @@ pub fn compare<'py>(
 /// Which candidate terms the data support, as `harmonid discover DATASET MODEL --degrees ...`
 /// does: from `model`, the library of every monomial of the equation degrees `degrees`, per
 /// equation or (`potential=True`) as potential terms, with (`velocities=True`) every monomial
-/// holding a velocity per equation (nonlinear damping); `alpha` the family-wise error per step,
+/// holding a velocity per equation (nonlinear damping), with (`nonsmooth=True`) each mode's
+/// `abs(q)*q`, `abs(d(q))*d(q)` and `sign(d(q))` in its own equation (then `degrees` may be
+/// empty: that family alone); `alpha` the family-wise error per step,
 /// `max_terms` the most additions. `holdout` (names of measurements or sweeps) selects terms
 /// by how well the fit of the rest predicts them instead: a term is added when it lowers their
 /// relative RMS by more than the fraction `min_improvement`; `error_floor=True` fits a floor to
@@ -81,7 +83,7 @@ pub fn compare<'py>(
 /// `"holdout"`), with `holdout` also `held_out` and `holdout_relative_rms`, `model` (the
 /// selected `Model`), `source` (its model file's text) and `result` (its `IdentifyResult`).
 #[pyfunction]
-#[pyo3(signature = (model, dataset, degrees, *, potential = false, alpha = 0.01, max_terms = 10, force_model = "auto", velocities = false, holdout = Vec::new(), error_floor = false, min_improvement = 0.05, background = None))]
+#[pyo3(signature = (model, dataset, degrees, *, potential = false, alpha = 0.01, max_terms = 10, force_model = "auto", velocities = false, holdout = Vec::new(), error_floor = false, min_improvement = 0.05, background = None, nonsmooth = false))]
 #[allow(clippy::too_many_arguments)]
 pub fn discover<'py>(
     py: Python<'py>,
@@ -97,6 +99,7 @@ pub fn discover<'py>(
     error_floor: bool,
     min_improvement: f64,
     background: Option<String>,
+    nonsmooth: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let settings = DiscoverSettings {
         identify: Settings {
@@ -119,6 +122,7 @@ pub fn discover<'py>(
             LibraryForm::Equation
         },
         velocities,
+        nonsmooth,
     };
     let (m, ds) = (
         std::sync::Arc::clone(&model.inner),

@@ -48,6 +48,7 @@ fn run(example: &str, seed: u64) -> (usize, usize, usize, String) {
         degrees: vec![2, 3],
         form: LibraryForm::Potential,
         velocities: false,
+        nonsmooth: false,
     };
     let found = discover(
         &start,
@@ -110,6 +111,7 @@ fn discovery_over_many_realisations() {
                 degrees: vec![2, 3],
                 form: LibraryForm::Potential,
                 velocities: false,
+                nonsmooth: false,
             };
             let found = discover(
                 &modes_only(example),
@@ -258,9 +260,16 @@ fn potential_terms_of_eom(m: &Model) -> usize {
     m.eom.iter().map(|e| e.terms().count()).sum()
 }
 
-/// The softened, nonlinearly damped mode's stepped sweeps (four levels up and down, 3 shots,
-/// 0.02 nm) with what discovery starts from: the Duffing term alone, the cubic velocity
-/// library, a gain per mode.
+/// The softened, nonlinearly damped mode's stepped sweeps (four levels up and down, 10 shots
+/// of 0.0365 nm, 0.0115 nm on each step's mean) with what discovery starts from: the Duffing
+/// term alone, the cubic velocity library, a gain per mode.
+///
+/// Ten shots, not three: every line's noise is the sample variance of its shots, on
+/// `ν = 2(n − 1)` real degrees of freedom, and a correct model's `χ²/dof` is then
+/// `ν/(ν − 2)` on average: 1.125 at ten shots, but 2 at three (`ν = 4`, where its variance is
+/// not even finite), which the goodness of fit takes as 1; the true model read "does not fit"
+/// (χ²/dof 2.06 to 2.85 on its own simulated data, while fitting the noise-free data to 4e-7
+/// relative). The noise of each step's mean is that of three shots of 0.02 nm, as before.
 struct DampedFromDuffing {
     v: gen::Values,
     ds: Dataset,
@@ -272,8 +281,8 @@ struct DampedFromDuffing {
 fn damped_from_duffing() -> DampedFromDuffing {
     let damped = harmonid::model::parse_str(gen::DAMPED_DUFFING, "damped.hb").expect("model");
     let (v, sweeps) = gen::hysteretic_sweeps(4, 24);
-    let clean = gen::simulate_sweeps_clean(&damped, &v, &sweeps, &[1.0], 3);
-    let ds = gen::add_noise(&clean, 2e-11, 5);
+    let clean = gen::simulate_sweeps_clean(&damped, &v, &sweeps, &[1.0], 10);
+    let ds = gen::add_noise(&clean, 2e-11 * (10.0f64 / 3.0).sqrt(), 5);
     let start = harmonid::model::parse_str(
         "mode q1 at 1 MHz\nparam beta1\npotential: beta1/4*q1^4\n",
         "duffing.hb",
@@ -283,6 +292,7 @@ fn damped_from_duffing() -> DampedFromDuffing {
         degrees: vec![3],
         form: LibraryForm::Equation,
         velocities: true,
+        nonsmooth: false,
     };
     let mut settings = DiscoverSettings::default();
     settings.identify.force_model = harmonid::ident::ForceModel::GainPerMode;
@@ -295,9 +305,28 @@ fn damped_from_duffing() -> DampedFromDuffing {
     }
 }
 
+/// The damping terms the data cannot tell apart at Q = 2e4: the truth's `q1^2*d(q1)` and
+/// `d(q1)^3`, whose first harmonics differ only by the factor `3ω²` (constant to 1.2e-3
+/// over ±6 linewidths; docs/judging-a-model.md). Which is picked is the noise's choice.
+const DAMPING_TWINS: [&str; 2] = [
+    "q1^2*d(q1) in the equation of q1",
+    "d(q1)^3 in the equation of q1",
+];
+
+/// The added twin's coefficient as an `eta1` (`3ω²` times it for `d(q1)^3`) and its stderr.
+fn as_eta(term: &str, e: &harmonid::data::result::Estimate) -> (f64, f64) {
+    let k = if term.starts_with("d(q1)^3") {
+        3.0 * (std::f64::consts::TAU * 1.0e6).powi(2)
+    } else {
+        1.0
+    };
+    (k * e.value, k * e.stderr)
+}
+
 /// The velocity library (issue 36, item 4): on the softened, nonlinearly damped mode's stepped
-/// sweeps (four levels up and down, 3 shots, 0.02 nm), started from the Duffing term alone,
-/// discover adds `q1^2*d(q1)` (the truth's damping) and no other term.
+/// sweeps, started from the Duffing term alone, discover adds the truth's damping
+/// `q1^2*d(q1)` or its twin `d(q1)^3` ([`DAMPING_TWINS`]) and no other term, its coefficient
+/// within 4 stderr of the truth's, and the selected model fits its own data.
 #[test]
 fn velocity_library_finds_the_nonlinear_damping() {
     let DampedFromDuffing {
@@ -326,22 +355,29 @@ fn velocity_library_finds_the_nonlinear_damping() {
         .filter(|s| s.action == "added")
         .map(|s| s.term.as_str())
         .collect();
-    assert_eq!(added, ["q1^2*d(q1) in the equation of q1"], "{steps:?}");
-    let e = &found.result.parameters[&found.steps[0].parameter];
+    assert!(
+        added.len() == 1 && DAMPING_TWINS.contains(&added[0]),
+        "{steps:?}"
+    );
+    let g = found.result.goodness_of_fit.as_ref().expect("goodness");
+    eprintln!("{}", g.one_line());
+    assert_eq!(g.fits, Some(true), "{}", g.one_line());
+    let (value, stderr) = as_eta(
+        added[0],
+        &found.result.parameters[&found.steps[0].parameter],
+    );
     let eta = v.params["eta1"];
     assert!(
-        (e.value - eta).abs() < 4.0 * e.stderr,
-        "{} ± {} against {eta}",
-        e.value,
-        e.stderr
+        (value - eta).abs() < 4.0 * stderr,
+        "{value} ± {stderr} against {eta}"
     );
 }
 
 /// Under an error floor (issue 36, item 4) every fit's χ² is its expectation, so terms are
 /// selected by the held-out prediction: on the softened, nonlinearly damped mode's stepped
-/// sweeps, the top level held out, started from the Duffing term alone, `q1^2*d(q1)` is added
-/// (the held-out RMS falls several-fold) and nothing else; without a holdout the floor is
-/// refused, naming the option.
+/// sweeps, the top level held out, started from the Duffing term alone, `q1^2*d(q1)` or its
+/// twin `d(q1)^3` is added (the held-out RMS falls several-fold) and nothing else; without a
+/// holdout the floor is refused, naming the option.
 #[test]
 fn under_an_error_floor_the_held_out_prediction_selects_the_damping() {
     let DampedFromDuffing {
@@ -364,9 +400,8 @@ fn under_an_error_floor_the_held_out_prediction_selects_the_damping() {
         .filter(|s| s.action == "added")
         .map(|s| s.term.as_str())
         .collect();
-    assert_eq!(
-        added,
-        ["q1^2*d(q1) in the equation of q1"],
+    assert!(
+        added.len() == 1 && DAMPING_TWINS.contains(&added[0]),
         "{}",
         found.table()
     );

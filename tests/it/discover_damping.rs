@@ -147,6 +147,7 @@ fn run(
         degrees: vec![3],
         form: LibraryForm::Equation,
         velocities: true,
+        nonsmooth: false,
     };
     let mut settings = DiscoverSettings::default();
     settings.identify.force_model = ForceModel::GainPerMode;

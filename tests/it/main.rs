@@ -9,6 +9,7 @@ mod compare_models;
 mod data_format_docs;
 mod discover;
 mod discover_damping;
+mod discover_nonsmooth;
 mod drive_ladder;
 mod error_floor;
 mod explore_cli;
