@@ -531,6 +531,18 @@ impl NumericModel {
     /// [`crate::ActiveModes`]) the dropped terms vanish, and the kept equations are exactly
     /// the full model's. Errors: an index out of range or out of order.
     pub fn restricted(&self, modes: &[usize]) -> Result<NumericModel, SimError> {
+        self.restricted_where(modes, |_, _| true)
+    }
+
+    /// [`NumericModel::restricted`], keeping only the terms `keep(equation, factors)` accepts
+    /// (both in this model's numbering; a non-smooth term's factors are its polynomial ones
+    /// followed by each function's variable with its exponent). The idle block of a
+    /// stability check needs the idle equations' terms with one idle factor alone.
+    pub(crate) fn restricted_where(
+        &self,
+        modes: &[usize],
+        keep: impl Fn(usize, &[(usize, u32)]) -> bool,
+    ) -> Result<NumericModel, SimError> {
         let n = self.n_modes();
         if let Some(&index) = modes
             .iter()
@@ -554,6 +566,9 @@ impl NumericModel {
         };
         let mut terms = Vec::new();
         for (t, grad) in self.terms.iter().zip(&self.param_grad) {
+            if !keep(t.eq, &t.factors) {
+                continue;
+            }
             if let (Some(eq), Some(factors)) = (eq_of(t.eq), remap(&t.factors)) {
                 let term = Term {
                     eq,
@@ -565,6 +580,15 @@ impl NumericModel {
         }
         let mut rough = Vec::new();
         for (t, grad) in self.rough.iter().zip(&self.rough_grad) {
+            let all: Vec<(usize, u32)> = t
+                .factors
+                .iter()
+                .copied()
+                .chain(t.nonsmooth.iter().map(|&(f, e)| (f.var().index(), e)))
+                .collect();
+            if !keep(t.eq, &all) {
+                continue;
+            }
             let nonsmooth: Option<Vec<_>> = t
                 .nonsmooth
                 .iter()

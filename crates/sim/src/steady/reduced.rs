@@ -98,7 +98,8 @@ impl ReducedSolver {
         for (slot, part) in self.idle.iter_mut().zip(active.idle_parts()) {
             if let Some((solver, _)) = slot.as_mut() {
                 let modes = with_part(active.modes(), part);
-                solver.set_values(&model.restricted(&modes)?, &drive.restricted(&modes))?;
+                let sub = idle_block_model(model, active.modes(), part)?;
+                solver.set_values(&sub, &drive.restricted(&modes))?;
             }
         }
         self.model = model.clone();
@@ -188,7 +189,7 @@ impl ReducedSolver {
                 slot => {
                     let modes = with_part(self.active.modes(), part);
                     let solver = HbSolver::single_sharing(
-                        &self.model.restricted(&modes)?,
+                        &idle_block_model(&self.model, self.active.modes(), part)?,
                         &self.drive.restricted(&modes),
                         self.lattice.clone(),
                         Some(&self.inner),
@@ -229,6 +230,33 @@ fn reach(model: &NumericModel, drive: &Excitation, forced: &[usize]) -> ActiveMo
     } else {
         a
     }
+}
+
+/// The model whose Jacobian's block of the idle modes `part` is the whole model's at a state
+/// where every idle mode is zero: the active modes and `part`, with only the terms of
+/// `part`'s equations that hold exactly one idle factor (the others' derivatives by a
+/// `part` amplitude vanish there). The active modes' equations are left linear: their rows
+/// are not judged, and dropping their terms leaves few products to evaluate.
+fn idle_block_model(
+    model: &NumericModel,
+    active: &[usize],
+    part: &[usize],
+) -> Result<NumericModel, SimError> {
+    let n = model.n_modes();
+    let idle = |v: usize| v < 2 * n && !active.contains(&(v % n));
+    let modes = with_part(active, part);
+    model
+        .restricted_where(&modes, |eq, factors| {
+            let k: u32 = factors
+                .iter()
+                .filter(|&&(v, _)| idle(v))
+                .map(|&(_, e)| e)
+                .sum();
+            part.contains(&eq) && k == 1
+        })
+        // Without its higher own powers an idle mode of negative linear stiffness is
+        // refused as unbounded: then the block of every term.
+        .or_else(|_| model.restricted(&modes))
 }
 
 /// `active` and `part` merged, ascending.
