@@ -258,6 +258,34 @@ fn write_head(p: &PageInputs, s: &mut String) {
         }
         s.push_str("</ul></div>\n");
     }
+    write_unfit(p.result, s);
+}
+
+/// The groups of unknowns the identification could not fit (the result's `unfit`): a table of
+/// why, which quantities, in which measurements, and what measurement would help.
+fn write_unfit(r: &Report, s: &mut String) {
+    if r.unfit.is_empty() {
+        return;
+    }
+    s.push_str("<h2 id=\"unfit\">Not fitted</h2>\n<table><tr><th class=\"l\">why</th><th class=\"l\">quantities</th><th class=\"l\">measurements</th><th>χ²/dof</th><th class=\"l\">detail</th><th class=\"l\">would help</th></tr>\n");
+    for g in &r.unfit {
+        let chi2 = match g.chi2_per_dof {
+            Some(c) if c.is_finite() => num(c, 3),
+            Some(_) => "no fit".into(),
+            None => String::new(),
+        };
+        let _ = writeln!(
+            s,
+            "<tr class=\"bad\"><td class=\"l\">{}</td><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{}</td><td class=\"l\">{}</td><td class=\"l\">{}</td></tr>",
+            esc(g.why.text()),
+            esc(&g.unknowns.join(", ")),
+            esc(&g.measurements.join(", ")),
+            esc(&chi2),
+            esc(&g.detail),
+            esc(&g.advice)
+        );
+    }
+    s.push_str("</table>\n");
 }
 
 /// The parameter table and the fits.
@@ -379,6 +407,29 @@ fn write_equations(p: &PageInputs, s: &mut String) {
 mod tests {
     use super::*;
     use harmonid_data::{Direction, Manifest, SweepSpec};
+
+    #[test]
+    fn unfit_groups_are_a_table_with_the_advice() {
+        let json = r#"{"format": "harmonid-result/1", "model": "m.hb", "dataset": "d",
+            "modes": {}, "parameters": {}, "unfit": [{"why": "group_not_fitted",
+            "unknowns": ["f_hz:q6", "g6_7"], "measurements": ["couple_q6_q7"],
+            "chi2_per_dof": 320.0, "detail": "its own fit missed", "advice": "q6 & q7 alone"}]}"#;
+        let r = Report::from_json(json).expect("result");
+        let mut s = String::new();
+        write_unfit(&r, &mut s);
+        assert!(s.starts_with("<h2 id=\"unfit\">Not fitted</h2>"), "{s}");
+        assert!(
+            s.contains("<td class=\"l\">group not fitted</td><td class=\"l\">f_hz:q6, g6_7</td><td class=\"l\">couple_q6_q7</td><td>320</td>")
+                && s.contains("<td class=\"l\">q6 &amp; q7 alone</td>"),
+            "{s}"
+        );
+        let mut none = String::new();
+        write_unfit(
+            &Report::from_json(&json.replace("\"unfit\"", "\"other\"")).expect("result"),
+            &mut none,
+        );
+        assert!(none.is_empty());
+    }
 
     #[test]
     fn fits_name_sweeps_not_steps() {

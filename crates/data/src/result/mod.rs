@@ -6,12 +6,14 @@ mod background;
 mod estimator;
 mod goodness;
 mod summary;
+mod unfit;
 
 pub use background::{BackgroundResult, ComplexEstimate};
 pub use estimator::{Estimator, UnknownEstimator};
 pub use goodness::{
     p_text, sig3, GoodnessOfFit, LineResidual, MeasurementFit, SweepFit, P_DOES_NOT_FIT,
 };
+pub use unfit::{UnfitGroup, UnfitWhy};
 
 use serde::{Deserialize, Deserializer, Serialize};
 use std::collections::BTreeMap;
@@ -187,6 +189,12 @@ pub struct Report {
     /// --holdout`), in the order given; absent without a holdout.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub holdout: Vec<HeldOut>,
+    /// The groups of unknowns the identification could not fit: why (no output-error fit,
+    /// not converged, a group's own fit failed, not determined, at a bound) and what
+    /// measurement would help ([`UnfitGroup`]); absent when every unknown was fitted and
+    /// determined.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub unfit: Vec<UnfitGroup>,
     /// Number of shots.
     #[serde(default)]
     pub shots: usize,
@@ -374,6 +382,7 @@ mod tests {
             goodness_of_fit: None,
             excluded_levels: Vec::new(),
             holdout: Vec::new(),
+            unfit: Vec::new(),
             shots: 3,
             shots_fitted: None,
             shot_index: Vec::new(),

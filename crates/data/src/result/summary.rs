@@ -145,6 +145,9 @@ impl Report {
         for n in &self.notes {
             let _ = writeln!(s, "note: {n}");
         }
+        for g in &self.unfit {
+            let _ = writeln!(s, "not fitted: {}", g.line());
+        }
         if !self.outlier_shots.is_empty() {
             let _ = writeln!(
                 s,

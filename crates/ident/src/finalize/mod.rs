@@ -5,6 +5,7 @@
 
 mod background;
 mod tables;
+mod unfit;
 
 pub use harmonid_data::result::{
     Estimate, FitReport, ForceResult, GainResult, ModeResult, Report, RESULT_FORMAT,
@@ -25,6 +26,10 @@ use tables::FIXED_BY_THE_MODEL;
 pub const MAX_REL_STDERR: f64 = 0.3;
 /// Relative disagreement of the jackknife and the Fisher standard error that is warned about.
 pub const JACKKNIFE_TOL: f64 = 0.3;
+
+/// The reason of every quantity of an output-error fit that stopped before converging.
+const NOT_CONVERGED: &str =
+    "the output-error fit stopped before converging: this is where it stopped, not an estimate";
 
 /// What an identification found, for [`finalize`].
 pub(crate) struct Found<'a> {
@@ -122,17 +127,7 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
         judge.apply(Quantity::Param(p), e, v, &mut jackknife_warnings);
     }
     let background = background::reported(&judge, &values, ds, &mut jackknife_warnings);
-    if !shot_index.is_empty() {
-        let estimates = modes
-            .values_mut()
-            .flat_map(|m| [&mut m.f_hz, &mut m.q])
-            .chain(parameters.values_mut());
-        for e in estimates {
-            for s in &mut e.outlier_shots {
-                *s = shot_index[*s];
-            }
-        }
-    }
+    number_outlier_shots(&mut modes, &mut parameters, shot_index);
     let fits = tables::fit_reports(ds, prob, &per_shot.groups);
     let mut rejected_shots = BTreeMap::new();
     let goodness_of_fit = fo
@@ -153,6 +148,13 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
         }
     }
     warnings.extend(rejected_warning(&rejected_shots, ds.measurements.len()));
+    let unfit = unfit::unfit_groups(&unfit::Verdicts {
+        prob,
+        fo: fo.as_ref().filter(|_| estimator.is_output_error()),
+        fallback: fallback.as_ref().filter(|_| asked.is_output_error()),
+        modes: &modes,
+        parameters: &parameters,
+    });
     if let Some(why) = fallback {
         warnings.push(format!(
             "{why}; reporting the pooled equation-error (linear) estimate"
@@ -186,6 +188,7 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
         goodness_of_fit,
         excluded_levels: Vec::new(),
         holdout: Vec::new(),
+        unfit,
         shots: ds.measurements.iter().map(|m| m.n_shots).max().unwrap_or(1),
         shots_fitted: (!shot_index.is_empty()).then_some(per_shot.values.len()),
         shot_index: shot_index.to_vec(),
@@ -199,6 +202,27 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
         fits,
         warnings,
         consistency,
+    }
+}
+
+/// Every estimate's outlier shots as shot numbers: the per-shot fits' rows are the shots
+/// `shot_index` (when not every shot was fitted; empty: row `k` is shot `k`).
+fn number_outlier_shots(
+    modes: &mut BTreeMap<String, ModeResult>,
+    parameters: &mut BTreeMap<String, Estimate>,
+    shot_index: &[usize],
+) {
+    if shot_index.is_empty() {
+        return;
+    }
+    let estimates = modes
+        .values_mut()
+        .flat_map(|m| [&mut m.f_hz, &mut m.q])
+        .chain(parameters.values_mut());
+    for e in estimates {
+        for s in &mut e.outlier_shots {
+            *s = shot_index[*s];
+        }
     }
 }
 
@@ -393,10 +417,7 @@ impl Judge<'_> {
         };
         if ml && self.fo.is_some_and(|f| !f.fit.converged) {
             e.identifiable = false;
-            e.reason = Some(
-                "the output-error fit stopped before converging: this is where it stopped, not an estimate"
-                    .into(),
-            );
+            e.reason = Some(NOT_CONVERGED.into());
             return;
         }
         if ml && self.fo.is_some_and(|f| f.at_bound.contains(&q)) {

@@ -375,6 +375,7 @@ pub fn report_from_shots(model_path: &str, ds: &Dataset, prob: &Problem, fit: &F
         goodness_of_fit: None,
         excluded_levels: Vec::new(),
         holdout: Vec::new(),
+        unfit: Vec::new(),
         shots: fit.values.len(),
         shots_fitted: None,
         shot_index: Vec::new(),

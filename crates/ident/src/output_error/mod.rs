@@ -6,6 +6,7 @@
 
 pub mod ml;
 mod staged;
+pub(crate) use staged::PoorGroup;
 
 use crate::forward::{ForwardError, ForwardModel, Widened};
 use crate::layout::{Quantity, Unknown};
@@ -113,6 +114,9 @@ pub(crate) struct OutputError {
     pub unidentifiable: Vec<(Quantity, String)>,
     /// Whether the model fits the data at the estimate.
     pub goodness: GoodnessOfFit,
+    /// The staged start's groups whose own fit failed, when the joint fit did not converge
+    /// or fit (empty otherwise): the result's `unfit` entries.
+    pub poor_groups: Vec<PoorGroup>,
     pub notes: Vec<String>,
 }
 
@@ -282,12 +286,17 @@ pub(crate) fn fit(
             fit.steps, fit.chi2, fit.chi2_start
         ));
     }
+    let mut poor_groups = Vec::new();
     if !fit.converged || fit.chi2 / fit.dof.max(1) as f64 > GOOD_FIT * e0 {
-        notes.extend(
-            staged
-                .as_ref()
-                .and_then(|s| staged::poor_groups_note(fwd, &s.groups, e0)),
-        );
+        if let Some(s) = &staged {
+            poor_groups = staged::poor_groups(fwd, &s.groups, e0);
+            notes.extend(staged::poor_groups_note(
+                fwd,
+                &poor_groups,
+                s.groups.len(),
+                e0,
+            ));
+        }
     }
     let quantity = |k: usize| Quantity::of(&fwd.unknowns()[k]);
     let at_bound = fit.at_bound.iter().filter_map(|&k| quantity(k)).collect();
@@ -311,6 +320,7 @@ pub(crate) fn fit(
         inflation,
         jackknife,
         at_bound,
+        poor_groups,
         notes,
     })
 }

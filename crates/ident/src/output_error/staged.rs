@@ -435,27 +435,53 @@ pub(crate) fn staged_start(
     Some(Staged { theta, groups })
 }
 
-/// The note on the groups whose own fit is far from a correct model's (`χ²/dof` above
-/// [`GOOD_FIT`] times `e0`) when the joint fit failed: which unknowns, in which
-/// measurements, and what measurement would help. `None` when every group fitted.
-pub(crate) fn poor_groups_note(fwd: &ForwardModel, groups: &[GroupFit], e0: f64) -> Option<String> {
-    let poor: Vec<&GroupFit> = groups
+/// A group whose own fit is far from a correct model's (`χ²/dof` above [`GOOD_FIT`] times
+/// `e0`): the result's `unfit` entry of kind "group not fitted" and the note.
+#[derive(Debug, Clone)]
+pub(crate) struct PoorGroup {
+    /// Its measurements' names.
+    pub measurements: Vec<String>,
+    /// The unknowns it fitted (indices into the forward model's unknowns).
+    pub unknowns: Vec<usize>,
+    /// `χ²/dof` of its best fit (infinite when no start reached one).
+    pub reduced_chi2: f64,
+}
+
+/// The groups of `groups` whose own fit is far from a correct model's (`χ²/dof` above
+/// [`GOOD_FIT`] times `e0`, or none reached), in fitting order.
+pub(crate) fn poor_groups(fwd: &ForwardModel, groups: &[GroupFit], e0: f64) -> Vec<PoorGroup> {
+    let names = fwd.measurement_names();
+    groups
         .iter()
         .filter(|g| g.reduced_chi2.is_nan() || g.reduced_chi2 > GOOD_FIT * e0)
-        .collect();
+        .map(|g| PoorGroup {
+            measurements: g
+                .measurements
+                .iter()
+                .map(|&mi| names[mi].to_string())
+                .collect(),
+            unknowns: g.unknowns.clone(),
+            reduced_chi2: g.reduced_chi2,
+        })
+        .collect()
+}
+
+/// The note on the `poor` groups (of `total`) when the joint fit failed: which unknowns, in
+/// which measurements, and what measurement would help. `None` when every group fitted.
+pub(crate) fn poor_groups_note(
+    fwd: &ForwardModel,
+    poor: &[PoorGroup],
+    total: usize,
+    e0: f64,
+) -> Option<String> {
     if poor.is_empty() {
         return None;
     }
-    let names = fwd.measurement_names();
     let items: Vec<String> = poor
         .iter()
         .map(|g| {
             let unknowns: Vec<String> = g.unknowns.iter().map(|&k| fwd.label(k)).collect();
-            let meas: Vec<String> = g
-                .measurements
-                .iter()
-                .map(|&mi| format!("\"{}\"", names[mi]))
-                .collect();
+            let meas: Vec<String> = g.measurements.iter().map(|m| format!("\"{m}\"")).collect();
             format!(
                 "{} in {} (χ²/dof {:.3e})",
                 harmonid_data::text::first_and_more(unknowns, 4).join(", "),
@@ -465,9 +491,8 @@ pub(crate) fn poor_groups_note(fwd: &ForwardModel, groups: &[GroupFit], e0: f64)
         })
         .collect();
     Some(format!(
-        "output-error fit by groups of measurements: {} of {} groups could not be fitted on their own (a correct model gives χ²/dof about {e0:.3}): {}; the modes they share with the groups fitted before them were held there. A measurement of these unknowns' modes driven alone, or this group's measurement at a lower drive (nearer the linear response, where the linear estimate is a good start), would help",
+        "output-error fit by groups of measurements: {} of {total} groups could not be fitted on their own (a correct model gives χ²/dof about {e0:.3}): {}; the modes they share with the groups fitted before them were held there. A measurement of these unknowns' modes driven alone, or this group's measurement at a lower drive (nearer the linear response, where the linear estimate is a good start), would help",
         poor.len(),
-        groups.len(),
         harmonid_data::text::first_and_more(items, 4).join("; ")
     ))
 }

@@ -26,6 +26,18 @@ pub struct NotIdentifiable {
 }
 
 impl Problem {
+    /// The modes a measurement must respond near to shape unknown `u` (`q1+q2 or q2+q3`):
+    /// the advice of a report on an unknown the data do not determine.
+    pub(crate) fn modes_needed(&self, u: &Unknown) -> String {
+        mode_sets_text(&self.unknown_modes(u), &self.mode_names)
+    }
+
+    /// The sets of modes unknown `u` involves (one per monomial it multiplies: its modes and
+    /// the equation's), mode indices.
+    pub(crate) fn mode_sets(&self, u: &Unknown) -> Vec<Vec<usize>> {
+        self.unknown_modes(u)
+    }
+
     /// Whether unknown `u` is visible in measurement `mi`.
     pub(super) fn visible(&self, ui: usize, mi: usize) -> bool {
         let act = &self.meas[mi].active;

@@ -6,3 +6,4 @@ mod finite_inputs;
 mod ml_fallback;
 mod near_resonance;
 mod shared_dataset;
+mod unfit;

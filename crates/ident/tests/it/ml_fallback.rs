@@ -89,6 +89,16 @@ fn a_harmonic_balance_failing_from_every_start_falls_back_to_the_linear_estimate
         "{w}"
     );
     assert_finite(&rep);
+    // The result says which unknowns the output-error fit could not fit, why, and what helps.
+    let [u] = &rep.unfit[..] else {
+        panic!("one unfit group: {:?}", rep.unfit)
+    };
+    assert_eq!(u.why, harmonid_data::result::UnfitWhy::NoOutputError);
+    assert_eq!(u.unknowns, ["f_hz:q1", "Q:q1"]);
+    assert!(
+        u.detail.contains("no steady state") && u.advice.contains("at a lower drive"),
+        "{u:?}"
+    );
     // The linear estimate is the one reported: f near the data's resonance.
     let f = rep.modes["q1"].f_hz.value;
     assert!((f / 1e6 - 1.0).abs() < 1e-4, "f = {f}");
