@@ -237,6 +237,16 @@ impl IdentifyResult {
         self.part(py, "goodness_of_fit")
     }
 
+    /// The groups of unknowns the identification could not fit (`unfit` of the result file,
+    /// `docs/data-format.md`): a list of `{"why", "unknowns", "measurements", "chi2_per_dof",
+    /// "detail", "advice"}` (`why`: `"no_output_error"`, `"not_converged"`,
+    /// `"group_not_fitted"`, `"not_determined"` or `"at_bound"`; `advice`: the measurement that
+    /// would help), or None when every unknown was fitted and determined.
+    #[getter]
+    fn unfit<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.part(py, "unfit")
+    }
+
     /// Warnings (conditioning, quantities the data do not determine, ...); the first is the
     /// verdict when the model does not fit the data.
     #[getter]

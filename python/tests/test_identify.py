@@ -191,3 +191,32 @@ def test_background_is_reported_and_bad_words_refused(tmp_path):
         harmonid.identify(model, data, background="drive,offset")
     with pytest.raises(harmonid.HarmonidError, match="output-error estimator"):
         harmonid.identify(model, data, background="constant", estimator="linear")
+
+
+def test_unfit_names_what_was_not_fitted_and_what_would_help(cli, tmp_path):
+    """Without the two-mode measurement nothing shapes g12: `unfit` names it, why and the
+    measurement that would help, as the command line writes it; None when all was fitted."""
+    from test_dataset import arrays_of
+
+    ds = harmonid.Dataset.from_folder(DATA_2)
+    model = harmonid.Model.from_file(MODEL_2)
+    assert harmonid.identify(model, ds).unfit is None
+    arrays = arrays_of(ds)
+    del arrays["couple_q1_q2"]
+    singles = harmonid.Dataset.from_arrays(
+        arrays,
+        displacement_unit="nm",
+        points={p["name"]: p["shape"] for p in ds.manifest["point"]},
+        nominal_hz=ds.manifest.get("nominal_hz"),
+        description="singles only",
+    )
+    r = harmonid.identify(model, singles)
+    assert r.unfit == r.to_dict()["unfit"]
+    [g12] = [u for u in r.unfit if "g12" in u["unknowns"]]
+    assert g12["why"] == "not_determined" and g12["unknowns"] == ["g12"]
+    assert g12["advice"].startswith("a measurement with responses near the resonances of q1+q2")
+    assert "not fitted: not determined (g12)" in r.summary()
+    # The command line on the same data writes the same field.
+    singles.to_folder(tmp_path / "singles")
+    want, _, _ = cli_identify(cli, tmp_path, MODEL_2, tmp_path / "singles", [])
+    assert_close(r.unfit, want["unfit"], rel=1e-6)
