@@ -131,3 +131,65 @@ def test_compare_and_discover_take_a_background(cli, tmp_path):
         assert "background" in str(e), str(e)
     else:
         raise AssertionError("an unknown background word was accepted")
+
+
+NONSMOOTH_PLAN = """
+description = "one-tone drive ladders across the resonance of examples/nonsmooth"
+displacement_unit = "m"
+[[point]]
+name = "p0"
+shape = { q1 = 1.0 }
+[noise]
+sigma_per_quadrature = 2e-9
+shots = 5
+""" + "".join(
+    f"""
+[[measurement]]
+name = "f{f}"
+drives_hz = [{f}.0]
+force = {{ q1 = [1.97] }}
+drive_levels_v = [1.0]
+drive_phases_rad = [0.0]
+levels = [0.3, 1.0]
+"""
+    for f in (9984, 9990, 9995, 10002)
+)
+
+DUFFING_DRAG = """
+mode q1 at 10 kHz
+param beta1, drag1
+potential: beta1/4*q1^4
+eom q1 += drag1*abs(d(q1))*d(q1)
+"""
+
+
+def test_discover_nonsmooth_equals_cli(cli, tmp_path):
+    # examples/nonsmooth (|q|q softening, |q'|q' drag, Duffing) driven at four frequencies, two
+    # levels each; from Duffing + drag the family alone (no degrees) offers abs(q1)*q1 and
+    # sign(d(q1)), and abs(q1)*q1 is added (about 2.5 s each way).
+    plan = tmp_path / "plan.toml"
+    plan.write_text(NONSMOOTH_PLAN)
+    data = tmp_path / "data"
+    cli("simulate", "examples/nonsmooth/model.hb", "--values", "examples/nonsmooth/values.toml",
+        "--plan", plan, "--seed", "1", "--out", data)
+    start = tmp_path / "start.hb"
+    start.write_text(DUFFING_DRAG)
+    want = load_json(cli("discover", data, start, "--nonsmooth", "--gain-per-mode", "--json",
+                         "--out", tmp_path / "sel.hb"))
+    ds = harmonid.Dataset.from_folder(data)
+    found = harmonid.discover(harmonid.Model.from_file(start), ds, [], nonsmooth=True,
+                              force_model="gain_per_mode")
+    for key in ("candidates", "steps", "fits", "selected_by"):
+        assert_close(found[key], want[key], path=key)
+    assert found["candidates"] == 2
+    added = [s["term"] for s in found["steps"] if s["action"] == "added"]
+    assert added == ["abs(q1)*q1 in the equation of q1"], found["steps"]
+    assert "abs(q1)*q1" in found["source"]
+    kappa = found["result"].parameters["b1_absq"]
+    assert abs(kappa["value"] / -9.3e12 - 1) < 0.1, kappa
+    try:
+        harmonid.discover(harmonid.Model.from_file(start), ds, [])
+    except harmonid.HarmonidError as e:
+        assert "nonsmooth" in str(e), str(e)
+    else:
+        raise AssertionError("an empty library was accepted")
