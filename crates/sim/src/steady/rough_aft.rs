@@ -25,6 +25,7 @@
 //! coefficients' derivative is not).
 
 mod grid;
+mod jacobian;
 
 use super::{HbSettings, HbSolver, HbStatus, SteadyState};
 use crate::lattice::LINE_TOL_HZ;
@@ -33,6 +34,7 @@ use crate::{Excitation, NumericModel, SimError};
 pub(crate) use grid::Grid;
 pub use grid::ROUGH_MIN_SAMPLES;
 use harmonid_model::NonSmooth;
+use jacobian::SpectralJacobian;
 use num_complex::Complex64;
 use std::f64::consts::TAU;
 
@@ -59,6 +61,9 @@ pub(crate) struct RoughAft {
     /// Projected forces for differences, `[n·R + r]`.
     plus: Vec<Complex64>,
     minus: Vec<Complex64>,
+    /// The Jacobian from the derivatives' spectra, for terms without jumps (`None`: central
+    /// differences).
+    spectral: Option<SpectralJacobian>,
 }
 
 impl RoughAft {
@@ -93,7 +98,7 @@ impl RoughAft {
         let (prev, next) = grid.neighbours();
         let nm = model.n_modes();
         let nv = model.n_vars();
-        Self {
+        let mut aft = Self {
             terms: model.rough_terms().to_vec(),
             nm,
             nr: lattice.len(),
@@ -108,7 +113,12 @@ impl RoughAft {
             fs: vec![0.0; nt * nm],
             plus: vec![Complex64::new(0.0, 0.0); nm * lattice.len()],
             minus: vec![Complex64::new(0.0, 0.0); nm * lattice.len()],
+            spectral: None,
+        };
+        if !aft.has_jump() {
+            aft.spectral = Some(SpectralJacobian::new(&aft, grid));
         }
+        aft
     }
 
     /// Whether a term holds a jump (`sign`) or a near-jump (`tanh`).
@@ -245,9 +255,26 @@ impl RoughAft {
     }
 
     /// Adds the Jacobian of the projected forces `∂(Re F, Im F)/∂(Re X, Im X)` at `x` to
-    /// `jac` (row-major, `2·N·R` unknowns interleaved re/im, `[n·R + r]` order) by central
-    /// differences, and marks the coupled `(equation, mode)` blocks in `coupled`.
+    /// `jac` (row-major, `2·N·R` unknowns interleaved re/im, `[n·R + r]` order), and marks the
+    /// coupled `(equation, mode)` blocks in `coupled`: from the spectra of the pointwise
+    /// derivatives for terms without jumps (`jacobian.rs`), else by central differences.
     pub(crate) fn add_jacobian(
+        &mut self,
+        x: &[Complex64],
+        pump: &[Complex64],
+        jac: &mut [f64],
+        coupled: &mut [bool],
+    ) {
+        if self.spectral.is_some() {
+            self.add_spectral_jacobian(x, pump, jac, coupled);
+        } else {
+            self.add_difference_jacobian(x, pump, jac, coupled);
+        }
+    }
+
+    /// [`RoughAft::add_jacobian`] by central differences of the projected forces in each real
+    /// unknown.
+    fn add_difference_jacobian(
         &mut self,
         x: &[Complex64],
         pump: &[Complex64],
@@ -420,6 +447,44 @@ mod tests {
         let mut out = vec![Complex64::new(0.0, 0.0); x.len()];
         aft.add_forces(x, &[], &mut out);
         out
+    }
+
+    #[test]
+    fn spectral_jacobian_equals_central_differences_on_a_torus() {
+        let g = [10_003.7, 10_011.2];
+        let lattice = [
+            2.0 * g[0] - g[1],
+            g[0],
+            g[1],
+            2.0 * g[1] - g[0],
+            2.0 * g[0] + g[1],
+        ];
+        let grid = Grid::choose(&g, &lattice).expect("a grid");
+        assert_eq!(grid.axes(), 2);
+        let x = [
+            Complex64::new(3e-8, 1e-8),
+            Complex64::new(0.7e-6, -0.4e-6),
+            Complex64::new(-0.2e-6, 0.5e-6),
+            Complex64::new(-2e-8, 4e-8),
+            Complex64::new(1e-9, -3e-9),
+        ];
+        let nu = 2 * lattice.len();
+        let mut aft = RoughAft::with_grid(&abs_model(), &grid, &lattice);
+        let (mut a, mut b) = (vec![0.0; nu * nu], vec![0.0; nu * nu]);
+        let mut coupled = [false];
+        aft.add_jacobian(&x, &[], &mut a, &mut coupled);
+        assert!(coupled[0]);
+        aft.add_difference_jacobian(&x, &[], &mut b, &mut coupled);
+        let big = b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let worst = a
+            .iter()
+            .zip(&b)
+            .fold(0.0f64, |m, (p, q)| m.max((p - q).abs()));
+        assert!(
+            worst < 1e-6 * big,
+            "worst {:e} of the largest entry",
+            worst / big
+        );
     }
 
     #[test]

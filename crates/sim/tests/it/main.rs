@@ -7,6 +7,7 @@ mod finite_inputs;
 mod hopf;
 mod linear_response;
 mod nonsmooth;
+mod nonsmooth_torus;
 mod pumping;
 mod quasi_periodic;
 mod ramp_past_fold;
