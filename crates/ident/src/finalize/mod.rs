@@ -162,7 +162,7 @@ pub(crate) fn finalize(found: Found<'_>) -> Report {
         warnings.extend(background::not_fitted(&settings.background));
     }
     warnings.extend(tables::undetermined_warnings(&modes, &parameters));
-    warnings.extend(jackknife_warning(&jackknife_warnings));
+    warnings.extend(jackknife_warning(&jackknife_warnings, &judge));
     if let Some(text) = goodness_of_fit.as_ref().and_then(|g| g.headline()) {
         warnings.insert(0, text);
     }
@@ -234,12 +234,54 @@ struct JackknifeDisagreement {
     fisher: f64,
 }
 
-/// One warning for every quantity whose jackknife and Fisher standard errors disagree by more
-/// than [`JACKKNIFE_TOL`] (a warning a quantity drowned the others on real data), the largest
-/// ratios named first, or `None`.
-fn jackknife_warning(list: &[JackknifeDisagreement]) -> Option<String> {
+/// The family-wise probability that a correct jackknife's ratio to the Fisher error falls
+/// outside [`jackknife_band`] for some quantity of a result.
+const JACKKNIFE_FAMILY_ALPHA: f64 = 0.01;
+
+/// The range of jackknife/Fisher ratios a correct fit gives with `shots` shots over
+/// `quantities` quantities, widened to at least ± [`JACKKNIFE_TOL`]. Why: the jackknife's
+/// variance from `n` shots scatters like `σ²·χ²(n−1)/(n−1)` (relative standard error
+/// `1/√(2(n−1))`, 13 % at 30 shots), so a fixed 30 % is 2.3 of its own sigmas and a
+/// ten-mode string's 75 quantities cross it about 1.6 times a result by chance (measured: 25
+/// of 1500 over 20 such strings, in both directions). The band is the `χ²(n−1)` quantiles at
+/// [`JACKKNIFE_FAMILY_ALPHA`] shared over the quantities (Bonferroni, two-sided).
+fn jackknife_band(shots: f64, quantities: usize) -> (f64, f64) {
+    use statrs::distribution::{ChiSquared, ContinuousCDF};
+    let nu = (shots - 1.0).max(1.0);
+    let p = JACKKNIFE_FAMILY_ALPHA / (2.0 * quantities.max(1) as f64);
+    let ratio = |x: f64| {
+        ChiSquared::new(nu)
+            .ok()
+            .map(|c| (c.inverse_cdf(x) / nu).sqrt())
+            .filter(|r| r.is_finite())
+    };
+    let lo = ratio(p).unwrap_or(0.0).min(1.0 - JACKKNIFE_TOL);
+    let hi = ratio(1.0 - p)
+        .unwrap_or(f64::INFINITY)
+        .max(1.0 + JACKKNIFE_TOL);
+    (lo, hi)
+}
+
+/// [`jackknife_warning_in`] with the band of the fewest shots any measurement's mean used
+/// over the quantities the jackknife was computed for.
+fn jackknife_warning(list: &[JackknifeDisagreement], judge: &Judge) -> Option<String> {
+    let jackknifed = judge.fo.map_or(0, |f| f.jackknife.len());
+    jackknife_warning_in(list, jackknife_band(judge.n_used, jackknifed))
+}
+
+/// One warning for every quantity whose jackknife/Fisher ratio lies outside `band` (see
+/// [`jackknife_band`]; one warning: a quantity each drowned the others on real data), the
+/// largest ratios named first, or `None`.
+fn jackknife_warning_in(list: &[JackknifeDisagreement], band: (f64, f64)) -> Option<String> {
     const NAMED: usize = 3;
-    let mut sorted: Vec<&JackknifeDisagreement> = list.iter().collect();
+    let list: Vec<&JackknifeDisagreement> = list
+        .iter()
+        .filter(|d| {
+            let r = d.jackknife / d.fisher;
+            !(band.0..=band.1).contains(&r)
+        })
+        .collect();
+    let mut sorted = list.clone();
     let ratio = |d: &JackknifeDisagreement| (d.fisher / d.jackknife).ln().abs();
     sorted.sort_by(|a, b| ratio(b).total_cmp(&ratio(a)));
     let named: Vec<String> = sorted
@@ -259,8 +301,9 @@ fn jackknife_warning(list: &[JackknifeDisagreement]) -> Option<String> {
     let s = if list.len() == 1 { "" } else { "s" };
     (!list.is_empty()).then(|| {
         format!(
-            "the jackknife and Fisher standard errors disagree by more than {:.0} % for {} quantit{}: {}{more}",
-            100.0 * JACKKNIFE_TOL,
+            "the jackknife and Fisher standard errors disagree beyond what the shots allow (a ratio outside {:.2} to {:.2}) for {} quantit{}: {}{more}",
+            band.0,
+            band.1,
             list.len(),
             if s.is_empty() { "y" } else { "ies" },
             named.join(", ")
@@ -462,12 +505,15 @@ mod tests {
             jackknife,
             fisher: 1.0,
         };
-        assert_eq!(jackknife_warning(&[]), None);
-        let one = jackknife_warning(&[d("beta1", 2.0)]).expect("one");
+        let tol = (1.0 - JACKKNIFE_TOL, 1.0 + JACKKNIFE_TOL);
+        assert_eq!(jackknife_warning_in(&[], tol), None);
+        let one = jackknife_warning_in(&[d("beta1", 2.0)], tol).expect("one");
         assert!(
             one.ends_with("for 1 quantity: beta1 (jackknife 2.000e0, Fisher 1.000e0)"),
             "{one}"
         );
+        // Within the band nothing is said.
+        assert_eq!(jackknife_warning_in(&[d("beta1", 1.4)], (0.5, 1.5)), None);
         let list = [
             d("a", 1.5),
             d("b", 1e-3),
@@ -475,7 +521,7 @@ mod tests {
             d("e", 0.5),
             d("f", 3.0),
         ];
-        let w = jackknife_warning(&list).expect("many");
+        let w = jackknife_warning_in(&list, tol).expect("many");
         // Largest ratios either way first: b (1000x), c (10x), f (3x); two more counted.
         assert!(
             w.contains("for 5 quantities: b (")
@@ -484,6 +530,24 @@ mod tests {
                 && w.ends_with(" and 2 more"),
             "{w}"
         );
+    }
+
+    /// The band of a correct jackknife: the χ²(n−1) quantiles shared over the quantities,
+    /// never narrower than ± JACKKNIFE_TOL.
+    #[test]
+    fn the_jackknife_band_widens_with_few_shots_and_many_quantities() {
+        // One quantity, 30 shots: χ²(29) quantiles at 0.5 % and 99.5 %, 13.12 and 52.34.
+        let (lo, hi) = jackknife_band(30.0, 1);
+        assert!((lo - (13.121_1_f64 / 29.0).sqrt()).abs() < 1e-3, "{lo}");
+        assert!((hi - (52.335_6_f64 / 29.0).sqrt()).abs() < 1e-3, "{hi}");
+        // 75 quantities (the ten-mode string): wider still.
+        let (lo75, hi75) = jackknife_band(30.0, 75);
+        assert!(
+            lo75 < lo && hi75 > hi && lo75 > 0.4 && hi75 < 1.6,
+            "{lo75} {hi75}"
+        );
+        // Many shots: the fixed tolerance.
+        assert_eq!(jackknife_band(100_000.0, 1), (0.7, 1.3));
     }
 
     #[test]
