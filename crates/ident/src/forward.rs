@@ -29,7 +29,7 @@
 //! set by [`ForwardModel::start_from_data`]); the drive ramp from rest is the fall-back.
 //! A step of a stepped sweep measured in order (a `[[sweep]]` going up or down) has a history
 //! instead: without a state of its own it starts where the experiment had it, from the
-//! previous step's state at the same `θ` ([`harmonid_sim::HbSolver::solve_after`]: the
+//! previous step's state at the same `θ` ([`harmonid_sim::ReducedSolver::solve_after`]: the
 //! transient from there), so up- and down-sweeps stay on their branches through a bistable
 //! range and jump where the model's fold is; it is never ramped from rest.
 
@@ -40,8 +40,8 @@ use crate::settings::ForceModel;
 use harmonid_data::Dataset;
 use harmonid_model::{Linear, Model, ParamKind};
 use harmonid_sim::{
-    choose_lattice, Excitation, HbSettings, HbSolver, LatticeSettings, ModeValues, ModelValues,
-    NumericModel, Observation, PumpTone, SensParam, Sensitivity, SteadyState,
+    choose_lattice, Excitation, HbSettings, LatticeSettings, ModeValues, ModelValues, NumericModel,
+    Observation, PumpTone, ReducedSensitivity, ReducedSolver, SensParam, SteadyState,
 };
 use num_complex::Complex64;
 use std::collections::BTreeMap;
@@ -167,8 +167,10 @@ struct MeasFwd {
     follows: Option<usize>,
     buf: Vec<Complex64>,
     /// The solver of this measurement's lattice, kept across evaluations (values reset by
-    /// [`HbSolver::set_values`]) with its sensitivity set-up.
-    solver: Option<(HbSolver, Option<Sensitivity>)>,
+    /// [`ReducedSolver::set_values`]) with its sensitivity set-up. It solves the modes the
+    /// drive reaches, the modes the tones push counted as forced (their forces are unknowns);
+    /// a single-mode measurement of a twenty-mode string solves one mode, not twenty.
+    solver: Option<(ReducedSolver, Option<ReducedSensitivity>)>,
 }
 
 /// The forward model of a dataset; see the module documentation.
@@ -891,7 +893,7 @@ impl ForwardModel {
             let sens = match sens {
                 Some(s) => s,
                 None => sens.insert(
-                    Sensitivity::new(solver, &m.tones_hz, &m.sens_params, &m.obs)
+                    ReducedSensitivity::new(solver, &m.tones_hz, &m.sens_params, &m.obs)
                         .map_err(|e| hb_err(e.to_string()))?,
                 ),
             };
@@ -987,7 +989,9 @@ impl ForwardModel {
             let Ok(wide) = choose_lattice(&numeric, &drive, &ls) else {
                 continue;
             };
-            let Ok(mut solver) = HbSolver::with_lattice(&numeric, &drive, wide.clone()) else {
+            let Ok(mut solver) =
+                ReducedSolver::with_lattice(&numeric, &drive, wide.clone(), &m.tone_mode)
+            else {
                 continue;
             };
             let start: Vec<Vec<Complex64>> = (0..numeric.n_modes())
@@ -1063,8 +1067,9 @@ impl ForwardModel {
                 solver
             }
             None => {
-                let solver = HbSolver::with_lattice(numeric, drive, lattice.clone())
-                    .map_err(|e| hb_err(e.to_string()))?;
+                let solver =
+                    ReducedSolver::with_lattice(numeric, drive, lattice.clone(), &m.tone_mode)
+                        .map_err(|e| hb_err(e.to_string()))?;
                 &mut m.solver.insert((solver, None)).0
             }
         };

@@ -6,15 +6,17 @@
 //! coefficients. [`crate::info::simulate`] builds two solvers per device (the ramp's and the
 //! stability check's, each planning the lattice's products and allocating its Jacobian) and
 //! the measurement's dataset; here a solver whose lattice is the device's is reused with new
-//! values ([`HbSolver::set_values`]), its stability judged on the same solver, and nothing is
-//! kept but the verdict. The verdict is [`crate::info::simulate`]'s: the same lattice, the same
+//! values ([`ReducedSolver::set_values`]), its stability judged on the same solver, and nothing
+//! is kept but the verdict. The solvers solve the modes the drive reaches (a coupling's three
+//! tones on a ten-mode string: two modes), the idle ones entering the stability verdict
+//! through their own block. The verdict is [`crate::info::simulate`]'s: the same lattice, the same
 //! ramp from rest, the same errors (a test compares both on every device of a range).
 
 use crate::info::{Fidelity, SCREEN_ORDER};
 use crate::PlanError;
 use harmonid_experiment::{ExperimentError, PlanMeasurement, Settings};
 use harmonid_sim::{
-    choose_lattice, HbSettings, HbSolver, HbStatus, NumericModel, SimError, SteadyState,
+    choose_lattice, HbSettings, HbStatus, NumericModel, ReducedSolver, SimError, SteadyState,
 };
 use std::sync::Mutex;
 
@@ -22,7 +24,7 @@ use std::sync::Mutex;
 /// (a solver of a few hundred lines holds tens of MB of Jacobian): one per thread checking
 /// devices at once is enough for the devices of one drive.
 pub(crate) struct SolverPool {
-    solvers: Mutex<Vec<HbSolver>>,
+    solvers: Mutex<Vec<ReducedSolver>>,
     cap: usize,
 }
 
@@ -36,14 +38,14 @@ impl SolverPool {
     }
 
     /// A kept solver planned on exactly `lattice`, taken out of the pool.
-    fn take(&self, lattice: &[f64]) -> Option<HbSolver> {
+    fn take(&self, lattice: &[f64]) -> Option<ReducedSolver> {
         let mut list = self.solvers.lock().ok()?;
         let k = list.iter().position(|s| s.lattice() == lattice)?;
         Some(list.swap_remove(k))
     }
 
     /// Gives a solver back; the oldest is dropped beyond the cap.
-    fn put(&self, solver: HbSolver) {
+    fn put(&self, solver: ReducedSolver) {
         if let Ok(mut list) = self.solvers.lock() {
             list.push(solver);
             if list.len() > self.cap {
@@ -97,7 +99,9 @@ pub(crate) fn solve_on(
             s.set_values(num, &drive).map_err(sim(context.clone()))?;
             s
         }
-        None => HbSolver::with_lattice(num, &drive, lattice).map_err(sim(context.clone()))?,
+        None => {
+            ReducedSolver::with_lattice(num, &drive, lattice, &[]).map_err(sim(context.clone()))?
+        }
     };
     let st = solver.solve(&hs);
     let verdict = if let HbStatus::NotConverged { drive_fraction } = st.status {
