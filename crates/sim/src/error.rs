@@ -230,6 +230,17 @@ pub enum SimError {
         /// The start frequency, Hz.
         f_hz: f64,
     },
+    /// Newton found no steady state at the start of a sweep of a model with Coulomb friction
+    /// (`sign`, `tanh`): where the friction is stronger than the drive the resonator sticks and
+    /// has no sliding (periodic, harmonic-balance) response.
+    #[error("harmonic balance: no sliding steady state at the start frequency {f_hz} Hz: {why}; raise the force above the friction's fundamental, or lower the friction coefficient")]
+    NoSliding {
+        /// The start frequency, Hz.
+        f_hz: f64,
+        /// The friction terms and, where a mode's friction is `μ sign(q̇)` alone, its
+        /// threshold `4μ/π` against the force.
+        why: String,
+    },
     /// A steady state has non-finite amplitudes, so nothing can be said about its stability.
     #[error("the steady state has non-finite amplitudes; no stability verdict")]
     NonFiniteState,

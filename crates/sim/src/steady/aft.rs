@@ -2,7 +2,10 @@
 //! sweep and the backbone, whose frequency is an unknown of the continuation (the lattice
 //! solver's frequencies are fixed, so these do not run on [`super::HbSolver`]).
 
+mod jumps;
+
 use crate::NumericModel;
+use jumps::{Jumps, Tables};
 use num_complex::Complex64;
 use std::f64::consts::TAU;
 
@@ -16,10 +19,12 @@ pub(super) struct Aft {
     sin: Vec<f64>,
     /// Force on each mode at the fundamental (`[n]`).
     force: Vec<Complex64>,
+    /// The terms with a jump (`sign`, `tanh`), averaged over each sample's cell.
+    jumps: Option<Jumps>,
     // Buffers.
-    /// The variables at one sample: displacements, then velocities (models with velocity
-    /// terms).
-    q: Vec<f64>,
+    /// The variables at the samples, `[j·V + v]`: displacements, then velocities (models
+    /// with velocity terms).
+    xs: Vec<f64>,
     pows: Vec<f64>,
     fnl: Vec<f64>,
     /// `∂f_n/∂x_v` at one sample (`N × V`, `V` = [`NumericModel::n_vars`]).
@@ -61,12 +66,13 @@ impl Aft {
         let nv = model.n_vars();
         Self {
             model: model.clone(),
+            jumps: Jumps::new(model, nt, nh),
             harm,
             nt,
             cos,
             sin,
             force: force.to_vec(),
-            q: vec![0.0; nv],
+            xs: vec![0.0; nt * nv],
             pows: vec![0.0; model.pow_len()],
             fnl: vec![0.0; nm],
             fj: vec![0.0; nm * nv],
@@ -88,20 +94,20 @@ impl Aft {
 
     /// Time samples of the variables at `u`, `ω = w` (q, and q̇ = ω Σ h (−Re X sin hθ −
     /// Im X cos hθ) for velocity terms), the nonlinear forces there, and with `with_jacobian`
-    /// their derivatives (and `∂f/∂ω` through the velocities).
+    /// their derivatives (and `∂f/∂ω` through the velocities). Jump terms are cell averages
+    /// ([`Jumps::correct`]).
     fn sample(&mut self, u: &[f64], w: f64, with_jacobian: bool) {
         let nm = self.model.n_modes();
         let nv = self.model.n_vars();
         let nh = self.harm.len();
-        let nt = self.nt;
-        for j in 0..nt {
+        for (j, x) in self.xs.chunks_exact_mut(nv).enumerate() {
             for n in 0..nm {
                 let mut v = 0.0;
                 for i in 0..nh {
                     let k = 2 * (n * nh + i);
                     v += u[k] * self.cos[j * nh + i] - u[k + 1] * self.sin[j * nh + i];
                 }
-                self.q[n] = v;
+                x[n] = v;
             }
             for n in 0..nv - nm {
                 let mut v = 0.0;
@@ -109,22 +115,30 @@ impl Aft {
                     let k = 2 * (n * nh + i);
                     v -= h as f64 * (u[k] * self.sin[j * nh + i] + u[k + 1] * self.cos[j * nh + i]);
                 }
-                self.q[nm + n] = w * v;
+                x[nm + n] = w * v;
             }
-            self.model.forces(&self.q, &mut self.pows, &mut self.fnl);
+        }
+        for (j, x) in self.xs.chunks_exact(nv).enumerate() {
+            self.model.forces(x, &mut self.pows, &mut self.fnl);
             self.nl_t[j * nm..(j + 1) * nm].copy_from_slice(&self.fnl);
             if with_jacobian {
-                self.model
-                    .force_jacobian(&self.q, &mut self.pows, &mut self.fj);
+                self.model.force_jacobian(x, &mut self.pows, &mut self.fj);
                 self.jac_t[j * nm * nv..(j + 1) * nm * nv].copy_from_slice(&self.fj);
-                if nv > nm {
-                    for n in 0..nm {
-                        let mut d = 0.0;
-                        for m in 0..nm {
-                            d += self.fj[n * nv + nm + m] * self.q[nm + m];
-                        }
-                        self.dfdw_t[j * nm + n] = if w != 0.0 { d / w } else { 0.0 };
+            }
+        }
+        if let Some(jumps) = self.jumps.as_mut() {
+            let jac = with_jacobian.then_some(&mut self.jac_t[..]);
+            jumps.correct(&self.xs, &mut self.nl_t, jac);
+        }
+        if with_jacobian && nv > nm {
+            for (j, x) in self.xs.chunks_exact(nv).enumerate() {
+                let fj = &self.jac_t[j * nm * nv..(j + 1) * nm * nv];
+                for n in 0..nm {
+                    let mut d = 0.0;
+                    for m in 0..nm {
+                        d += fj[n * nv + nm + m] * x[nm + m];
                     }
+                    self.dfdw_t[j * nm + n] = if w != 0.0 { d / w } else { 0.0 };
                 }
             }
         }
@@ -188,62 +202,78 @@ impl Aft {
                 }
             }
         }
-        if let Some((ju, _)) = jac {
-            let nu = self.n();
-            ju.iter_mut().for_each(|v| *v = 0.0);
-            for n in 0..nm {
-                let (wn, g) = (self.model.omega(n), self.model.gamma(n) * damping);
-                for (i, &h) in self.harm.iter().enumerate() {
-                    let row = 2 * (n * nh + i);
-                    let hw = h as f64 * w;
-                    let l = Complex64::new(wn * wn - hw * hw, hw * g);
-                    if h == 0 {
-                        ju[row * nu + row] = l.re;
-                        ju[(row + 1) * nu + row + 1] = 1.0;
-                    } else {
-                        ju[row * nu + row] = l.re;
-                        ju[row * nu + row + 1] = -l.im;
-                        ju[(row + 1) * nu + row] = l.im;
-                        ju[(row + 1) * nu + row + 1] = l.re;
-                    }
-                    let norm = if h == 0 {
-                        1.0 / nt as f64
-                    } else {
-                        2.0 / nt as f64
-                    };
-                    for m in 0..nm {
-                        for (i2, &h2) in self.harm.iter().enumerate() {
-                            let col = 2 * (m * nh + i2);
-                            // ∂q_m(t)/∂Re X = cos(h2 θ), ∂/∂Im X = −sin(h2 θ); for the
-                            // velocity, −ω h2 sin(h2 θ) and −ω h2 cos(h2 θ).
-                            let mut a = Complex64::new(0.0, 0.0);
-                            let mut b = Complex64::new(0.0, 0.0);
+        if let Some((ju, jw)) = jac {
+            self.assemble_ju(w, damping, ju);
+            if let Some(jumps) = self.jumps.as_mut() {
+                let tab = Tables {
+                    cos: &self.cos,
+                    sin: &self.sin,
+                    harm: &self.harm,
+                };
+                jumps.add_jacobian(&self.xs, &tab, w, ju, jw);
+            }
+        }
+    }
+
+    /// `∂R/∂u` (row-major `n × n`) from the linear part and the sampled force derivatives of
+    /// the last [`Aft::sample`] with its Jacobian.
+    fn assemble_ju(&self, w: f64, damping: f64, ju: &mut [f64]) {
+        let nm = self.model.n_modes();
+        let nv = self.model.n_vars();
+        let nh = self.harm.len();
+        let nt = self.nt;
+        let nu = self.n();
+        ju.iter_mut().for_each(|v| *v = 0.0);
+        for n in 0..nm {
+            let (wn, g) = (self.model.omega(n), self.model.gamma(n) * damping);
+            for (i, &h) in self.harm.iter().enumerate() {
+                let row = 2 * (n * nh + i);
+                let hw = h as f64 * w;
+                let l = Complex64::new(wn * wn - hw * hw, hw * g);
+                if h == 0 {
+                    ju[row * nu + row] = l.re;
+                    ju[(row + 1) * nu + row + 1] = 1.0;
+                } else {
+                    ju[row * nu + row] = l.re;
+                    ju[row * nu + row + 1] = -l.im;
+                    ju[(row + 1) * nu + row] = l.im;
+                    ju[(row + 1) * nu + row + 1] = l.re;
+                }
+                let norm = if h == 0 {
+                    1.0 / nt as f64
+                } else {
+                    2.0 / nt as f64
+                };
+                for m in 0..nm {
+                    for (i2, &h2) in self.harm.iter().enumerate() {
+                        let col = 2 * (m * nh + i2);
+                        // ∂q_m(t)/∂Re X = cos(h2 θ), ∂/∂Im X = −sin(h2 θ); for the
+                        // velocity, −ω h2 sin(h2 θ) and −ω h2 cos(h2 θ).
+                        let mut a = Complex64::new(0.0, 0.0);
+                        let mut b = Complex64::new(0.0, 0.0);
+                        for j in 0..nt {
+                            let d = self.jac_t[j * nm * nv + n * nv + m];
+                            let e = Complex64::new(self.cos[j * nh + i], -self.sin[j * nh + i]) * d;
+                            a += e * self.cos[j * nh + i2];
+                            b -= e * self.sin[j * nh + i2];
+                        }
+                        if nv > nm {
+                            let wh2 = w * h2 as f64;
                             for j in 0..nt {
-                                let d = self.jac_t[j * nm * nv + n * nv + m];
+                                let d = self.jac_t[j * nm * nv + n * nv + nm + m];
                                 let e =
                                     Complex64::new(self.cos[j * nh + i], -self.sin[j * nh + i]) * d;
-                                a += e * self.cos[j * nh + i2];
-                                b -= e * self.sin[j * nh + i2];
+                                a -= e * (wh2 * self.sin[j * nh + i2]);
+                                b -= e * (wh2 * self.cos[j * nh + i2]);
                             }
-                            if nv > nm {
-                                let wh2 = w * h2 as f64;
-                                for j in 0..nt {
-                                    let d = self.jac_t[j * nm * nv + n * nv + nm + m];
-                                    let e =
-                                        Complex64::new(self.cos[j * nh + i], -self.sin[j * nh + i])
-                                            * d;
-                                    a -= e * (wh2 * self.sin[j * nh + i2]);
-                                    b -= e * (wh2 * self.cos[j * nh + i2]);
-                                }
-                            }
-                            a *= norm;
-                            b *= norm;
-                            ju[row * nu + col] += a.re;
-                            ju[row * nu + col + 1] += b.re;
-                            if h != 0 {
-                                ju[(row + 1) * nu + col] += a.im;
-                                ju[(row + 1) * nu + col + 1] += b.im;
-                            }
+                        }
+                        a *= norm;
+                        b *= norm;
+                        ju[row * nu + col] += a.re;
+                        ju[row * nu + col + 1] += b.re;
+                        if h != 0 {
+                            ju[(row + 1) * nu + col] += a.im;
+                            ju[(row + 1) * nu + col + 1] += b.im;
                         }
                     }
                 }

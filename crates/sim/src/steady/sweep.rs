@@ -404,7 +404,7 @@ impl Arclength {
                 *u += d;
             }
         }
-        Err(SimError::NoStart { f_hz: f0 })
+        Err(no_start(model, force, f0))
     }
 
     /// The current point (stability not yet set) and the sign of `det J_u` there (`0.0`:
@@ -536,6 +536,43 @@ impl Arclength {
             }
         }
         None
+    }
+}
+
+/// Why a sweep could not start at `f_hz`: [`SimError::NoSliding`] for a model with Coulomb
+/// friction (a term with `sign` or `tanh`), naming the terms and, for a mode whose friction is
+/// `μ sign(q̇)` alone, the describing function's threshold `4|μ|/π` against the force on it
+/// (below it the mode sticks); else [`SimError::NoStart`].
+fn no_start(model: &NumericModel, force: &[Complex64], f_hz: f64) -> SimError {
+    let nm = model.n_modes();
+    let jumps: Vec<_> = model
+        .rough_terms()
+        .iter()
+        .filter(|t| t.has_jump())
+        .collect();
+    if jumps.is_empty() {
+        return SimError::NoStart { f_hz };
+    }
+    let mut why: Vec<String> = Vec::new();
+    for t in &jumps {
+        let mode = &model.mode_names[t.eq];
+        let own_sign = t.factors.is_empty()
+            && matches!(t.nonsmooth[..], [(harmonid_model::NonSmooth::Sign(v), 1)] if v.index() == nm + t.eq);
+        let f = force.get(t.eq).map_or(0.0, |z| z.norm());
+        why.push(if own_sign {
+            let limit = 4.0 * t.coef.abs() / std::f64::consts::PI;
+            let verdict = if f <= limit { "sticks" } else { "should slide" };
+            format!(
+                "{} in the equation of {mode}: 4|μ|/π = {limit:.4e} N/kg against the force {f:.4e} N/kg on it (it {verdict})",
+                t.name
+            )
+        } else {
+            format!("{} in the equation of {mode}", t.name)
+        });
+    }
+    SimError::NoSliding {
+        f_hz,
+        why: format!("friction {}", why.join(", ")),
     }
 }
 

@@ -2,6 +2,7 @@
 //! one module per subject, built and linked once.
 
 mod bounded;
+mod coulomb_sweep;
 mod decoupled_modes;
 mod finite_inputs;
 mod hopf;
