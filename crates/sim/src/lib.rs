@@ -49,6 +49,7 @@ pub use response::{
 };
 pub use rough::RoughTerm;
 pub use sensitivity::{Observation, ReducedSensitivity, SensParam, Sensitivity};
+pub use steady::Grid;
 pub use steady::{
     backbone, check_stability, convergence_report, limit_cycle, quasi_periodic_branch,
     steady_state, steady_state_from, stepped_sweep, sweep, sweep_two_tone, ActiveModes, BranchEnd,

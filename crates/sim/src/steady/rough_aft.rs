@@ -31,7 +31,7 @@ use super::{HbSettings, HbSolver, HbStatus, SteadyState};
 use crate::lattice::LINE_TOL_HZ;
 use crate::rough::RoughTerm;
 use crate::{Excitation, NumericModel, SimError};
-pub(crate) use grid::Grid;
+pub use grid::Grid;
 pub use grid::ROUGH_MIN_SAMPLES;
 use harmonid_model::NonSmooth;
 use jacobian::SpectralJacobian;

@@ -31,7 +31,7 @@ const TORUS_RESOLUTION: [(usize, usize); 3] = [(32, 128), (16, 64), (8, 32)];
 
 /// The sampling grid of one lattice.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Grid {
+pub struct Grid {
     /// Samples along each axis (powers of two; 1 for a generator no line uses).
     pub dims: Vec<usize>,
     /// The integer vector of each line, `k[r·d + i]`.
