@@ -5,10 +5,13 @@
 //! projected onto the measured lines. A polynomial term has an exact closed form
 //! ([`harmonid_spectral::monomial_amplitudes`]); these do not.
 //!
-//! **Common period.** Every input and measured line of the measurement must be a whole multiple
-//! `k f₀` of one base frequency `f₀` (to 10⁻⁶ of `f₀`) with `k ≤` [`MAX_HARMONIC`]: a stepped
-//! sweep's step (one tone and its harmonics) always is; two incommensurate tones are refused by
-//! [`lattice`], naming the measurement.
+//! **Common period, or the torus.** When every input and measured line of the measurement is a
+//! whole multiple `k f₀` of one base frequency `f₀` (to 10⁻⁶ of `f₀`) with `k ≤`
+//! [`MAX_HARMONIC`] (a stepped sweep's step, one tone and its harmonics, always is) the columns
+//! are integrated over the common period as below. Otherwise (two incommensurate tones) they are
+//! sampled on the torus of the drive's generators ([`torus`]), the simulator's grid; a
+//! measurement whose lines are not low-order combinations of the generators is refused by
+//! [`lattices`], naming it.
 //!
 //! **Quadrature, and why there is no aliasing.** Uniform samples (the usual AFT) alias the
 //! infinitely many harmonics of `|x|` or `sign x` back onto the measured lines: the error falls
@@ -24,17 +27,26 @@
 //! there the error is that of plain panels). Measured: Coulomb `sign(cos θ)` gives `4/π` and
 //! `|cos θ| cos θ` gives `8/(3π)` to 1e-14.
 
+mod torus;
+
 use super::{IdentError, Problem};
 use harmonid_model::NonSmooth;
 use num_complex::Complex64;
 use std::f64::consts::{PI, TAU};
+use torus::Torus;
 
 /// Highest harmonic of the base frequency a measured line of a measurement with non-smooth
 /// terms may be.
 pub const MAX_HARMONIC: usize = 4096;
 
-/// Per measurement, the harmonics of its input lines and of its measured lines.
-pub(super) type Lattice = (Vec<usize>, Vec<usize>);
+/// Where a measurement's non-smooth columns are evaluated.
+#[derive(Debug, Clone)]
+pub(super) enum Lattice {
+    /// Over the common period: the harmonics of its input lines and of its measured lines.
+    Period(Vec<usize>, Vec<usize>),
+    /// On the torus of the drive's generators (lines not harmonics of one frequency).
+    Torus(Box<Torus>),
+}
 
 /// Gauss–Legendre nodes per panel.
 const GAUSS: usize = 16;
@@ -110,8 +122,9 @@ pub(super) fn base_harmonics(freqs: &[f64]) -> Option<(f64, Vec<usize>)> {
     whole.then_some((g, ks))
 }
 
-/// The harmonics of the input and measured lines of each measurement, for a model with
-/// non-smooth terms; refuses a measurement whose lines are not harmonics of one frequency.
+/// Where each measurement's non-smooth columns are evaluated, for a model with non-smooth
+/// terms: over the common period of its lines, else on the torus of its drive's generators
+/// (tones and half of each pump); refuses a measurement whose lines are neither.
 pub(super) fn lattices(
     prob: &Problem,
     ds: &harmonid_data::Dataset,
@@ -121,17 +134,30 @@ pub(super) fn lattices(
         let m = &ds.measurements[mi];
         let mut all = prep.input_hz.clone();
         all.extend_from_slice(&m.freqs_hz);
-        let Some((_, ks)) = base_harmonics(&all) else {
-            return Err(IdentError::Unsupported(format!(
-                "{}: measurement \"{}\" has lines ({} Hz) that are not harmonics of one frequency (at most the {MAX_HARMONIC}th); the non-smooth terms ({}) are evaluated over the measurement's common period, so identify them from single-tone (stepped-sweep) measurements, or leave this measurement out",
-                prob.manifest_path,
-                m.spec.name,
-                m.freqs_hz.iter().map(|f| format!("{f}")).collect::<Vec<_>>().join(", "),
-                prob.nonsmooth_names.join(", ")
-            )));
-        };
-        let (kin, kout) = ks.split_at(prep.input_hz.len());
-        out.push((kin.to_vec(), kout.to_vec()));
+        if let Some((_, ks)) = base_harmonics(&all) {
+            let (kin, kout) = ks.split_at(prep.input_hz.len());
+            out.push(Lattice::Period(kin.to_vec(), kout.to_vec()));
+            continue;
+        }
+        let generators: Vec<f64> = m
+            .spec
+            .drives_hz
+            .iter()
+            .copied()
+            .chain(m.spec.pumps_hz.iter().map(|&p| 0.5 * p))
+            .collect();
+        match Torus::new(&generators, &prep.input_hz, &m.freqs_hz) {
+            Ok(t) => out.push(Lattice::Torus(Box::new(t))),
+            Err(why) => {
+                return Err(IdentError::Unsupported(format!(
+                    "{}: measurement \"{}\" has lines ({} Hz) that are not harmonics of one frequency (at most the {MAX_HARMONIC}th), and the non-smooth terms ({}) cannot be sampled on the torus of its drive's tones either: {why}; identify them from measurements with fewer intermodulation lines, or leave this measurement out",
+                    prob.manifest_path,
+                    m.spec.name,
+                    m.freqs_hz.iter().map(|f| format!("{f}")).collect::<Vec<_>>().join(", "),
+                    prob.nonsmooth_names.join(", ")
+                )))
+            }
+        }
     }
     Ok(out)
 }
@@ -365,8 +391,10 @@ impl Problem {
         spectra: &[&[Complex64]],
         out: &mut [Complex64],
     ) {
-        let (k_in, k_out) = &self.ns_lattice[mi];
-        nonsmooth_amplitudes(term, k_in, spectra, k_out, out);
+        match &self.ns_lattice[mi] {
+            Lattice::Period(k_in, k_out) => nonsmooth_amplitudes(term, k_in, spectra, k_out, out),
+            Lattice::Torus(t) => t.amplitudes(&term.poly, &term.factors, spectra, out),
+        }
     }
 
     /// The derivatives of a non-smooth monomial's columns at the measured lines of measurement
@@ -381,7 +409,7 @@ impl Problem {
         (mode, s, f_hz): (usize, usize, f64),
     ) -> (Vec<Complex64>, Vec<Complex64>) {
         let nm = self.mode_names.len();
-        let nf = self.ns_lattice[mi].1.len();
+        let nf = self.meas[mi].input_of.len();
         let scale = spectra[mode].iter().map(|z| z.norm()).fold(0.0, f64::max);
         let h = 1e-6 * scale.max(f64::MIN_POSITIVE);
         let mut work: Vec<Vec<Complex64>> = spectra.to_vec();
