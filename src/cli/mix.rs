@@ -3,7 +3,11 @@
 //! coefficients in the tone amplitudes (Supplementary Note II, Table S1). A mode without a tone
 //! responds at the lines its equation's terms force on it (amplitudes Z1, Z2, ...), and the
 //! lines those responses make in turn are marked `second order, via <mode>`. Drive tones are
-//! named Ω1, Ω2, ... (mode frequencies are f_n).
+//! named Ω1, Ω2, ... (mode frequencies are f_n). Non-smooth terms (`abs(q1)*q1`, `sign(d(q1))`,
+//! ...) have no exact table: their lines are listed with coefficients computed numerically at
+//! given amplitudes ([`nonsmooth`]).
+
+mod nonsmooth;
 
 use harmonid_data::Manifest;
 use harmonid_model::Model;
@@ -55,6 +59,14 @@ pub struct Args {
     /// `coefficient`, `near`, `second_order` and `via`.
     #[arg(long)]
     pub json: bool,
+    /// Amplitude of a component for the non-smooth terms' numerical lines, `SYMBOL=VALUE` in
+    /// the model's units (e.g. `--amplitude X1=1e-9`); components not named have amplitude 1.
+    /// Their coefficients are not polynomials in the amplitudes, so they are computed at these.
+    #[arg(long, value_name = "SYMBOL=VALUE")]
+    pub amplitude: Vec<String>,
+    /// Highest intermodulation order of the non-smooth terms' lines (their spectra never end).
+    #[arg(long, value_name = "ORDER", default_value_t = 5)]
+    pub nonsmooth_order: u32,
     /// Write to this file (atomically) instead of standard output.
     #[arg(long, short, value_name = "FILE")]
     pub output: Option<PathBuf>,
@@ -81,6 +93,8 @@ struct Report {
     assignment: ToneAssignment,
     window: Option<f64>,
     terms: Vec<Term>,
+    /// The non-smooth terms' numerical lines (`None`: the model has none).
+    nonsmooth: Option<nonsmooth::NsReport>,
 }
 
 fn spectral_err(e: SpectralError) -> miette::Report {
@@ -149,14 +163,6 @@ pub fn run(args: Args) -> miette::Result<()> {
             "{}: mix does not list the lines of pump terms (`pump`) yet",
             args.model.display()
         ));
-    }
-    if model.has_nonsmooth() {
-        // Their spectrum does not end, so they have no exact mixing table.
-        eprintln!(
-            "warning: {}: the lines of the non-smooth terms ({}) are not listed: they make every odd (abs(q)*q, sign, tanh) or even harmonic combination with coefficients that only sampling in time gives (harmonid simulate computes them by alternating frequency-time; docs/harmonic-balance-algebra.md); the polynomial terms' lines follow",
-            args.model.display(),
-            model.nonsmooth_term_names().join(", ")
-        );
     }
     let report = build(&args, &model)?;
     let text = if args.json {
@@ -293,6 +299,7 @@ fn build(args: &Args, model: &Model) -> miette::Result<Report> {
         Some(w) => return Err(miette!("--window {w}: the window must be a number ≥ 0 Hz")),
         None => Window::default(),
     };
+    let nonsmooth = nonsmooth_lines(args, model, &assignment, &nominal, window)?;
     let param_names: Vec<String> = model.params.iter().map(|p| p.name.clone()).collect();
     let mut terms = Vec::new();
     for (n, eq) in model.eom.iter().enumerate() {
@@ -316,7 +323,93 @@ fn build(args: &Args, model: &Model) -> miette::Result<Report> {
         assignment,
         window: args.window,
         terms,
+        nonsmooth,
     })
+}
+
+/// The non-smooth terms' lines at the `--amplitude` values (1 where not given).
+fn nonsmooth_lines(
+    args: &Args,
+    model: &Model,
+    assignment: &ToneAssignment,
+    nominal: &[Option<f64>],
+    window: Window,
+) -> miette::Result<Option<nonsmooth::NsReport>> {
+    let symbols = assignment.symbols();
+    let mut amplitudes = vec![1.0; symbols.len()];
+    for s in &args.amplitude {
+        let bad = |why: String| {
+            miette!(
+                help = format!(
+                    "write SYMBOL=VALUE with a symbol of the listed components ({}), e.g. --amplitude {}=1e-9",
+                    symbols.join(", "),
+                    symbols.first().map_or("X1", String::as_str)
+                ),
+                "--amplitude `{s}`: {why}"
+            )
+        };
+        let (name, value) = s
+            .split_once('=')
+            .ok_or_else(|| bad("expected SYMBOL=VALUE".into()))?;
+        let i = symbols
+            .iter()
+            .position(|x| x == name.trim())
+            .ok_or_else(|| bad(format!("no component is named `{}`", name.trim())))?;
+        amplitudes[i] = value
+            .trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| bad(format!("`{}` is not a finite number", value.trim())))?;
+    }
+    if !model.has_nonsmooth() {
+        if !args.amplitude.is_empty() {
+            eprintln!(
+                "note: --amplitude is used only for non-smooth terms, and {} has none: the polynomial lines are exact in the symbols",
+                args.model.display()
+            );
+        }
+        return Ok(None);
+    }
+    if args.nonsmooth_order == 0 || args.nonsmooth_order > 15 {
+        return Err(miette!(
+            help = "orders 3 to 7 are usual; the default is 5",
+            "--nonsmooth-order {}: expected an order from 1 to 15",
+            args.nonsmooth_order
+        ));
+    }
+    nonsmooth::build(
+        model,
+        assignment,
+        amplitudes,
+        nominal,
+        window,
+        args.nonsmooth_order,
+    )
+    .map(Some)
+    .map_err(|why| {
+        miette!(
+            help = "lower --nonsmooth-order, or list fewer tones",
+            "{}: cannot list the non-smooth terms' lines ({}): {why}",
+            args.model.display(),
+            model.nonsmooth_term_names().join(", ")
+        )
+    })
+}
+
+/// What the non-smooth printers need.
+fn ns_context<'a>(
+    r: &'a Report,
+    labels: &'a [String],
+    symbols: &'a [String],
+) -> nonsmooth::Context<'a> {
+    nonsmooth::Context {
+        mode_names: &r.mode_names,
+        nominal: &r.nominal,
+        labels,
+        symbols,
+        axes: r.assignment.tones().len(),
+    }
 }
 
 /// Group title and lines: near each mode (in mode order), then off resonance.
@@ -468,6 +561,12 @@ fn to_text(r: &Report) -> String {
             }
         }
     }
+    if let Some(ns) = &r.nonsmooth {
+        s.push_str(&nonsmooth::to_text(
+            ns,
+            &ns_context(r, &labels, &r.assignment.symbols()),
+        ));
+    }
     s
 }
 
@@ -507,6 +606,10 @@ fn to_markdown(r: &Report) -> String {
                 );
             }
         }
+    }
+    if let Some(ns) = &r.nonsmooth {
+        let plain = r.assignment.symbols();
+        s.push_str(&nonsmooth::to_markdown(ns, &ns_context(r, &labels, &plain)));
     }
     s
 }
@@ -585,6 +688,14 @@ fn to_latex(r: &Report) -> String {
         }
         let _ = writeln!(s, "\\end{{tabular}}");
     }
+    if let Some(ns) = &r.nonsmooth {
+        let (omega, plain) = (tone_labels(r), r.assignment.symbols());
+        s.push_str(&nonsmooth::to_latex(
+            ns,
+            &ns_context(r, &omega, &plain),
+            &labels,
+        ));
+    }
     s
 }
 
@@ -646,7 +757,12 @@ fn to_json(r: &Report) -> String {
         .zip(&r.nominal)
         .map(|(m, f)| (m.clone(), json!(f)))
         .collect();
-    let v = json!({
+    let plain = a.symbols();
+    let nonsmooth = r
+        .nonsmooth
+        .as_ref()
+        .map(|ns| nonsmooth::to_json(ns, &ns_context(r, &omega, &plain), labels));
+    let mut v = json!({
         "format": "harmonid-mix/1",
         "model": r.model_path,
         "tones_hz": a.tones().hz(),
@@ -655,6 +771,9 @@ fn to_json(r: &Report) -> String {
         "window_hz": r.window,
         "terms": terms,
     });
+    if let (Some(ns), Some(map)) = (nonsmooth, v.as_object_mut()) {
+        map.insert("nonsmooth".into(), ns);
+    }
     let mut s = serde_json::to_string_pretty(&v).unwrap_or_default();
     s.push('\n');
     s

@@ -27,6 +27,7 @@ mod limit_cycles_cli;
 mod long_record;
 mod merge_cli;
 mod mix_cli;
+mod mix_nonsmooth;
 mod model_broken;
 mod model_docs;
 mod noise_study;
