@@ -33,6 +33,7 @@ mod model_docs;
 mod noise_study;
 mod nonlinear_damping;
 mod nonsmooth_identify;
+mod nonsmooth_two_tone;
 mod parametric_pumping;
 mod plan_cli;
 mod plan_closed_loop;
