@@ -372,7 +372,13 @@ pub(super) fn method_text(r: &NsReport, symbols: &[String], axes: usize) -> Stri
     let at: Vec<String> = symbols
         .iter()
         .zip(&r.amplitudes)
-        .map(|(s, a)| format!("|{s}| = {a}"))
+        .map(|(s, &a)| {
+            if a == 0.0 || (1e-3..1e4).contains(&a.abs()) {
+                format!("|{s}| = {a}")
+            } else {
+                format!("|{s}| = {a:e}")
+            }
+        })
         .collect();
     let grid = if axes == 1 {
         format!("{} samples of one period", r.samples_per_axis)
