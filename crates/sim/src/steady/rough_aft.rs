@@ -183,7 +183,7 @@ impl RoughAft {
                         _ => {
                             let prev = self.xs[self.prev[j] as usize * nv + i];
                             let next = self.xs[self.next[j] as usize * nv + i];
-                            cell_average(f, prev, x[i], next)
+                            f.cell_average(prev, x[i], next)
                         }
                     };
                     v *= y.powi(k as i32);
@@ -368,48 +368,6 @@ impl HbSolver {
     }
 }
 
-/// The average of a jump-like factor over a sample's cell, the variable linear from the
-/// midpoint with the previous sample through `x` to the midpoint with the next.
-fn cell_average(f: NonSmooth, prev: f64, x: f64, next: f64) -> f64 {
-    let a = 0.5 * (prev + x);
-    let b = 0.5 * (x + next);
-    0.5 * (segment_average(f, a, x) + segment_average(f, x, b))
-}
-
-/// The average of `f` over a variable that runs linearly from `a` to `b`.
-fn segment_average(f: NonSmooth, a: f64, b: f64) -> f64 {
-    let d = b - a;
-    let tiny = 1e-12 * (a.abs() + b.abs());
-    if d.abs() <= tiny {
-        return f.value(0.5 * (a + b));
-    }
-    match f {
-        // ∫ sign = |u|.
-        NonSmooth::Sign(_) => (b.abs() - a.abs()) / d,
-        // Across a small part of the scale: the midpoint value and its curvature term (the
-        // difference of logarithms below would cancel).
-        NonSmooth::Tanh(_, c) if d.abs() < 1e-2 * c => {
-            let t = (0.5 * (a + b) / c).tanh();
-            t - d * d / 12.0 * t * (1.0 - t * t) / (c * c)
-        }
-        // ∫ tanh(u/c) du = c ln cosh(u/c).
-        NonSmooth::Tanh(_, c) => c * (log_cosh(b / c) - log_cosh(a / c)) / d,
-        NonSmooth::Abs(_) => f.value(0.5 * (a + b)),
-    }
-}
-
-/// `ln cosh y` without overflow (`|y| + ln(1 + e^{−2|y|}) − ln 2`) or cancellation near 0
-/// (`ln(1 + 2 sinh²(y/2))`).
-fn log_cosh(y: f64) -> f64 {
-    let a = y.abs();
-    if a < 1.0 {
-        let s = (0.5 * a).sinh();
-        (2.0 * s * s).ln_1p()
-    } else {
-        a + (-2.0 * a).exp().ln_1p() - std::f64::consts::LN_2
-    }
-}
-
 /// The lattice's lines for a message, the first eight and a count.
 fn line_list(lattice: &[f64]) -> String {
     let mut out: Vec<String> = lattice.iter().take(8).map(|f| format!("{f} Hz")).collect();
@@ -527,17 +485,5 @@ mod tests {
             assert!(eb < 1e-12 * big, "line {r}: two axes vs one {:e}", eb / big);
         }
         assert!(b[3].norm() < 1e-12 * big);
-    }
-
-    #[test]
-    fn cell_averages_of_jumps() {
-        let s = NonSmooth::Sign(harmonid_poly::VarId(0));
-        // A crossing a quarter into the cell's second half.
-        let v = cell_average(s, 2.0, 1.0, -3.0);
-        // Second half from 1 to -1: crossing at its middle: average 0; first half +1.
-        assert!((v - 0.5).abs() < 1e-15, "{v}");
-        let t = NonSmooth::Tanh(harmonid_poly::VarId(0), 1e-3);
-        assert!((cell_average(t, 2.0, 1.0, -3.0) - 0.5).abs() < 1e-3);
-        assert!((log_cosh(800.0) - (800.0 - std::f64::consts::LN_2)).abs() < 1e-12);
     }
 }
