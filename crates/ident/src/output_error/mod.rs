@@ -99,9 +99,6 @@ pub(crate) enum OutputErrorFailure {
 pub(crate) struct OutputError {
     pub fit: MlFit,
     pub bounds: uncertainty::Bounds,
-    /// The bounds the standard errors are: `bounds` widened for weights estimated from the
-    /// shot scatter ([`uncertainty::estimated_noise_bounds`]); `bounds` otherwise.
-    pub stderr_bounds: uncertainty::Bounds,
     /// `√max(1, χ²/(dof·E₀))` when the noise came from the shot scatter
     /// ([`expected_reduced_chi2`]); 1 otherwise.
     pub inflation: f64,
@@ -259,14 +256,6 @@ pub(crate) fn fit(
     let (noise, inflation) = noise_at(&fit, &sigma, from_shots, e0);
     let bounds = uncertainty::crlb_from_jacobian(fwd, &fit.theta, &fit.jac, &noise, 1)
         .map_err(OutputErrorFailure::Fisher)?;
-    // Weights from the shot scatter cost precision that `bounds` does not see.
-    let stderr_bounds = if from_shots {
-        let nu = uncertainty::weight_dof(pooled, shot_sigma, &sigma);
-        uncertainty::estimated_noise_bounds(fwd, &fit.theta, &fit.jac, &sigma, &nu)
-            .map_err(OutputErrorFailure::Fisher)?
-    } else {
-        bounds.clone()
-    };
     // The delete-one-shot jackknife sees the shots' scatter only, not the floor.
     let jackknife = if settings.jackknife && from_shots && floor.is_none() {
         jackknife(fwd, &fit.at_estimate(), &sigma, ds_shots, pooled, &cols)
@@ -328,7 +317,6 @@ pub(crate) fn fit(
         fit,
         unidentifiable,
         bounds,
-        stderr_bounds,
         inflation,
         jackknife,
         at_bound,

@@ -6,15 +6,12 @@
 
 pub mod consistency;
 mod drift;
-pub mod estimated_noise;
 pub mod fisher;
 mod goodness;
 mod jackknife;
 
 pub(crate) use drift::drift_warnings;
 pub use drift::{check as drift_check, Drift};
-pub use estimated_noise::estimated_noise_bounds;
-pub(crate) use estimated_noise::weight_dof;
 pub use fisher::{
     bounds_from_information, crlb, crlb_from_jacobian, information, Bound, Bounds, FisherError,
     Noise, Unidentifiable,
