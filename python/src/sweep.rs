@@ -232,7 +232,7 @@ fn branch_dict<'py>(
         .map(|p| p.stability.map(|s| s.stable))
         .collect();
     d.set_item("stable", stable)?;
-    d.set_item("end", format!("{:?}", b.end))?;
+    d.set_item("end", b.end.to_string())?;
     Ok(d)
 }
 

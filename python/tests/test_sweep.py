@@ -105,5 +105,9 @@ def test_limit_cycles_equal_cli(cli, tmp_path):
         np.testing.assert_allclose(b["f2_hz"], [float(x["f2_hz"]) for x in want], rtol=1e-9)
         np.testing.assert_allclose(b["f2_abs"][:, 0], [float(x["q1_f2_abs"]) for x in want], rtol=1e-6)
         assert b["stable"] == [None if x["stable"] == "" else x["stable"] == "1" for x in want]
+        # Where it ends, in the command line's words (not Rust's debug text).
+        assert b["end"] in ("the end of the range", "the most points") or b["end"].startswith(
+            ("another Hopf point near ", "no step converged after ")
+        ), b["end"]
     # Without the option, no branches are computed.
     assert "limit_cycles" not in harmonid.sweep(model, values, 980, 1020, {"q1": 0.446}, points=400)

@@ -4,7 +4,7 @@
 //! ([`harmonid_sim::quasi_periodic_branch`]).
 
 use harmonid_plot::Branch;
-use harmonid_sim::{self as sim, BranchEnd, QuasiPeriodicBranch, QuasiPeriodicSettings};
+use harmonid_sim::{self as sim, QuasiPeriodicBranch, QuasiPeriodicSettings};
 use num_complex::Complex64;
 use std::fmt::Write as _;
 
@@ -42,14 +42,7 @@ fn report(b: &QuasiPeriodicBranch) {
     let (Some(first), Some(last)) = (b.points.first(), b.points.last()) else {
         return;
     };
-    let end = match b.end {
-        BranchEnd::Range => "the end of the range".to_string(),
-        BranchEnd::Points => "the most points".to_string(),
-        BranchEnd::Hopf { f_hz } => format!("another Hopf point near {f_hz:.6} Hz"),
-        BranchEnd::Stuck { f_hz } => format!(
-            "no step converged after {f_hz:.6} Hz (the torus locks or breaks up, or needs more --harmonics)"
-        ),
-    };
+    let end = b.end;
     eprintln!(
         "limit-cycle branch from the Hopf point at {:.6} Hz: {} points, drive {:.6} -> {:.6} Hz, f2 {:.6} -> {:.6} Hz; ends at {end}",
         b.hopf.f_hz,

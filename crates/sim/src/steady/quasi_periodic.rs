@@ -101,6 +101,22 @@ pub enum BranchEnd {
     },
 }
 
+/// The sentence `sweep --limit-cycles` and Python's `sweep(limit_cycles=True)` give for where
+/// a branch ends.
+impl std::fmt::Display for BranchEnd {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match *self {
+            BranchEnd::Range => write!(f, "the end of the range"),
+            BranchEnd::Points => write!(f, "the most points"),
+            BranchEnd::Hopf { f_hz } => write!(f, "another Hopf point near {f_hz:.6} Hz"),
+            BranchEnd::Stuck { f_hz } => write!(
+                f,
+                "no step converged after {f_hz:.6} Hz (the torus locks or breaks up, or needs more --harmonics)"
+            ),
+        }
+    }
+}
+
 /// A quasi-periodic branch from a Hopf point.
 #[derive(Debug, Clone, PartialEq)]
 pub struct QuasiPeriodicBranch {
