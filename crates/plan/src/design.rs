@@ -684,24 +684,36 @@ const DAMPING_CAP: f64 = 3.0;
 
 /// The amplitude (m) at which the velocity terms of mode `n`'s own equation (`c q^k q̇^j`,
 /// `j ≥ 1`, degree `k + j ≥ 2`) reach the damping rate `rate` (1/s), by the size of their
-/// single-harmonic damping `|c| a^(k+j−1) ω^(j−1)`; `None` without such terms.
+/// single-harmonic damping `|c| a^(k+j−1) ω^(j−1)`; `None` without such terms. A non-smooth
+/// factor counts as its variable to the power of its growth: `abs(x)` as `x` (quadratic drag
+/// `|q̇| q̇` is `j = 2`, degree 2: damping `|c| a ω`), `sign(x)` and `tanh(x/c)` as none (their
+/// damping falls with the amplitude, so they never cap the drive).
 fn velocity_damping_amplitude(num: &NumericModel, n: usize, rate: f64) -> Option<f64> {
     let nm = num.n_modes();
     let w = num.omega(n);
-    let terms: Vec<(f64, i32, i32)> = num
-        .eq_terms(n)
-        .iter()
-        .filter(|t| t.factors.iter().all(|&(v, _)| v == n || v == nm + n))
-        .filter_map(|t| {
-            let j: u32 = t
-                .factors
-                .iter()
-                .filter(|f| f.0 == nm + n)
-                .map(|f| f.1)
-                .sum();
-            let deg = t.degree();
-            (j >= 1 && deg >= 2 && t.coef != 0.0).then_some((
-                t.coef.abs(),
+    let own = |v: usize| v == n || v == nm + n;
+    // (coefficient, polynomial factors, non-smooth factors as (variable, growth power)).
+    let poly = num.eq_terms(n).iter().map(|t| (t.coef, t.factors.clone()));
+    let rough = num.rough_terms().iter().filter(|t| t.eq == n).map(|t| {
+        let mut f = t.factors.clone();
+        for &(g, k) in &t.nonsmooth {
+            if matches!(g, harmonid_model::NonSmooth::Abs(_)) {
+                f.push((g.var().index(), k));
+            } else {
+                // A bounded factor of its own variable: growth 0, but it stays the mode's own.
+                f.push((g.var().index(), 0));
+            }
+        }
+        (t.coef, f)
+    });
+    let terms: Vec<(f64, i32, i32)> = poly
+        .chain(rough)
+        .filter(|(_, f)| f.iter().all(|&(v, _)| own(v)))
+        .filter_map(|(coef, f)| {
+            let j: u32 = f.iter().filter(|x| x.0 == nm + n).map(|x| x.1).sum();
+            let deg: u32 = f.iter().map(|x| x.1).sum();
+            (j >= 1 && deg >= 2 && coef != 0.0).then_some((
+                coef.abs(),
                 deg as i32 - 1,
                 j as i32 - 1,
             ))
@@ -1283,5 +1295,34 @@ mod tests {
         let want = (rate / 5e18).sqrt();
         assert!((a / want - 1.0).abs() < 1e-12, "{a:e} vs {want:e}");
         assert!(velocity_damping_amplitude(&m, 1, rate).is_none());
+    }
+
+    /// Quadratic drag `drag |q̇| q̇` caps the drive where `|drag| a ω` reaches the rate (before,
+    /// the non-smooth terms were not seen, and a drag-damped mode with no fold was driven to
+    /// 1e8 N/kg); `|q| q` stiffness and Coulomb friction do not cap it.
+    #[test]
+    fn quadratic_drag_caps_the_drive() {
+        let model = harmonid_model::parse_str(
+            "mode q1 at 10 kHz\nparam kappa1, drag1, mu1\neom q1 += kappa1*abs(q1)*q1 + drag1*abs(d(q1))*d(q1) + mu1*sign(d(q1))\n",
+            "t.hb",
+        )
+        .expect("parses");
+        let values = harmonid_experiment::values_from_toml(
+            "[modes.q1]\nf_hz = 1e4\nQ = 2000\n[parameters]\nkappa1 = -9.3e12\ndrag1 = 5.9e2\nmu1 = 1e-3\n",
+            "v.toml",
+        )
+        .expect("values");
+        let num = NumericModel::from_model(&model, &values).expect("numeric");
+        let rate = 3.0 * num.gamma(0);
+        let a = velocity_damping_amplitude(&num, 0, rate).expect("a cap");
+        let want = rate / (5.9e2 * num.omega(0));
+        assert!((a / want - 1.0).abs() < 1e-12, "{a:e} vs {want:e}");
+        let no_drag = harmonid_experiment::values_from_toml(
+            "[modes.q1]\nf_hz = 1e4\nQ = 2000\n[parameters]\nkappa1 = -9.3e12\ndrag1 = 0\nmu1 = 1e-3\n",
+            "v.toml",
+        )
+        .expect("values");
+        let num = NumericModel::from_model(&model, &no_drag).expect("numeric");
+        assert!(velocity_damping_amplitude(&num, 0, rate).is_none());
     }
 }
