@@ -160,7 +160,11 @@ def sweep(
     harmonics: int = 3,
     two_tone_spacing_hz: Optional[float] = None,
     limit_cycles: bool = False,
-) -> dict[str, Any]: ...
+) -> dict[str, Any]:
+    """A frequency-response curve followed through folds (`harmonid sweep`). `points` is a
+    resolution: consecutive points at most `|f_to_hz - f_from_hz| / points` apart in frequency,
+    so a single-tone curve gets at least about `points + 1` points, more around folds (at most
+    `8 * points`); with `two_tone_spacing_hz`, grid steps of the centre each way."""
 def response(
     model: Model,
     result: IdentifyResult,

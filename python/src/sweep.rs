@@ -85,6 +85,11 @@ fn put_curve<'py, 'a>(
 /// (`{"modes": {"q1": {"f_hz": ..., "Q": ...}}, "parameters": {"beta1": ...}}`), the path of a
 /// values TOML file or of a result JSON, or an `IdentifyResult`. `force` is `{mode: N/kg}` (peak, phase 0) of the tone on each mode.
 ///
+/// `points` is a resolution: consecutive points are at most `|f_to_hz − f_from_hz| / points`
+/// apart in frequency (a few per cent more where the corrector carries a step further), so a
+/// single-tone curve gets at least about `points + 1` points, more on steep flanks and around
+/// folds (at most `8 · points`); two-tone: grid steps of the centre each way.
+///
 /// Single tone (default): the tone is swept from `f_from_hz` to `f_to_hz` by pseudo-arclength
 /// continuation; returns numpy arrays `f_hz` (N,), `stable` (N,) and `amplitudes` (N, modes,
 /// harmonics; complex, m, `Re[X e^{i2πkft}]`), with `modes`, `harmonics`, `folds_hz`,

@@ -24,6 +24,10 @@ def test_single_tone_equals_cli(cli, tmp_path):
     r = harmonid.sweep(model, VALUES, 207540, 207700, {"q1": 3.5}, points=400)
     assert r["modes"] == ["q1", "q2"] and r["harmonics"] == [1, 3]
     assert r["amplitudes"].shape == (len(rows), 2, 2)
+    # points is a resolution: consecutive points at most (to - from)/points apart in frequency
+    # (the corrector may carry a step a few per cent further), so at least points + 1 of them.
+    assert len(r["f_hz"]) > 400
+    assert np.max(np.abs(np.diff(r["f_hz"]))) <= 1.25 * (207700 - 207540) / 400
     np.testing.assert_allclose(r["f_hz"], [float(x["f_hz"]) for x in rows], rtol=1e-12, atol=0)
     assert list(r["stable"]) == [x["stable"] == "1" for x in rows]
     for n, mode in enumerate(r["modes"]):

@@ -21,7 +21,10 @@ pub struct Args {
     /// Force of the tone on a mode, N/kg (peak), as `mode=amplitude`; repeat for several modes.
     #[arg(long = "force", value_name = "MODE=N_PER_KG", required = true)]
     pub force: Vec<String>,
-    /// Approximate number of curve points.
+    /// Resolution of the curve: consecutive points are at most `(to − from)/POINTS` apart in
+    /// frequency, so the curve gets at least about POINTS + 1 points, more on steep flanks and
+    /// around folds (at most 8 × POINTS). Two-tone mode: grid steps of the centre each way;
+    /// with a pump: steps each way.
     #[arg(long, default_value_t = 2000)]
     pub points: usize,
     /// Highest harmonic of the tone kept.

@@ -31,7 +31,10 @@ pub struct SweepSettings {
     pub f_start_hz: f64,
     /// End of the range, Hz.
     pub f_stop_hz: f64,
-    /// Roughly how many points the curve gets (arclength steps).
+    /// Resolution of the curve: the arclength predictor advances the frequency by at most
+    /// `(f_stop − f_start)/points` (the corrector may carry a step a few per cent further),
+    /// so the curve gets about `points + 1` points or more; folds and steep flanks add more
+    /// (at most `8·points`).
     pub points: usize,
     /// Highest harmonic of the tone kept (`H`).
     pub harmonics: usize,
@@ -309,6 +312,8 @@ struct Arclength {
     ds0: f64,
     tangent: Vec<f64>,
     prev_t: Vec<f64>,
+    /// Largest frequency advance of a step, scaled (`1/points` of the span).
+    df_max: f64,
     /// `prev_t` holds a tangent (after the first step).
     has_prev: bool,
     /// Buffers: residual, `∂R/∂u` (`nu × nu`), `∂R/∂ω`, the bordered system, corrector state.
@@ -363,6 +368,7 @@ impl Arclength {
             tangent: vec![0.0; na],
             prev_t: vec![0.0; na],
             has_prev: false,
+            df_max: 1.0 / settings.points.max(1) as f64,
             res: vec![0.0; nu],
             ju: vec![0.0; nu * nu],
             jw: vec![0.0; nu],
@@ -470,6 +476,10 @@ impl Arclength {
             self.tangent.iter_mut().for_each(|v| *v = -*v);
         }
         let (a_s, w_s) = (self.a_s, self.w_s);
+        // The frequency spacing never exceeds span/points (the resolution asked for).
+        self.ds = self
+            .ds
+            .min(self.df_max / self.tangent[nu].abs().max(1e-300));
         for _attempt in 0..12 {
             let ds = self.ds;
             for i in 0..nu {

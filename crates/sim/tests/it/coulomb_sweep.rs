@@ -55,6 +55,16 @@ fn one_harmonic_sweep_is_the_describing_function() {
     let mu = 0.3 * force;
     let r = run(mu, force, 1, 60);
     assert!(r.complete);
+    // Resolution span/points: at least points + 1 points (issue 36 notes: 24 before).
+    assert!(r.points.len() > 60, "{} points", r.points.len());
+    let widest = r
+        .points
+        .windows(2)
+        .map(|w| (w[1].f_hz - w[0].f_hz).abs())
+        .fold(0.0, f64::max);
+    // The cap is on the predictor; the corrector may carry a step a little further (1.07 Hz
+    // measured here).
+    assert!(widest <= 1.25 * 60.0 / 60.0, "widest spacing {widest} Hz");
     assert_eq!(r.harmonics, vec![1]);
     let mut worst: f64 = 0.0;
     for p in &r.points {
@@ -74,9 +84,18 @@ fn one_harmonic_sweep_is_the_describing_function() {
         .map(|p| p.amplitudes[0][0].norm())
         .fold(0.0, f64::max);
     let want = (force - 4.0 * mu / PI) / (TAU * F0).powi(2) * Q;
+    // The curve's highest point is within half the widest spacing δ of ω0; there, with
+    // a = a0(1 − ε) in F² = a²(ω0² − ω²)² + (γωa + 4μ/π)², ε = 2(δω/γ)²(1 − 4μ/(πF)) to
+    // leading order (δω/γ = δ/(f0/Q) = δ/10 Hz). Its O(1/Q²) shift from ω0 adds ~1e-6.
+    let delta = 0.5 * widest / (F0 / Q);
+    let bound = 2.0 * delta * delta * (1.0 - 4.0 * mu / (PI * force)) + 1e-5;
+    println!(
+        "peak {:.2e} below the closed form (sampling bound {bound:.2e})",
+        (want - peak) / want
+    );
     assert!(
-        (peak - want).abs() < 1e-3 * want,
-        "peak {peak:e} vs {want:e}"
+        peak <= want * (1.0 + 1e-5) && want - peak <= bound * want,
+        "peak {peak:e} vs {want:e}, bound {bound:e} for spacing {widest} Hz"
     );
 }
 
@@ -185,7 +204,7 @@ fn harmonics_of_the_sweep_agree_with_the_time_domain() {
     // H = 27, 4.0e-6 at H = 45 (1e-6 would need H ≈ 180; the sweep keeps at most 63).
     let force = force_um();
     let mu = 0.3 * force;
-    let r = run(mu, force, 9, 40);
+    let r = run(mu, force, 9, 12);
     assert_eq!(r.harmonics, vec![1, 3, 5, 7, 9]);
     let mut at_9 = 0.0;
     for target in [F0 - 7.0, F0 + 4.0] {
