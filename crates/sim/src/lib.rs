@@ -49,7 +49,6 @@ pub use response::{
 };
 pub use rough::RoughTerm;
 pub use sensitivity::{Observation, ReducedSensitivity, SensParam, Sensitivity};
-pub use steady::Grid;
 pub use steady::{
     backbone, check_stability, convergence_report, limit_cycle, quasi_periodic_branch,
     steady_state, steady_state_from, stepped_sweep, sweep, sweep_two_tone, ActiveModes, BranchEnd,
@@ -59,4 +58,5 @@ pub use steady::{
     TwoToneSettings, TwoToneStatus, TwoToneSweep, CONDENSE_SEPARATION, MAX_MODES,
     MAX_SWEEP_HARMONICS, MAX_SWEEP_HZ, MAX_SWEEP_POINTS,
 };
+pub use steady::{Grid, GridSampler};
 pub use time_domain::{simulate_lockin, LockinResult, Start, TdSettings};

@@ -69,7 +69,7 @@ pub use quasi_periodic::{
     QuasiPeriodicSettings,
 };
 pub use reduced::ReducedSolver;
-pub use rough_aft::Grid;
+pub use rough_aft::{Grid, GridSampler};
 pub(crate) use solver::variable_spectra;
 pub use solver::{steady_state, steady_state_from, HbSolver, MAX_MODES};
 pub use stability::{check_stability, CONDENSE_SEPARATION};

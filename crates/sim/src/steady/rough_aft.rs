@@ -11,8 +11,10 @@
 //!
 //! A non-smooth spectrum never ends, so some aliasing is always left: for `|x| x` (a jump in
 //! the second derivative) the error falls like `N^{-3}` along each axis, far below 1e-9
-//! relative at 4096 samples of one period, about 1e-8 with 128 samples per axis of a two-tone
-//! torus. A jump (`sign`) or a near-jump (`tanh` of a small scale) is evaluated as its average
+//! relative at 4096 samples of one period (5e-8 at the 512 a model without jumps takes,
+//! [`ROUGH_MIN_SAMPLES_SMOOTH`]), about 1e-8 with 128 samples per axis of a two-tone torus.
+//! The sampling itself (synthesis, evaluation, projection) is [`GridSampler`], shared with the
+//! identification's torus columns and `harmonid mix`. A jump (`sign`) or a near-jump (`tanh` of a small scale) is evaluated as its average
 //! over each sample's cell along the grid's diagonal (the time axis of one period; on a torus
 //! the straight line `(1, …, 1)` in samples, close to the flow `θ = ω t` of tones near one
 //! frequency), the variable interpolated linearly across the cell (`sign`: the crossing's
@@ -26,19 +28,19 @@
 
 mod grid;
 mod jacobian;
+mod sampler;
 
 use super::{HbSettings, HbSolver, HbStatus, SteadyState};
-use crate::lattice::LINE_TOL_HZ;
 use crate::rough::RoughTerm;
 use crate::{Excitation, NumericModel, SimError};
 pub use grid::Grid;
-pub use grid::ROUGH_MIN_SAMPLES;
-use harmonid_model::NonSmooth;
+pub use grid::{ROUGH_MIN_SAMPLES, ROUGH_MIN_SAMPLES_SMOOTH};
 use jacobian::SpectralJacobian;
 use num_complex::Complex64;
+pub use sampler::GridSampler;
 use std::f64::consts::TAU;
 
-/// The non-smooth terms of a model on one lattice: tables and buffers, allocated once.
+/// The non-smooth terms of a model on one lattice: the sampler and buffers, allocated once.
 #[derive(Debug, Clone)]
 pub(crate) struct RoughAft {
     terms: Vec<RoughTerm>,
@@ -46,17 +48,13 @@ pub(crate) struct RoughAft {
     nr: usize,
     nv: usize,
     nt: usize,
-    /// `cos(k_r·θ_j)`, `sin(...)` at `[j·R + r]`.
-    cos: Vec<f64>,
-    /// The samples one step back and on along the grid's diagonal (cell averages of jumps).
-    prev: Vec<u32>,
-    next: Vec<u32>,
-    sin: Vec<f64>,
+    /// The grid's sampler (synthesis, evaluation, projection).
+    sampler: GridSampler,
     /// Angular frequency of each line, rad/s.
     omega: Vec<f64>,
-    /// Samples of the variables, `[j·V + v]`.
+    /// Samples of the variables, `[v·N + j]`.
     xs: Vec<f64>,
-    /// Forces at the samples, `[j·N + n]`.
+    /// Forces at the samples, `[n·N + j]`.
     fs: Vec<f64>,
     /// Projected forces for differences, `[n·R + r]`.
     plus: Vec<Complex64>,
@@ -78,7 +76,13 @@ impl RoughAft {
         if !model.has_nonsmooth() {
             return Ok(None);
         }
-        let grid = Grid::choose(&drive.generators_hz(), lattice).map_err(|why| {
+        // Without a jump the aliasing of one period falls like N^-3: fewer samples suffice.
+        let least = if model.rough_terms().iter().any(RoughTerm::has_jump) {
+            ROUGH_MIN_SAMPLES
+        } else {
+            ROUGH_MIN_SAMPLES_SMOOTH
+        };
+        let grid = Grid::choose_with(&drive.generators_hz(), lattice, least).map_err(|why| {
             SimError::NonSmooth {
                 what: "harmonic balance",
                 terms: names(model),
@@ -93,9 +97,8 @@ impl RoughAft {
 
     /// The set-up on a given grid (whose lines are `lattice`'s, Hz).
     pub(crate) fn with_grid(model: &NumericModel, grid: &Grid, lattice: &[f64]) -> Self {
-        let nt = grid.samples();
-        let (cos, sin) = grid.tables();
-        let (prev, next) = grid.neighbours();
+        let sampler = GridSampler::new(grid);
+        let nt = sampler.samples();
         let nm = model.n_modes();
         let nv = model.n_vars();
         let mut aft = Self {
@@ -104,10 +107,7 @@ impl RoughAft {
             nr: lattice.len(),
             nv,
             nt,
-            cos,
-            sin,
-            prev,
-            next,
+            sampler,
             omega: lattice.iter().map(|&f| TAU * f).collect(),
             xs: vec![0.0; nt * nv],
             fs: vec![0.0; nt * nm],
@@ -132,64 +132,39 @@ impl RoughAft {
     }
 
     /// Samples the modes (`x`, `[n·R + r]`), their velocities and the pump (`pump`, `R`
-    /// lines, empty without pump terms) over the period into `xs`.
+    /// lines, empty without pump terms) over the grid into `xs`.
     fn synthesise(&mut self, x: &[Complex64], pump: &[Complex64]) {
-        let (nm, nr, nv) = (self.nm, self.nr, self.nv);
+        let (nm, nr, nv, nt) = (self.nm, self.nr, self.nv, self.nt);
         self.xs.fill(0.0);
-        for j in 0..self.nt {
-            let (c, s) = (
-                &self.cos[j * nr..(j + 1) * nr],
-                &self.sin[j * nr..(j + 1) * nr],
-            );
-            let row = &mut self.xs[j * nv..(j + 1) * nv];
-            for n in 0..nm {
-                let (mut q, mut v) = (0.0, 0.0);
-                for r in 0..nr {
-                    let z = x[n * nr + r];
-                    q += z.re * c[r] - z.im * s[r];
-                    // Re(iΩ X e^{iθ}) = −Ω (Re X sin θ + Im X cos θ).
-                    v -= self.omega[r] * (z.re * s[r] + z.im * c[r]);
-                }
-                row[n] = q;
+        let (q, rest) = self.xs.split_at_mut(nm * nt);
+        for n in 0..nm {
+            let qn = &mut q[n * nt..(n + 1) * nt];
+            for r in 0..nr {
+                let z = x[n * nr + r];
                 if nv > nm {
-                    row[nm + n] = v;
+                    let vn = &mut rest[n * nt..(n + 1) * nt];
+                    self.sampler.add_line(r, z, qn, Some((self.omega[r], vn)));
+                } else {
+                    self.sampler.add_line(r, z, qn, None);
                 }
             }
-            if nv > 2 * nm && !pump.is_empty() {
-                let mut p = 0.0;
-                for r in 0..nr {
-                    p += pump[r].re * c[r] - pump[r].im * s[r];
-                }
-                row[2 * nm] = p;
+        }
+        if nv > 2 * nm && !pump.is_empty() {
+            let p = &mut self.xs[2 * nm * nt..(2 * nm + 1) * nt];
+            for (r, &z) in pump.iter().enumerate().take(nr) {
+                self.sampler.add_line(r, z, p, None);
             }
         }
     }
 
     /// The forces of the terms at every sample (`fs`), from `xs`.
     fn evaluate(&mut self) {
-        let (nm, nv, nt) = (self.nm, self.nv, self.nt);
+        let nt = self.nt;
         self.fs.fill(0.0);
         for t in &self.terms {
-            for j in 0..nt {
-                let x = &self.xs[j * nv..(j + 1) * nv];
-                let mut v = t.coef;
-                for &(m, k) in &t.factors {
-                    v *= x[m].powi(k as i32);
-                }
-                for &(f, k) in &t.nonsmooth {
-                    let i = f.var().index();
-                    let y = match f {
-                        NonSmooth::Abs(_) => f.value(x[i]),
-                        _ => {
-                            let prev = self.xs[self.prev[j] as usize * nv + i];
-                            let next = self.xs[self.next[j] as usize * nv + i];
-                            f.cell_average(prev, x[i], next)
-                        }
-                    };
-                    v *= y.powi(k as i32);
-                }
-                self.fs[j * nm + t.eq] += v;
-            }
+            let out = &mut self.fs[t.eq * nt..(t.eq + 1) * nt];
+            self.sampler
+                .add_term(t.coef, &t.factors, &t.nonsmooth, &self.xs, out);
         }
     }
 
@@ -197,18 +172,9 @@ impl RoughAft {
     fn project(&self, out: &mut [Complex64], add: bool) {
         let (nm, nr, nt) = (self.nm, self.nr, self.nt);
         for n in 0..nm {
+            let f = &self.fs[n * nt..(n + 1) * nt];
             for r in 0..nr {
-                let mut acc = Complex64::new(0.0, 0.0);
-                for j in 0..nt {
-                    let f = self.fs[j * nm + n];
-                    acc += Complex64::new(f * self.cos[j * nr + r], -f * self.sin[j * nr + r]);
-                }
-                let norm = if self.omega[r] <= TAU * LINE_TOL_HZ {
-                    1.0 / nt as f64
-                } else {
-                    2.0 / nt as f64
-                };
-                let z = acc * norm;
+                let z = self.sampler.coefficient(r, f);
                 if add {
                     out[n * nr + r] += z;
                 } else {
@@ -239,19 +205,16 @@ impl RoughAft {
         out: &mut [Complex64],
     ) {
         self.synthesise(x, pump);
-        let saved = std::mem::take(&mut self.terms);
-        let nr = self.nr;
-        for (t, term) in saved.iter().enumerate() {
-            let mut one = term.clone();
-            one.coef = 1.0;
-            self.terms = vec![one];
-            self.evaluate();
-            let mut lines = std::mem::take(&mut self.plus);
-            self.project(&mut lines, false);
-            out[t * nr..(t + 1) * nr].copy_from_slice(&lines[term.eq * nr..(term.eq + 1) * nr]);
-            self.plus = lines;
+        let (nr, nt) = (self.nr, self.nt);
+        let f = &mut self.fs[..nt];
+        for (t, term) in self.terms.iter().enumerate() {
+            f.fill(0.0);
+            self.sampler
+                .add_term(1.0, &term.factors, &term.nonsmooth, &self.xs, f);
+            for r in 0..nr {
+                out[t * nr + r] = self.sampler.coefficient(r, f);
+            }
         }
-        self.terms = saved;
     }
 
     /// Adds the Jacobian of the projected forces `∂(Re F, Im F)/∂(Re X, Im X)` at `x` to
@@ -329,15 +292,19 @@ impl RoughAft {
     /// Moves the samples of mode `m` (and its velocity) by `d` times line `r`'s basis
     /// function (`part` 0: `Re X`, 1: `Im X`).
     fn shift(&mut self, m: usize, r: usize, part: usize, d: f64) {
-        let (nm, nr, nv) = (self.nm, self.nr, self.nv);
-        let w = self.omega[r];
-        for j in 0..self.nt {
-            let (c, s) = (self.cos[j * nr + r], self.sin[j * nr + r]);
-            let (dq, dv) = if part == 0 { (c, -w * s) } else { (-s, -w * c) };
-            self.xs[j * nv + m] += d * dq;
-            if nv > nm {
-                self.xs[j * nv + nm + m] += d * dv;
-            }
+        let (nm, nv, nt) = (self.nm, self.nv, self.nt);
+        let a = if part == 0 {
+            Complex64::new(d, 0.0)
+        } else {
+            Complex64::new(0.0, d)
+        };
+        let (q, rest) = self.xs.split_at_mut(nm * nt);
+        let qm = &mut q[m * nt..(m + 1) * nt];
+        if nv > nm {
+            let vm = &mut rest[m * nt..(m + 1) * nt];
+            self.sampler.add_line(r, a, qm, Some((self.omega[r], vm)));
+        } else {
+            self.sampler.add_line(r, a, qm, None);
         }
     }
 }

@@ -40,6 +40,8 @@ pub(super) struct SpectralJacobian {
     spectra: Vec<Complex64>,
     /// A gradient row over the variables (scratch).
     row: Vec<f64>,
+    /// The variables at one sample (scratch).
+    x: Vec<f64>,
     /// The outer axes' phase of each κ for one row (scratch).
     outer: Vec<Complex64>,
 }
@@ -94,6 +96,7 @@ impl SpectralJacobian {
             g: vec![0.0; pairs.len() * aft.nt],
             spectra: vec![Complex64::new(0.0, 0.0); pairs.len() * nk],
             row: vec![0.0; aft.nv],
+            x: vec![0.0; aft.nv],
             outer: vec![Complex64::new(0.0, 0.0); nk],
             pairs,
             kappa,
@@ -165,17 +168,26 @@ impl RoughAft {
         let Some(mut sj) = self.spectral.take() else {
             return;
         };
-        let (nm, nr, nv, nt) = (self.nm, self.nr, self.nv, self.nt);
+        let (nm, nr, nt) = (self.nm, self.nr, self.nt);
+        let mut xj = std::mem::take(&mut sj.x);
         for j in 0..nt {
-            let xj = &self.xs[j * nv..(j + 1) * nv];
+            for (v, x) in xj.iter_mut().enumerate() {
+                *x = self.xs[v * nt + j];
+            }
+            // One gradient per equation, shared by its consecutive pairs.
+            let mut eq_done = usize::MAX;
             for (p, &(eq, v)) in sj.pairs.iter().enumerate() {
-                sj.row.fill(0.0);
-                for t in self.terms.iter().filter(|t| t.eq == eq) {
-                    t.add_gradient(xj, &mut sj.row);
+                if eq != eq_done {
+                    sj.row.fill(0.0);
+                    for t in self.terms.iter().filter(|t| t.eq == eq) {
+                        t.add_gradient(&xj, &mut sj.row);
+                    }
+                    eq_done = eq;
                 }
                 sj.g[p * nt + j] = sj.row[v];
             }
         }
+        sj.x = xj;
         sj.transform();
         let nu = 2 * nm * nr;
         let nk = sj.outer.len();
