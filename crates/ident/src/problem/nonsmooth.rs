@@ -399,8 +399,9 @@ impl Problem {
 
     /// The derivatives of a non-smooth monomial's columns at the measured lines of measurement
     /// `mi` by the real and imaginary parts of the modal amplitude `X` of mode `mode` at input
-    /// line `s` (its velocity `iΩX` moved with it), by central differences (the term is not
-    /// analytic): `(∂ĝ/∂Re X, ∂ĝ/∂Im X)` per measured line.
+    /// line `s` (its velocity `iΩX` moved with it): `(∂ĝ/∂Re X, ∂ĝ/∂Im X)` per measured line.
+    /// Over one period by central differences (the term is not analytic); on a torus by
+    /// [`Torus::jacobian`] (exact for `abs` terms).
     pub(super) fn nonsmooth_column_jacobian(
         &self,
         mi: usize,
@@ -409,6 +410,11 @@ impl Problem {
         (mode, s, f_hz): (usize, usize, f64),
     ) -> (Vec<Complex64>, Vec<Complex64>) {
         let nm = self.mode_names.len();
+        if let Lattice::Torus(t) = &self.ns_lattice[mi] {
+            let r: Vec<&[Complex64]> = spectra.iter().map(|v| v.as_slice()).collect();
+            let v = (spectra.len() > nm).then_some(nm + mode);
+            return t.jacobian(&term.poly, &term.factors, &r, (mode, v, TAU * f_hz, s));
+        }
         let nf = self.meas[mi].input_of.len();
         let scale = spectra[mode].iter().map(|z| z.norm()).fold(0.0, f64::max);
         let h = 1e-6 * scale.max(f64::MIN_POSITIVE);

@@ -15,22 +15,18 @@
 //! axis); a cell-averaged jump like `N^{-2}`.
 
 use harmonid_model::NonSmooth;
-use harmonid_sim::Grid;
+use harmonid_sim::{Grid, GridSampler, RoughTerm};
 use num_complex::Complex64;
-use std::f64::consts::TAU;
 
-/// The sampling of one measurement's torus: the grid, and where each input and measured line
-/// sits among the grid's lines.
+/// The sampling of one measurement's torus: the simulator's sampler of its grid, and where each
+/// input and measured line sits among the grid's lines.
 #[derive(Debug, Clone)]
 pub(crate) struct Torus {
-    grid: Grid,
+    sampler: GridSampler,
     /// Grid line of each input line.
     line_in: Vec<usize>,
     /// Grid line of each measured line.
     line_out: Vec<usize>,
-    /// The sample one step back and one step on along the diagonal (cell averages).
-    prev: Vec<u32>,
-    next: Vec<u32>,
 }
 
 impl Torus {
@@ -57,19 +53,35 @@ impl Torus {
                 .position(|x| (x - f).abs() <= tol)
                 .unwrap_or_default()
         };
-        let (prev, next) = grid.neighbours();
         Ok(Self {
             line_in: input_hz.iter().map(at).collect(),
             line_out: output_hz.iter().map(at).collect(),
-            grid,
-            prev,
-            next,
+            sampler: GridSampler::new(&grid),
         })
     }
 
     /// Samples on the torus, `Π N_i`.
     pub(crate) fn samples(&self) -> usize {
-        self.grid.samples()
+        self.sampler.samples()
+    }
+
+    /// The variables' samples `[v·N + j]` from their spectra on the input lines.
+    fn synthesise(&self, spectra: &[&[Complex64]]) -> Vec<f64> {
+        let nt = self.samples();
+        let mut xs = vec![0.0; nt * spectra.len()];
+        for (x, sp) in xs.chunks_exact_mut(nt).zip(spectra) {
+            for (&z, &l) in sp.iter().zip(&self.line_in) {
+                self.sampler.add_line(l, z, x, None);
+            }
+        }
+        xs
+    }
+
+    /// The measured lines of the samples `g` into `out`.
+    fn project(&self, g: &[f64], out: &mut [Complex64]) {
+        for (o, &l) in out.iter_mut().zip(&self.line_out) {
+            *o = self.sampler.coefficient(l, g);
+        }
     }
 
     /// The amplitudes at the measured lines of the term `Π x_v^e · Π f(x)^e` (`poly` the
@@ -83,99 +95,103 @@ impl Torus {
         spectra: &[&[Complex64]],
         out: &mut [Complex64],
     ) {
+        let xs = self.synthesise(spectra);
+        let mut g = vec![0.0; self.samples()];
+        self.sampler.add_term(1.0, poly, factors, &xs, &mut g);
+        self.project(&g, out);
+    }
+
+    /// The derivatives of [`Torus::amplitudes`] by the real and imaginary parts of the
+    /// amplitude of variable `q` at input line `s`, variable `v` (its velocity, or `None`)
+    /// moving with it as `iΩ` times it (`Ω` rad/s): `(∂ĝ/∂Re X, ∂ĝ/∂Im X)` per measured line.
+    /// Without a jump, exactly, from the pointwise gradient (the sampled `|x|` term is
+    /// differentiable wherever no sample sits on a zero); with `sign` or `tanh` (cell averages
+    /// of the neighbours too), by central differences of the samples of `q` and `v` alone.
+    pub(crate) fn jacobian(
+        &self,
+        poly: &[(usize, u32)],
+        factors: &[(NonSmooth, u32)],
+        spectra: &[&[Complex64]],
+        (q, v, omega, s): (usize, Option<usize>, f64, usize),
+    ) -> (Vec<Complex64>, Vec<Complex64>) {
         let nt = self.samples();
-        let nv = spectra.len();
-        let phases = Phases::new(&self.grid);
-        // The variables at every sample, [j·V + v].
-        let mut xs = vec![0.0; nt * nv];
-        let mut idx = vec![0usize; self.grid.axes()];
-        for j in 0..nt {
-            for (r, &l) in self.line_in.iter().enumerate() {
-                let (c, s) = phases.at(l, &idx);
-                for (v, sp) in spectra.iter().enumerate() {
-                    let z = sp[r];
-                    xs[j * nv + v] += z.re * c - z.im * s;
+        let mut xs = self.synthesise(spectra);
+        let line = self.line_in[s];
+        let n_out = self.line_out.len();
+        let (mut dre, mut dim) = (
+            vec![Complex64::new(0.0, 0.0); n_out],
+            vec![Complex64::new(0.0, 0.0); n_out],
+        );
+        // The basis of Re X and Im X at q (and v): cos φ, −Ω sin φ; −sin φ, −Ω cos φ.
+        let basis = |a: Complex64| {
+            let (mut bq, mut bv) = (vec![0.0; nt], vec![0.0; nt]);
+            self.sampler
+                .add_line(line, a, &mut bq, Some((omega, &mut bv)));
+            (bq, bv)
+        };
+        let bases = [
+            basis(Complex64::new(1.0, 0.0)),
+            basis(Complex64::new(0.0, 1.0)),
+        ];
+        let jump = factors.iter().any(|(f, _)| !matches!(f, NonSmooth::Abs(_)));
+        let mut h = vec![0.0; nt];
+        if !jump {
+            let term = RoughTerm {
+                eq: 0,
+                coef: 1.0,
+                factors: poly.to_vec(),
+                nonsmooth: factors.to_vec(),
+                name: String::new(),
+            };
+            let nv = spectra.len();
+            let (mut x, mut grad) = (vec![0.0; nv], vec![0.0; nv]);
+            let (mut gq, mut gv) = (vec![0.0; nt], vec![0.0; nt]);
+            for j in 0..nt {
+                for (i, xi) in x.iter_mut().enumerate() {
+                    *xi = xs[i * nt + j];
                 }
+                grad.fill(0.0);
+                term.add_gradient(&x, &mut grad);
+                gq[j] = grad[q];
+                gv[j] = v.map_or(0.0, |v| grad[v]);
             }
-            advance(&mut idx, &self.grid.dims);
+            for ((bq, bv), out) in bases.iter().zip([&mut dre, &mut dim]) {
+                for j in 0..nt {
+                    h[j] = gq[j] * bq[j] + gv[j] * bv[j];
+                }
+                self.project(&h, out);
+            }
+            return (dre, dim);
         }
-        out.fill(Complex64::new(0.0, 0.0));
-        idx.fill(0);
-        for j in 0..nt {
-            let x = &xs[j * nv..(j + 1) * nv];
-            let mut g = 1.0;
-            for &(v, e) in poly {
-                g *= x[v].powi(e as i32);
-            }
-            for &(f, e) in factors {
-                let i = f.var().index();
-                let y = match f {
-                    NonSmooth::Abs(_) => f.value(x[i]),
-                    _ => {
-                        let p = xs[self.prev[j] as usize * nv + i];
-                        let n = xs[self.next[j] as usize * nv + i];
-                        f.cell_average(p, x[i], n)
+        let scale = spectra[q].iter().map(|z| z.norm()).fold(0.0, f64::max);
+        let step = 1e-6 * scale.max(f64::MIN_POSITIVE);
+        let mut g = vec![Complex64::new(0.0, 0.0); n_out];
+        for ((bq, bv), out) in bases.iter().zip([&mut dre, &mut dim]) {
+            for sign in [1.0, -1.0] {
+                let d = sign * step;
+                let shift = |xs: &mut [f64], d: f64| {
+                    xs[q * nt..(q + 1) * nt]
+                        .iter_mut()
+                        .zip(bq)
+                        .for_each(|(x, b)| *x += d * b);
+                    if let Some(v) = v {
+                        xs[v * nt..(v + 1) * nt]
+                            .iter_mut()
+                            .zip(bv)
+                            .for_each(|(x, b)| *x += d * b);
                     }
                 };
-                g *= y.powi(e as i32);
-            }
-            if g != 0.0 {
-                for (o, &l) in out.iter_mut().zip(&self.line_out) {
-                    let (c, s) = phases.at(l, &idx);
-                    *o += Complex64::new(g * c, -g * s);
+                shift(&mut xs, d);
+                h.fill(0.0);
+                self.sampler.add_term(1.0, poly, factors, &xs, &mut h);
+                shift(&mut xs, -d);
+                self.project(&h, &mut g);
+                for (o, gi) in out.iter_mut().zip(&g) {
+                    *o += gi * (sign / (2.0 * step));
                 }
             }
-            advance(&mut idx, &self.grid.dims);
         }
-        for (o, &l) in out.iter_mut().zip(&self.line_out) {
-            let d = self.grid.axes();
-            let static_line = self.grid.k[l * d..(l + 1) * d].iter().all(|&k| k == 0);
-            *o *= if static_line { 1.0 } else { 2.0 } / nt as f64;
-        }
-    }
-}
-
-/// `cos` and `sin` of a line's phase `k_r·θ_j` at a multi-index, exact in integers: every
-/// phase is a multiple of `2π/big`, `big` the largest axis.
-struct Phases<'a> {
-    grid: &'a Grid,
-    big: usize,
-    cos: Vec<f64>,
-    sin: Vec<f64>,
-}
-
-impl<'a> Phases<'a> {
-    fn new(grid: &'a Grid) -> Self {
-        let big = grid.dims.iter().copied().max().unwrap_or(1);
-        let th = |m: usize| TAU * m as f64 / big as f64;
-        Self {
-            grid,
-            big,
-            cos: (0..big).map(|m| th(m).cos()).collect(),
-            sin: (0..big).map(|m| th(m).sin()).collect(),
-        }
-    }
-
-    fn at(&self, line: usize, idx: &[usize]) -> (f64, f64) {
-        let d = self.grid.axes();
-        let mut m: i64 = 0;
-        for (i, &n) in self.grid.dims.iter().enumerate() {
-            let step = (self.big / n) as i64;
-            m += (self.grid.k[line * d + i] * idx[i] as i64).rem_euclid(n as i64) * step;
-        }
-        let m = m.rem_euclid(self.big as i64) as usize;
-        (self.cos[m], self.sin[m])
-    }
-}
-
-/// The next multi-index in row-major order (the last axis fastest, as the grid's samples).
-fn advance(idx: &mut [usize], dims: &[usize]) {
-    for i in (0..idx.len()).rev() {
-        idx[i] += 1;
-        if idx[i] < dims[i] {
-            return;
-        }
-        idx[i] = 0;
+        (dre, dim)
     }
 }
 
@@ -184,6 +200,7 @@ mod tests {
     use super::super::{base_harmonics, nonsmooth_amplitudes, NsMonomial};
     use super::*;
     use harmonid_poly::VarId;
+    use std::f64::consts::TAU;
 
     fn abs_q() -> NsMonomial {
         NsMonomial {
@@ -227,7 +244,7 @@ mod tests {
             Complex64::new(-0.03, 0.04),
         ];
         let t = Torus::new(&g, &input, &output).expect("a torus");
-        assert_eq!(t.grid.dims, vec![128, 128]);
+        assert_eq!(t.sampler.grid().dims, vec![128, 128]);
         let mut all = input.to_vec();
         all.extend_from_slice(&output);
         let (_, ks) = base_harmonics(&all).expect("harmonics of 5 Hz");
@@ -238,6 +255,55 @@ mod tests {
             let err = worst(&on_torus(&t, &term, &x, output.len()), &period);
             eprintln!("harmonic two-tone, torus vs one period: {err:.2e}");
             assert!(err < tol, "{err:e}");
+        }
+    }
+
+    #[test]
+    fn the_column_jacobian_equals_differences_of_the_columns() {
+        // abs(q)*q and abs(d(q))*d(q) (exact from the gradient) and sign(q) (differences of the
+        // moved samples) against central differences of whole columns in Re X and Im X of g2.
+        let g = [9996.3, 10001.7];
+        let lines = [2.0 * g[0] - g[1], g[0], g[1], 2.0 * g[1] - g[0]];
+        let t = Torus::new(&g, &lines, &lines).expect("a torus");
+        let x = [
+            Complex64::new(0.02, 0.01),
+            Complex64::from_polar(1.0, 0.4),
+            Complex64::from_polar(0.45, -0.7),
+            Complex64::new(0.0, 0.0),
+        ];
+        let w: Vec<f64> = lines.iter().map(|f| TAU * f).collect();
+        let v: Vec<Complex64> = x
+            .iter()
+            .zip(&w)
+            .map(|(z, w)| Complex64::new(0.0, *w) * z)
+            .collect();
+        let drag = NsMonomial {
+            poly: vec![(1, 1)],
+            factors: vec![(NonSmooth::Abs(VarId(1)), 1)],
+        };
+        let s = 2;
+        for term in [abs_q(), drag, sign_q()] {
+            let (dre, dim) =
+                t.jacobian(&term.poly, &term.factors, &[&x, &v], (0, Some(1), w[s], s));
+            for (dir, exact) in [
+                (Complex64::new(1.0, 0.0), &dre),
+                (Complex64::new(0.0, 1.0), &dim),
+            ] {
+                let h = 1e-6;
+                let column = |sgn: f64| {
+                    let (mut x2, mut v2) = (x.to_vec(), v.clone());
+                    x2[s] += dir * h * sgn;
+                    v2[s] = Complex64::new(0.0, w[s]) * x2[s];
+                    let mut out = vec![Complex64::new(0.0, 0.0); lines.len()];
+                    t.amplitudes(&term.poly, &term.factors, &[&x2, &v2], &mut out);
+                    out
+                };
+                let (p, m) = (column(1.0), column(-1.0));
+                let fd: Vec<Complex64> =
+                    p.iter().zip(&m).map(|(a, b)| (a - b) / (2.0 * h)).collect();
+                let err = worst(exact, &fd);
+                assert!(err < 1e-6, "{:?}: {err:e}", term.factors);
+            }
         }
     }
 
