@@ -7,13 +7,15 @@
 //! sampled on the torus of the tones (one angle `θ_d` per tone, each component
 //! `X cos(k·θ)`, a velocity `−X·Ω sin(k·θ)` with `Ω = 2π k·f`): the average over the torus is
 //! the time average when the tones are incommensurate, and it is what the polynomial tables
-//! assume too (every combination its own line). A jump (`sign`) or near-jump (`tanh`) is
-//! averaged over each sample's cell along the flow `θ = ω t` (the variable linear across the
-//! cell, as the simulator's alternating frequency–time does), so the error falls like the square
-//! of the cell; `abs` is sampled pointwise. Each coefficient carries an error estimate: its
+//! assume too (every combination its own line). The sampling is the simulator's
+//! ([`harmonid_sim::GridSampler`], the one sampler of harmonic balance and identification too):
+//! a jump (`sign`) or near-jump (`tanh`) is averaged over each sample's cell along the grid's
+//! diagonal (the variable linear across the cell; the flow `θ = ω t` of tones near one
+//! frequency), so the error falls like the square of the cell; `abs` is sampled pointwise. Each coefficient carries an error estimate: its
 //! difference from the same projection on a grid of half the samples per axis.
 
 use harmonid_model::{Model, NonSmooth};
+use harmonid_sim::{Grid, GridSampler};
 use harmonid_spectral::{nearest_mode, Combination, ToneAssignment, Window};
 use num_complex::Complex64;
 use std::f64::consts::TAU;
@@ -74,67 +76,18 @@ struct Comp {
     omega: f64,
 }
 
-/// The motion of every mode as functions on the torus.
+/// The motion of every mode as lines on the torus of the tones.
 struct Motion {
     n_modes: usize,
     comps: Vec<Vec<Comp>>,
-    /// Angular frequency of each tone, rad/s (the flow on the torus).
-    flow: Vec<f64>,
-}
-
-impl Motion {
-    /// Variable `v` (mode `v`, or velocity of mode `v − N`) at the torus point `theta`.
-    fn var(&self, v: usize, theta: &[f64]) -> f64 {
-        let velocity = v >= self.n_modes;
-        let mut s = 0.0;
-        for c in &self.comps[v % self.n_modes] {
-            let phase: f64 = c.k.iter().zip(theta).map(|(&k, &t)| f64::from(k) * t).sum();
-            s += if velocity {
-                -c.amplitude * c.omega * phase.sin()
-            } else {
-                c.amplitude * phase.cos()
-            };
-        }
-        s
-    }
-
-    /// Variable `v` at the point `theta + t·flow`.
-    fn var_along(&self, v: usize, theta: &[f64], t: f64, buf: &mut [f64]) -> f64 {
-        for ((b, &th), &w) in buf.iter_mut().zip(theta).zip(&self.flow) {
-            *b = th + t * w;
-        }
-        self.var(v, buf)
-    }
+    /// Number of tones (axes of the torus).
+    axes: usize,
 }
 
 /// A term split for sampling.
 struct Sampled {
     poly: Vec<(usize, u32)>,
     factors: Vec<(NonSmooth, u32)>,
-}
-
-impl Sampled {
-    /// The term's value at `theta`; `h` is the time step of one cell along the flow.
-    fn at(&self, m: &Motion, theta: &[f64], h: f64, buf: &mut [f64]) -> f64 {
-        let mut p = 1.0;
-        for &(v, e) in &self.poly {
-            p *= m.var(v, theta).powi(e as i32);
-        }
-        for &(f, e) in &self.factors {
-            let v = f.var().index();
-            let x = m.var(v, theta);
-            let g = match f {
-                NonSmooth::Abs(_) => f.value(x),
-                NonSmooth::Sign(_) | NonSmooth::Tanh(..) => {
-                    let prev = m.var_along(v, theta, -h, buf);
-                    let next = m.var_along(v, theta, h, buf);
-                    f.cell_average(prev, x, next)
-                }
-            };
-            p *= g.powi(e as i32);
-        }
-        p
-    }
 }
 
 /// Samples per axis for `axes` tones: [`ONE_TONE_SAMPLES`] for one, else the largest even number whose power
@@ -184,59 +137,57 @@ fn combinations(tones_hz: &[f64], order: u32) -> Vec<(Combination, f64)> {
     out
 }
 
-/// The projections `C_k` of `term` onto `lines` from an `m`-per-axis grid of the torus.
+/// The projections `C_k` of `term` onto `lines` from an `m`-per-axis grid of the torus, by the
+/// simulator's sampler ([`harmonid_sim::GridSampler`]: the grid's lines are the components,
+/// then `lines`).
 fn project(
     term: &Sampled,
     motion: &Motion,
     lines: &[(Combination, f64)],
     m: usize,
 ) -> Vec<Complex64> {
-    let d = motion.flow.len();
-    let total = m.pow(d as u32);
-    // e^{−i2π j/m}.
-    let roots: Vec<Complex64> = (0..m)
-        .map(|j| Complex64::from_polar(1.0, -TAU * j as f64 / m as f64))
-        .collect();
-    let wmax = motion.flow.iter().fold(0.0_f64, |a, w| a.max(w.abs()));
-    let h = if wmax > 0.0 {
-        TAU / m as f64 / wmax
-    } else {
-        0.0
-    };
-    let mut idx = vec![0usize; d];
-    let mut theta = vec![0.0; d];
-    let mut buf = vec![0.0; d];
-    let mut sums = vec![Complex64::new(0.0, 0.0); lines.len()];
-    for _ in 0..total {
-        for (t, &j) in theta.iter_mut().zip(&idx) {
-            *t = TAU * j as f64 / m as f64;
-        }
-        let f = term.at(motion, &theta, h, &mut buf);
-        if f != 0.0 {
-            for ((c, _), s) in lines.iter().zip(sums.iter_mut()) {
-                let mut e = Complex64::new(f, 0.0);
-                for (&k, &j) in c.coeffs().iter().zip(&idx) {
-                    let r = (i64::from(k) * j as i64).rem_euclid(m as i64) as usize;
-                    e *= roots[r];
-                }
-                *s += e;
-            }
-        }
-        for (i, j) in idx.iter_mut().enumerate() {
-            *j += 1;
-            if *j < m || i + 1 == d {
-                break;
-            }
-            *j = 0;
+    let d = motion.axes;
+    let mut k: Vec<i64> = Vec::new();
+    for c in motion.comps.iter().flatten() {
+        k.extend(c.k.iter().map(|&x| i64::from(x)));
+    }
+    let n_in = k.len() / d.max(1);
+    for (c, _) in lines {
+        k.extend(c.coeffs().iter().map(|&x| i64::from(x)));
+    }
+    let sampler = GridSampler::new(&Grid {
+        dims: vec![m; d],
+        k,
+    });
+    let nt = sampler.samples();
+    let nm = motion.n_modes;
+    let top = term
+        .poly
+        .iter()
+        .map(|&(v, _)| v)
+        .chain(term.factors.iter().map(|(f, _)| f.var().index()))
+        .max()
+        .unwrap_or(0);
+    // Modes, velocities, and any further variable (the pump) left at zero.
+    let mut xs = vec![0.0; nt * (2 * nm).max(top + 1)];
+    let (q, v) = xs.split_at_mut(nm * nt);
+    let mut line = 0;
+    for (n, comps) in motion.comps.iter().enumerate() {
+        for c in comps {
+            let (qn, vn) = (&mut q[n * nt..(n + 1) * nt], &mut v[n * nt..(n + 1) * nt]);
+            sampler.add_line(
+                line,
+                Complex64::new(c.amplitude, 0.0),
+                qn,
+                Some((c.omega, vn)),
+            );
+            line += 1;
         }
     }
-    lines
-        .iter()
-        .zip(sums)
-        .map(|((c, _), s)| {
-            let w = if c.is_zero() { 1.0 } else { 2.0 };
-            s * (w / total as f64)
-        })
+    let mut g = vec![0.0; nt];
+    sampler.add_term(1.0, &term.poly, &term.factors, &xs, &mut g);
+    (0..lines.len())
+        .map(|i| sampler.coefficient(n_in + i, &g))
         .collect()
 }
 
@@ -280,7 +231,7 @@ pub(super) fn build(
     let motion = Motion {
         n_modes,
         comps,
-        flow: tones_hz.iter().map(|f| TAU * f).collect(),
+        axes,
     };
     let lines = combinations(&tones_hz, order);
     let params: Vec<String> = model.params.iter().map(|p| p.name.clone()).collect();
