@@ -30,13 +30,11 @@ measure_hz = [9980.1, 9985.5, 9990.9, 9996.3, 10001.7, 10007.1, 10012.5, 10017.9
 
 /// examples/nonsmooth (kappa1 |q1| q1, drag1 |q1'| q1', Duffing) driven by 9996.3 + 10001.7 Hz
 /// at three levels, 10 shots at 0.1 nm per quadrature: the equation-error fit recovers kappa1
-/// and drag1 within 4 standard errors and 2 %. Ignored in CI (2.0-3.3 s on the shared 2-core VM at
-/// load 2.2: simulate 1.1 s, identify 2.5 s, most of it the central-difference Jacobians of the
-/// torus columns in the error-in-variables weighting); the columns themselves are checked in CI
-/// by the unit tests of problem/nonsmooth/torus.rs (0.16 s). Run with
-/// `cargo test --release --test it -- --ignored nonsmooth_two_tone`.
+/// and drag1 within 4 standard errors and 2 %. In CI since the torus is sampled by
+/// `harmonid_sim::GridSampler` and the columns' Jacobian of `abs` terms is exact (0.59 s on the
+/// shared 2-core VM at load 2.6; 2.0-3.3 s before, most of it central-difference Jacobians of
+/// the torus columns in the error-in-variables weighting).
 #[test]
-#[ignore = "2-3.3 s: simulate + identify on the torus; see the comment"]
 fn kappa_and_drag_from_incommensurate_two_tone_measurements() {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let ex = root.join("examples/nonsmooth");
