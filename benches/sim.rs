@@ -117,5 +117,79 @@ fn time_domain(cr: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, steady_state, duffing_sweep, time_domain);
+/// The non-smooth terms (issue 36). One harmonic-balance solve (reused solver, no ramp) of a
+/// 10 kHz, Q 1000 resonator driven near resonance with `abs(q1)*q1` and `abs(d(q1))*d(q1)` (512
+/// samples of one period, spectral Jacobian) and with Coulomb friction `sign(d(q1))` (4096
+/// samples, Jacobian by central differences); and one torus column as the identification builds
+/// it: `abs(q)*q` from two input lines on the 128 × 128 torus of 9996.3 + 10001.7 Hz, projected
+/// on four lines (synthesis, evaluation, projection by `GridSampler`).
+fn nonsmooth(cr: &mut Criterion) {
+    use harmonid::model::NonSmooth;
+    use harmonid::poly::VarId;
+    let numeric = |eom: &str, params: &[(&str, f64)]| {
+        let src =
+            format!("mode q1, f = 10 kHz, Q = 1000\nparam kappa1, drag1, mu1\neom q1 += {eom}\n");
+        let m = harmonid::model::parse_str(&src, "bench.hb").expect("model");
+        let mut v = sim::ModelValues::default();
+        for (k, x) in ["kappa1", "drag1", "mu1"]
+            .iter()
+            .map(|k| (k, 0.0))
+            .chain(params.iter().map(|(k, x)| (k, *x)))
+        {
+            v.parameters.insert((*k).to_string(), x);
+        }
+        NumericModel::from_model(&m, &v).expect("numeric model")
+    };
+    let drive = Excitation {
+        pumps: Vec::new(),
+        tones_hz: vec![10_005.0],
+        force: vec![vec![c(4.0)]],
+    };
+    let settings = HbSettings {
+        ramp: false,
+        ..HbSettings::default()
+    };
+    let mut g = cr.benchmark_group("nonsmooth");
+    for (name, eom, params) in [
+        (
+            "hb_solve_abs",
+            "kappa1*abs(q1)*q1 + drag1*abs(d(q1))*d(q1)",
+            &[("kappa1", 3e13), ("drag1", 7e2)][..],
+        ),
+        ("hb_solve_coulomb", "mu1*sign(d(q1))", &[("mu1", 1.0)][..]),
+    ] {
+        let model = numeric(eom, params);
+        let mut solver = HbSolver::new(&model, &drive, &settings.lattice).expect("solver");
+        g.bench_function(name, |b| b.iter(|| black_box(solver.solve(&settings))));
+    }
+    let tones = [9996.3, 10001.7];
+    let lines = [
+        2.0 * tones[0] - tones[1],
+        tones[0],
+        tones[1],
+        2.0 * tones[1] - tones[0],
+    ];
+    let grid = sim::Grid::choose(&tones, &lines).expect("a torus");
+    let sampler = sim::GridSampler::new(&grid);
+    let nt = sampler.samples();
+    let (mut xs, mut f) = (vec![0.0; nt], vec![0.0; nt]);
+    let abs_q = [(NonSmooth::Abs(VarId(0)), 1)];
+    g.bench_function("torus_column_128x128", |b| {
+        b.iter(|| {
+            xs.fill(0.0);
+            f.fill(0.0);
+            sampler.add_line(1, Complex64::from_polar(1.0, 0.4), &mut xs, None);
+            sampler.add_line(2, Complex64::from_polar(0.45, -0.7), &mut xs, None);
+            sampler.add_term(1.0, &[(0, 1)], &abs_q, &xs, &mut f);
+            black_box(
+                (0..lines.len())
+                    .map(|r| sampler.coefficient(r, &f))
+                    .collect::<Vec<_>>(),
+            )
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, steady_state, duffing_sweep, time_domain, nonsmooth);
 criterion_main!(benches);
