@@ -2,7 +2,7 @@
 //! AXIS:FROM:TO:N --y AXIS:FROM:TO:N --out map.csv`: the number of stable and unstable
 //! single-harmonic steady states over a grid of two parameters (`harmonid_explore::phase_diagram`).
 
-use super::states::excitation;
+use super::states::{excitation, ExcitationArgs};
 use harmonid_explore::{Axis, AxisRange, PhaseDiagram, PhaseSettings, Problem};
 use harmonid_plot::PhaseMap;
 use miette::miette;
@@ -11,22 +11,20 @@ use std::path::PathBuf;
 
 /// Arguments of `harmonid phase-diagram`.
 #[derive(Debug, clap::Args)]
+#[command(
+    mut_arg("drive", |a| a.help("The drive tone, Hz, where the axes do not move it (`--drives q1:HZ` read the same)")),
+    mut_arg("force", |a| a.help("Force of the tone on a mode, N/kg, as `mode=amplitude`; repeat for several modes")),
+    mut_arg("pump", |a| a.help("A pump tone, `HZ:LEVEL[:PHASE_RAD]`; with a drive, at twice the drive tone (the two move together on a freq or pump_hz axis)")),
+)]
 pub struct Args {
     /// The model file (`*.hb`).
     pub model: PathBuf,
     /// Parameter values (TOML or an identification result JSON).
     #[arg(long)]
     pub values: PathBuf,
-    /// The drive tone, Hz, where the axes do not move it (`--drives q1:HZ` read the same).
-    #[arg(long = "drive", alias = "drives", value_name = "HZ")]
-    pub drive: Option<String>,
-    /// Force of the tone on a mode, N/kg, as `mode=amplitude`; repeat for several modes.
-    #[arg(long = "force", value_name = "MODE=N_PER_KG")]
-    pub force: Vec<String>,
-    /// A pump tone, `HZ:LEVEL[:PHASE_RAD]`; with a drive, at twice the drive tone (the two
-    /// move together on a freq or pump_hz axis).
-    #[arg(long = "pump", value_name = "HZ:LEVEL[:PHASE_RAD]")]
-    pub pump: Option<String>,
+    /// The drive tone, its forces and a pump (the help reworded above for the axes).
+    #[command(flatten)]
+    pub excitation: ExcitationArgs,
     /// The x axis, `AXIS:FROM:TO:N`, AXIS one of freq, force:MODE, pump_hz, pump_level or a
     /// parameter of the model.
     #[arg(long, value_name = "AXIS:FROM:TO:N")]
@@ -108,12 +106,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     let model = harmonid_model::load(&args.model).map_err(miette::Report::new)?;
     let values = super::simulate::read_values(&args.values)?;
     let num = super::simulate::numeric_model(&args.model, &args.values)?;
-    let drive = excitation(
-        &num,
-        args.drive.as_deref(),
-        &args.force,
-        args.pump.as_deref(),
-    )?;
+    let drive = excitation(&num, &args.excitation)?;
     let problem = Problem {
         model: &model,
         values: &values,

@@ -17,6 +17,22 @@ pub struct Args {
     /// Parameter values (TOML or an identification result JSON), as for `harmonid simulate`.
     #[arg(long)]
     pub values: PathBuf,
+    /// The drive tone, its forces and a pump.
+    #[command(flatten)]
+    pub excitation: ExcitationArgs,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    /// The single-harmonic states only (no continuation onto the harmonic lattice).
+    #[arg(long)]
+    pub single_harmonic: bool,
+}
+
+/// The excitation arguments `harmonid states` and `harmonid phase-diagram` share: one drive
+/// tone with its forces, and a pump. The help here is `states`' (`phase-diagram` rewords three
+/// lines for its axes with `mut_arg`).
+#[derive(Debug, clap::Args)]
+pub struct ExcitationArgs {
     /// The drive tone, Hz (`--drives q1:HZ` is read the same, the mode before the colon
     /// ignored: the forces name the modes).
     #[arg(long = "drive", alias = "drives", value_name = "HZ")]
@@ -28,22 +44,13 @@ pub struct Args {
     /// the drive tone.
     #[arg(long = "pump", value_name = "HZ:LEVEL[:PHASE_RAD]")]
     pub pump: Option<String>,
-    /// Print JSON instead of a table.
-    #[arg(long)]
-    pub json: bool,
-    /// The single-harmonic states only (no continuation onto the harmonic lattice).
-    #[arg(long)]
-    pub single_harmonic: bool,
 }
 
-/// The excitation of `--drive`, `--force`, `--pump`: a tone with its forces, a pump, or both.
-pub fn excitation(
-    model: &NumericModel,
-    drive: Option<&str>,
-    force: &[String],
-    pump: Option<&str>,
-) -> miette::Result<Excitation> {
-    let forces = super::common::forces(model, force)?;
+/// The excitation of `--drive`, `--force`, `--pump`: a tone with its forces (N/kg, peak), a
+/// pump, or both.
+pub fn excitation(model: &NumericModel, args: &ExcitationArgs) -> miette::Result<Excitation> {
+    let (drive, pump) = (args.drive.as_deref(), args.pump.as_deref());
+    let forces = super::common::forces(model, &args.force)?;
     let pumps = match pump {
         Some(p) => vec![super::sweep_pumped::parse_pump(p)?],
         None => Vec::new(),
@@ -92,12 +99,7 @@ pub fn excitation(
 /// Runs the subcommand.
 pub fn run(args: Args) -> miette::Result<()> {
     let model = numeric_model(&args.model, &args.values)?;
-    let drive = excitation(
-        &model,
-        args.drive.as_deref(),
-        &args.force,
-        args.pump.as_deref(),
-    )?;
+    let drive = excitation(&model, &args.excitation)?;
     let settings = StatesSettings {
         lattice: !args.single_harmonic,
         ..StatesSettings::default()

@@ -163,3 +163,37 @@ fn bad_axes_are_refused_before_any_work() {
     ]);
     assert!(String::from_utf8_lossy(&out.stderr).contains("no pump terms"));
 }
+
+/// `states` and `phase-diagram` share their excitation options (one `ExcitationArgs`
+/// flattened into both); each keeps its own wording of them, and `--drives q1:HZ` still reads
+/// as `--drive` in both.
+#[test]
+fn the_excitation_options_are_shared_and_worded_per_command() {
+    let help = |cmd: &str| {
+        let out = run(&[cmd, "--help"]);
+        assert!(out.status.success());
+        String::from_utf8_lossy(&out.stdout)
+            .split_whitespace()
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    let (states, map) = (help("states"), help("phase-diagram"));
+    for (text, want) in [
+        (&states, "--drive <HZ> The drive tone, Hz (`--drives q1:HZ` is read the same, the mode before the colon ignored: the forces name the modes)"),
+        (&states, "--force <MODE=N_PER_KG> Force of the tone on a mode, N/kg (peak), as `mode=amplitude`; repeat for several modes"),
+        (&states, "--pump <HZ:LEVEL[:PHASE_RAD]> A pump tone, `HZ:LEVEL[:PHASE_RAD]` (the model's `pump` signal); with a drive, at twice the drive tone"),
+        (&map, "--drive <HZ> The drive tone, Hz, where the axes do not move it (`--drives q1:HZ` read the same)"),
+        (&map, "--force <MODE=N_PER_KG> Force of the tone on a mode, N/kg, as `mode=amplitude`; repeat for several modes"),
+        (&map, "--pump <HZ:LEVEL[:PHASE_RAD]> A pump tone, `HZ:LEVEL[:PHASE_RAD]`; with a drive, at twice the drive tone (the two move together on a freq or pump_hz axis)"),
+    ] {
+        assert!(text.contains(want), "`{want}` not in:\n{text}");
+    }
+    // The alias and the mode before the colon: the same excitation as `--drive 1000`.
+    let args = [
+        "--values", VALUES, "--force", "q1=1e6", "--pump", "2000:2e5", "--json",
+    ];
+    let a = run(&[&["states", MODEL, "--drives", "q1:1000"][..], &args].concat());
+    let b = run(&[&["states", MODEL, "--drive", "1000"][..], &args].concat());
+    assert!(a.status.success(), "{}", String::from_utf8_lossy(&a.stderr));
+    assert_eq!(a.stdout, b.stdout);
+}
