@@ -210,6 +210,61 @@ const EXPECTED: &[(&str, Code, &[&str])] = &[
             "invisible_character.hb:2:6",
         ],
     ),
+    // Non-smooth factors (issue 36): each refusal names the term and what to write instead.
+    (
+        "nonsmooth_sum",
+        Code::BadNonSmooth,
+        &[
+            "`abs(...)` of a sum",
+            "nonsmooth_sum.hb:4:17",
+            "`kappa1*abs(q1)*q1`",
+        ],
+    ),
+    (
+        "nonsmooth_parameter",
+        Code::BadNonSmooth,
+        &["`abs(...)` of a parameter", "nonsmooth_parameter.hb:3:17"],
+    ),
+    (
+        "nonsmooth_zero_scale",
+        Code::BadNonSmooth,
+        &[
+            "`tanh(x/0)`",
+            "nonsmooth_zero_scale.hb:3:25",
+            "`sign(d(q1))`",
+        ],
+    ),
+    (
+        "nonsmooth_negative_scale",
+        Code::BadNonSmooth,
+        &[
+            "must be a positive number",
+            "nonsmooth_negative_scale.hb:3:25",
+        ],
+    ),
+    (
+        "nonsmooth_nested",
+        Code::BadNonSmooth,
+        &["functions do not nest", "nonsmooth_nested.hb:3:19"],
+    ),
+    (
+        // The help once read "`-`mu1*tanh(d(q1)/1e-3)``".
+        "nonsmooth_negated",
+        Code::BadNonSmooth,
+        &[
+            "of a negated mode or velocity",
+            "nonsmooth_negated.hb:3:",
+            "write the sign outside the function: `-mu1*tanh(d(q1)/1e-3)`",
+        ],
+    ),
+    (
+        "nonsmooth_potential",
+        Code::BadNonSmooth,
+        &[
+            "a potential cannot hold `abs`, `sign` or `tanh`",
+            "nonsmooth_potential.hb:3:",
+        ],
+    ),
 ];
 
 fn render(e: &ModelErrors) -> String {

@@ -104,7 +104,10 @@ impl Eval<'_, '_, '_, '_> {
                     sp,
                     format!("`{f}(...)` of a negated mode or velocity"),
                     "minus sign inside",
-                    format!("write the sign outside the function: `-{}`", example(f)),
+                    format!(
+                        "write the sign outside the function: {}",
+                        example(f).replacen('`', "`-", 1)
+                    ),
                 );
             }
             _ => {
