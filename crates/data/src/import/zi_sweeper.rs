@@ -167,6 +167,23 @@ pub fn import(
                 ),
             });
         }
+        // Two demodulators on one line are not two lines: most likely the files of two sweeps
+        // or drive levels given together (each file then looks like a demodulator).
+        let same_line = d
+            .iter()
+            .zip(drive)
+            .all(|(a, b)| (a.line - b.line).abs() <= crate::dataset::FREQ_REL_TOL * b.line.abs());
+        if same_line {
+            return Err(ImportError::Input {
+                path: inputs[k].clone(),
+                row: None,
+                message: format!(
+                    "it measured the same frequencies as {} ({} Hz at the first point), so it is not another demodulator of that sweep: zi-sweeper reads the demodulators of one sweep (the drive's first, each other on its own line, a harmonic or another tone); import the files of several sweeps or drive levels one at a time (each with its --drive-level) and join them with `harmonid merge`",
+                    inputs[0].display(),
+                    harmonid_files::number(drive[0].line)
+                ),
+            });
+        }
     }
     // Legs: a new sweep where the grid turns back (at the repeated end point, when there is
     // one).

@@ -197,3 +197,34 @@ fn table_text_splits_and_holdout_takes_the_file_name() {
     );
     assert!(out.join("Measurements_A=0.32%_down.csv").exists());
 }
+
+/// Two sweeper files on the same frequencies (two drive levels given together, the natural
+/// first try with a 12-level measurement) are refused naming the second file and `merge`,
+/// not read as two demodulators ("an averaged step is one sample" before).
+#[test]
+fn zi_sweeper_files_of_two_levels_are_refused_by_name() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut paths = Vec::new();
+    for (n, scale) in [("level_a.csv", 1.0), ("level_b.csv", 2.0)] {
+        let mut s = String::from("grid;x;y;xstddev;ystddev;count;frequency\n");
+        for (k, &f) in DRIVES.iter().enumerate() {
+            let z = value(k) * scale;
+            let _ = writeln!(s, "{f:?};{:e};{:e};1e-6;1e-6;100;{f:?}", z.re, z.im);
+        }
+        paths.push(write(dir.path(), n, &s));
+    }
+    let opts = zi_sweeper::Options { drive_level: None };
+    let err = match zi_sweeper::import(&paths, &conv(), &opts, Path::new("o")) {
+        Ok(_) => panic!("two levels' files read as two demodulators"),
+        Err(e) => e.to_string(),
+    };
+    for want in [
+        "level_b.csv",
+        "same frequencies",
+        "level_a.csv",
+        "100 Hz",
+        "harmonid merge",
+    ] {
+        assert!(err.contains(want), "{want} missing: {err}");
+    }
+}
