@@ -361,6 +361,12 @@ fn nonsmooth_lines(
             .ok()
             .filter(|v| v.is_finite())
             .ok_or_else(|| bad(format!("`{}` is not a finite number", value.trim())))?;
+        if amplitudes[i] <= 0.0 {
+            return Err(bad(format!(
+                "an amplitude is the size of a component, so it must be positive, not {}",
+                value.trim()
+            )));
+        }
     }
     if !model.has_nonsmooth() {
         if !args.amplitude.is_empty() {
@@ -378,7 +384,7 @@ fn nonsmooth_lines(
             args.nonsmooth_order
         ));
     }
-    nonsmooth::build(
+    let report = nonsmooth::build(
         model,
         assignment,
         amplitudes,
@@ -386,7 +392,6 @@ fn nonsmooth_lines(
         window,
         args.nonsmooth_order,
     )
-    .map(Some)
     .map_err(|why| {
         miette!(
             help = "lower --nonsmooth-order, or list fewer tones",
@@ -394,7 +399,50 @@ fn nonsmooth_lines(
             args.model.display(),
             model.nonsmooth_term_names().join(", ")
         )
-    })
+    })?;
+    check_nonsmooth_finite(args, &report)?;
+    Ok(Some(report))
+}
+
+/// Refuses non-smooth lines that overflow or all underflow at the `--amplitude` values (a
+/// power of a huge or tiny amplitude), rather than print `NaN` or nothing.
+fn check_nonsmooth_finite(args: &Args, report: &nonsmooth::NsReport) -> miette::Result<()> {
+    let given = if args.amplitude.is_empty() {
+        "the default amplitude 1".to_string()
+    } else {
+        format!("--amplitude {}", args.amplitude.join(" --amplitude "))
+    };
+    let help = "give the components' amplitudes in the model's units (metres for a mode: e.g. --amplitude X1=1e-9)";
+    for t in &report.terms {
+        let finite = |l: &nonsmooth::NsLine| {
+            l.hz.is_finite()
+                && l.value.re.is_finite()
+                && l.value.im.is_finite()
+                && l.error.is_none_or(f64::is_finite)
+        };
+        if !t.lines.iter().all(finite) {
+            return Err(miette!(
+                help = help,
+                "{}: the lines of {} overflow (not finite) at {given}",
+                args.model.display(),
+                t.monomial
+            ));
+        }
+    }
+    if report.terms.iter().all(|t| t.lines.is_empty()) {
+        return Err(miette!(
+            help = help,
+            "{}: every line of the non-smooth terms ({}) is zero at {given} (the amplitudes' powers underflow)",
+            args.model.display(),
+            report
+                .terms
+                .iter()
+                .map(|t| t.monomial.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
+    Ok(())
 }
 
 /// What the non-smooth printers need.

@@ -198,3 +198,58 @@ fn bad_amplitudes_are_refused_with_the_option_named() {
         );
     }
 }
+
+/// Hostile `--amplitude` and `--nonsmooth-order` values: each refused naming the option and
+/// the value, exit 1, and no output file (`-o` is written only on success). 1e308 once
+/// printed `NaN + i·NaN` lines and -1 printed lines "at |X1| = -1".
+#[test]
+fn bad_amplitudes_and_orders_are_refused_without_output() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let model = dir.path().join("model.hb");
+    std::fs::write(
+        &model,
+        "mode q1 at 1 kHz\nparam kappa1\neom q1 += kappa1*abs(q1)*q1\n",
+    )
+    .expect("write the model");
+    let out_file = dir.path().join("mix.txt");
+    for (args, words) in [
+        (["--amplitude", "X1=-1"], "must be positive, not -1"),
+        (["--amplitude", "X1=0"], "must be positive, not 0"),
+        (["--amplitude", "X1=nan"], "`nan` is not a finite number"),
+        (
+            ["--amplitude", "X1=1e308"],
+            "the lines of abs(q1)*q1 overflow",
+        ),
+        (
+            ["--amplitude", "X1=1e-320"],
+            "is zero at --amplitude X1=1e-320",
+        ),
+        (
+            ["--nonsmooth-order", "100000"],
+            "--nonsmooth-order 100000: expected an order",
+        ),
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_harmonid"))
+            .arg("mix")
+            .arg(&model)
+            .args(["--drives", "q1:1000"])
+            .args(args)
+            .arg("-o")
+            .arg(&out_file)
+            .output()
+            .expect("the harmonid binary runs");
+        // One line, without miette's wrapping and its `│` margin.
+        let stderr = String::from_utf8_lossy(&out.stderr)
+            .split_whitespace()
+            .filter(|w| *w != "│")
+            .collect::<Vec<_>>()
+            .join(" ");
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {stderr}");
+        assert!(
+            stderr.contains(words),
+            "{args:?}: expected {words:?} in {stderr}"
+        );
+        assert!(!stderr.contains("panicked"), "{stderr}");
+        assert!(!out_file.exists(), "{args:?} wrote {}", out_file.display());
+    }
+}
