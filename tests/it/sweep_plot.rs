@@ -47,3 +47,53 @@ fn downward_sweep_plot() {
     }
     insta::assert_snapshot!("sweep_down_plot_structure", structure);
 }
+
+/// A model with a non-smooth term has no backbone (harmonid_sim::backbone refuses abs, sign
+/// and tanh): the figure says so, where it said "backbone found only up to 0 m".
+#[test]
+fn a_nonsmooth_model_has_no_backbone_and_says_so() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let (model, values, svg) = (
+        tmp.path().join("m.hb"),
+        tmp.path().join("v.toml"),
+        tmp.path().join("c.svg"),
+    );
+    std::fs::write(
+        &model,
+        "mode q1 at 10 kHz\nparam kappa1\neom q1 += kappa1*abs(q1)*q1\n",
+    )
+    .expect("model");
+    std::fs::write(
+        &values,
+        "[modes.q1]\nf_hz = 1.0e4\nQ = 2000\n[parameters]\nkappa1 = -3e9\n",
+    )
+    .expect("values");
+    let st = Command::new(env!("CARGO_BIN_EXE_harmonid"))
+        .arg("sweep")
+        .arg(&model)
+        .arg("--values")
+        .arg(&values)
+        .args([
+            "--from", "9980", "--to", "10010", "--force", "q1=0.05", "--points", "60",
+        ])
+        .args(["--out"])
+        .arg(tmp.path().join("c.csv"))
+        .arg("--plot")
+        .arg(&svg)
+        .output()
+        .expect("runs");
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let text = std::fs::read_to_string(&svg).expect("svg");
+    assert!(
+        text.contains(
+            "response of q1 to one tone (no backbone: computed for polynomial terms only)"
+        ),
+        "{}",
+        harmonid_plot::svg_structure_without_ticks(&text)
+    );
+    assert!(!text.contains("found only up to"));
+}

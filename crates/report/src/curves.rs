@@ -94,6 +94,9 @@ pub fn sweep_curve(model: &NumericModel, r: &SweepResult, n: usize) -> ResponseC
     let note = if model.has_velocity_terms() {
         // A free oscillation with motion-dependent damping decays: no backbone.
         " (no backbone: the damping depends on the motion)".to_string()
+    } else if model.has_nonsmooth() {
+        // harmonid_sim::backbone refuses abs/sign/tanh terms: say so, not "found up to 0 m".
+        " (no backbone: computed for polynomial terms only)".to_string()
     } else if bb_top < 0.999 * a_max {
         format!(
             " (backbone found only up to {} m)",
