@@ -17,6 +17,7 @@ mod given_noise;
 mod goodness_of_fit;
 mod guess_support;
 mod hardening_cli;
+mod held_back;
 mod identify_calibration;
 mod identify_cli;
 mod identify_consistency;
