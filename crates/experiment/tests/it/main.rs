@@ -2,3 +2,4 @@
 //! one module per subject, built and linked once.
 
 mod truncation;
+mod truncation_nonsmooth;
