@@ -40,6 +40,7 @@ mod plan_cli;
 mod plan_closed_loop;
 mod plan_instrument;
 mod plan_mc_support;
+mod plan_nonsmooth;
 mod plan_robust_mc;
 mod plan_roundtrip_mc;
 mod pumping_cli;
