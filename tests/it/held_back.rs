@@ -200,7 +200,15 @@ fn fold(dir: &std::path::Path) {
             );
         }
     }
-    let v = fold_values(-2.0e18, 0.5);
+    // FOLD_VALUES="kappa1:damping" writes another fold instead (a stronger one, say).
+    let (k, d) = std::env::var("FOLD_VALUES")
+        .ok()
+        .and_then(|c| {
+            let (k, d) = c.split_once(':')?;
+            Some((k.parse().ok()?, d.parse().ok()?))
+        })
+        .unwrap_or((-2.0e18, 0.5));
+    let v = fold_values(k, d);
     let clean = gen::simulate_sweeps_clean(&model(MODEL), &v, &sweeps(&v, &even_grid()), &[1.0], 4);
     write(dir, "fold.csv", &rows(&noisy(&clean, 21)));
 }
