@@ -36,37 +36,14 @@ pub fn run(args: Args) -> miette::Result<()> {
     if let Some(spacing) = args.two_tone {
         return two_tone(&args, &model, force, spacing, &inputs);
     }
-    let mut s = SweepSettings {
+    let s = SweepSettings {
         f_start_hz: args.from,
         f_stop_hz: args.to,
         points: args.points,
         harmonics: args.harmonics,
         ..SweepSettings::default()
     };
-    // The curve is kept only once the highest harmonic kept is small: otherwise its amplitudes
-    // and stability verdicts depend on the truncation. Raise the harmonics until it is.
-    let r = loop {
-        let pb = super::progress::spinner("sweeping");
-        let r = sim::sweep(&model, &force, &s);
-        pb.finish_and_clear();
-        let r = r.into_diagnostic()?;
-        let (ratio, at_hz, h) = r.truncation();
-        if ratio <= TRUNCATION_TOL {
-            break r;
-        }
-        let next = (2 * s.harmonics + 1).min(MAX_AUTO_HARMONICS);
-        if next <= s.harmonics {
-            return Err(miette!(
-                help = "lower the force (--force): the response is far beyond the weakly nonlinear regime the harmonic balance resolves",
-                "harmonic {h} still reaches {ratio:.2e} of the largest harmonic at {at_hz:.6} Hz with {} harmonics (tolerance {TRUNCATION_TOL:e}): the curve is not converged",
-                s.harmonics
-            ));
-        }
-        eprintln!(
-            "harmonic {h} reaches {ratio:.2e} of the largest harmonic at {at_hz:.6} Hz: recomputing with --harmonics {next}"
-        );
-        s.harmonics = next;
-    };
+    let r = converged_sweep(&model, &force, s)?;
     let branches = match &args.limit_cycles {
         Some(_) => {
             super::limit_cycles::branches(&model, &force, &r, (args.from, args.to), args.points)
@@ -90,6 +67,52 @@ pub fn run(args: Args) -> miette::Result<()> {
         super::common::write_output(path, csv.as_bytes(), &inputs)?;
         eprintln!("wrote {}", path.display());
     }
+    let csv = curve_csv(&model, &r);
+    tell_curve(&r);
+    match &args.out {
+        Some(p) => super::common::write_output(p, csv.as_bytes(), &inputs),
+        None => {
+            use std::io::Write;
+            let _ = std::io::stdout().lock().write_all(csv.as_bytes());
+            Ok(())
+        }
+    }
+}
+
+/// The single-tone sweep with `s`, its harmonics raised (3, 7, 15, 31) until the highest kept
+/// stays below [`TRUNCATION_TOL`] of the largest: otherwise the curve's amplitudes and
+/// stability verdicts depend on the truncation.
+fn converged_sweep(
+    model: &sim::NumericModel,
+    force: &[Complex64],
+    mut s: SweepSettings,
+) -> miette::Result<sim::SweepResult> {
+    loop {
+        let pb = super::progress::spinner("sweeping");
+        let r = sim::sweep(model, force, &s);
+        pb.finish_and_clear();
+        let r = r.into_diagnostic()?;
+        let (ratio, at_hz, h) = r.truncation();
+        if ratio <= TRUNCATION_TOL {
+            return Ok(r);
+        }
+        let next = (2 * s.harmonics + 1).min(MAX_AUTO_HARMONICS);
+        if next <= s.harmonics {
+            return Err(miette!(
+                help = "lower the force (--force): the response is far beyond the weakly nonlinear regime the harmonic balance resolves",
+                "harmonic {h} still reaches {ratio:.2e} of the largest harmonic at {at_hz:.6} Hz with {} harmonics (tolerance {TRUNCATION_TOL:e}): the curve is not converged",
+                s.harmonics
+            ));
+        }
+        eprintln!(
+            "harmonic {h} reaches {ratio:.2e} of the largest harmonic at {at_hz:.6} Hz: recomputing with --harmonics {next}"
+        );
+        s.harmonics = next;
+    }
+}
+
+/// The curve as CSV: `f_hz, stable`, per mode and harmonic `re, im, abs` (m), `hopf_hz`.
+fn curve_csv(model: &sim::NumericModel, r: &sim::SweepResult) -> String {
     let mut csv = String::from("f_hz,stable");
     for n in &model.mode_names {
         for &h in &r.harmonics {
@@ -112,6 +135,12 @@ pub fn run(args: Args) -> miette::Result<()> {
             None => csv.push_str(",\n"),
         }
     }
+    csv
+}
+
+/// Says on stderr where the curve has Hopf points, how many points it has and where the up-
+/// and down-sweeps jump.
+fn tell_curve(r: &sim::SweepResult) {
     for h in &r.hopf {
         eprintln!(
             "Hopf point at {:.6} Hz: the state {} stability through a complex pair (a self-oscillation {:.4} Hz from the drive's lines {})",
@@ -133,14 +162,6 @@ pub fn run(args: Args) -> miette::Result<()> {
             "; the curve stopped before the end of the range (Newton failed: try a smaller drive or more --harmonics)"
         }
     );
-    match &args.out {
-        Some(p) => super::common::write_output(p, csv.as_bytes(), &inputs),
-        None => {
-            use std::io::Write;
-            let _ = std::io::stdout().lock().write_all(csv.as_bytes());
-            Ok(())
-        }
-    }
 }
 
 /// `207652.079, 207589.143` (for messages).

@@ -1,28 +1,41 @@
 //! `harmonid sweep --plot`: the response curve of the two-mode example followed downwards, with
 //! its backbone over the whole curve and the jumps named by the sweep that makes them.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
-#[test]
-fn downward_sweep_plot() {
-    let ex = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples/nanostring_2mode");
+/// Runs `harmonid sweep MODEL --values VALUES ARGS --out c.csv --plot c.svg` in a temporary
+/// folder, asserts it succeeds, and gives its stderr and the SVG.
+fn sweep_plot(model: &Path, values: &Path, args: &[&str]) -> (String, String) {
     let tmp = tempfile::tempdir().expect("tmp");
-    let svg = tmp.path().join("curve.svg");
+    let svg = tmp.path().join("c.svg");
     let st = Command::new(env!("CARGO_BIN_EXE_harmonid"))
         .arg("sweep")
-        .arg(ex.join("model.hb"))
+        .arg(model)
         .arg("--values")
-        .arg(ex.join("values.toml"))
-        .args(["--from", "207700", "--to", "207500", "--force", "q1=3.5"])
-        .args(["--points", "800", "--out"])
-        .arg(tmp.path().join("curve.csv"))
+        .arg(values)
+        .args(args)
+        .arg("--out")
+        .arg(tmp.path().join("c.csv"))
         .arg("--plot")
         .arg(&svg)
         .output()
         .expect("runs");
-    let stderr = String::from_utf8_lossy(&st.stderr);
+    let stderr = String::from_utf8_lossy(&st.stderr).into_owned();
     assert!(st.status.success(), "{stderr}");
+    (stderr, std::fs::read_to_string(&svg).expect("svg"))
+}
+
+#[test]
+fn downward_sweep_plot() {
+    let ex = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples/nanostring_2mode");
+    let (stderr, text) = sweep_plot(
+        &ex.join("model.hb"),
+        &ex.join("values.toml"),
+        &[
+            "--from", "207700", "--to", "207500", "--force", "q1=3.5", "--points", "800",
+        ],
+    );
     // Followed downwards, the up-sweep still jumps at the upper fold (207652 Hz) and the
     // down-sweep at the lower one (207589 Hz).
     let up = stderr
@@ -32,7 +45,6 @@ fn downward_sweep_plot() {
         .and_then(|s| s.parse::<f64>().ok())
         .expect("one up-sweep jump");
     assert!((up - 207_652.08).abs() < 0.1, "{stderr}");
-    let text = std::fs::read_to_string(&svg).expect("svg");
     let structure = harmonid_plot::svg_structure_without_ticks(&text);
     for label in [
         "backbone",
@@ -53,11 +65,7 @@ fn downward_sweep_plot() {
 #[test]
 fn a_nonsmooth_model_has_no_backbone_and_says_so() {
     let tmp = tempfile::tempdir().expect("tmp");
-    let (model, values, svg) = (
-        tmp.path().join("m.hb"),
-        tmp.path().join("v.toml"),
-        tmp.path().join("c.svg"),
-    );
+    let (model, values) = (tmp.path().join("m.hb"), tmp.path().join("v.toml"));
     std::fs::write(
         &model,
         "mode q1 at 10 kHz\nparam kappa1\neom q1 += kappa1*abs(q1)*q1\n",
@@ -68,26 +76,13 @@ fn a_nonsmooth_model_has_no_backbone_and_says_so() {
         "[modes.q1]\nf_hz = 1.0e4\nQ = 2000\n[parameters]\nkappa1 = -3e9\n",
     )
     .expect("values");
-    let st = Command::new(env!("CARGO_BIN_EXE_harmonid"))
-        .arg("sweep")
-        .arg(&model)
-        .arg("--values")
-        .arg(&values)
-        .args([
+    let (_, text) = sweep_plot(
+        &model,
+        &values,
+        &[
             "--from", "9980", "--to", "10010", "--force", "q1=0.05", "--points", "60",
-        ])
-        .args(["--out"])
-        .arg(tmp.path().join("c.csv"))
-        .arg("--plot")
-        .arg(&svg)
-        .output()
-        .expect("runs");
-    assert!(
-        st.status.success(),
-        "{}",
-        String::from_utf8_lossy(&st.stderr)
+        ],
     );
-    let text = std::fs::read_to_string(&svg).expect("svg");
     assert!(
         text.contains(
             "response of q1 to one tone (no backbone: computed for polynomial terms only)"
