@@ -100,24 +100,10 @@ fn settings(background: &[BackgroundTerm]) -> Settings {
 
 /// `(estimate − truth)/stderr` of f, Q, every parameter and (when fitted) the feedthrough.
 fn deviations(rep: &harmonid::ident::Report, v: &gen::Values) -> Vec<(String, f64)> {
-    let mut out = Vec::new();
-    let mut dev = |name: &str, e: &harmonid::data::result::Estimate, t: f64| {
-        out.push((name.to_string(), (e.value - t) / e.stderr));
-    };
-    dev("f", &rep.modes["q1"].f_hz, v.f_hz[0]);
-    dev("Q", &rep.modes["q1"].q, v.q[0]);
-    for (p, &t) in &v.params {
-        dev(p, &rep.parameters[p], t);
-    }
-    if let Some(b) = rep.background.get("q1") {
-        for (term, _, c) in b.terms() {
-            if term == "drive" {
-                dev("drive re", &c.re, B.re);
-                dev("drive im", &c.im, B.im);
-            }
-        }
-    }
-    out
+    errors(rep, v)
+        .into_iter()
+        .map(|(name, e, s)| (name, e / s[0]))
+        .collect()
 }
 
 #[test]
@@ -214,44 +200,60 @@ fn kappa_and_drag_are_recovered_within_their_errors() {
 }
 
 /// Coverage over many noise draws (run with `cargo test --release -p harmonid --test it --
-/// nonsmooth_identify::coverage --ignored --nocapture`, about 4.5 min): 4 levels up and down,
-/// 25 steps each, a drive feedthrough `B·D` in the data and fitted (`--background drive`); the
-/// truth of `kappa1` and `drag1` within 1 / 2 stderr in 68 ± 8 % / 95 ± 4 % of 120 draws.
-/// Measured (2026-11-27): kappa1 70.8 / 95.0 %, drag1 64.2 / 94.2 %, f 65.8 / 97.5 %,
-/// Q 65.8 / 89.2 %, beta1 69.2 / 94.2 %, eta1 65.0 / 94.2 %, feedthrough re 70.0 / 94.2 %,
-/// im 54.2 / 92.5 % (printed, not asserted: the feedthrough's imaginary part and Q come out
-/// under-covered, not understood yet).
+/// nonsmooth_identify::coverage_over --ignored --nocapture`, about 15 min; `HARMONID_MC_SHOTS=10`
+/// runs only the 10-shot half): 4 levels up and down, 25 steps each, a drive feedthrough `B·D`
+/// in the data and fitted (`--background drive`), 200 draws with 50 shots and 200 with 10 (the
+/// noise of the mean the same); the truth of f, Q, every parameter and the feedthrough within
+/// 1 / 2 stderr in 68 ± 8 % / 95 ± 4 % of the draws, asserted. The standard errors as the
+/// Fisher bound alone gives them (before the noise of the weights was accounted for) are
+/// printed beside. Seeds 60000 on, as for the withdrawn uniform widening (the diagnostics used
+/// 30000 on). Measured: docs/identification.md.
 #[test]
 #[ignore]
 fn coverage_over_many_draws() {
+    use crate::background::{inflations, print_inflations, Coverage};
     let (model, v) = (model(), values());
-    let clean = gen::simulate_sweeps_clean(&model, &v, &sweeps(&v, 4, 25), &[1.0], 10);
-    let data = with_feedthrough(&clean);
-    let runs = 120u64;
+    let runs = 200u64;
     let t0 = std::time::Instant::now();
-    let mut hits: Vec<(String, usize, usize)> = Vec::new();
-    for seed in 0..runs {
-        let ds = gen::add_noise(&data, 2e-11, 5000 + seed);
-        let rep = identify(&model, &ds, &settings(&[BackgroundTerm::Drive])).expect("identify");
-        for (k, (name, d)) in deviations(&rep, &v).into_iter().enumerate() {
-            if hits.len() <= k {
-                hits.push((name, 0, 0));
-            }
-            hits[k].1 += usize::from(d.abs() <= 1.0);
-            hits[k].2 += usize::from(d.abs() <= 2.0);
-        }
-    }
-    println!("{runs} draws in {:.0} s", t0.elapsed().as_secs_f64());
     let mut bad = Vec::new();
-    for (name, one, two) in &hits {
-        let (p1, p2) = (
-            100.0 * *one as f64 / runs as f64,
-            100.0 * *two as f64 / runs as f64,
-        );
-        println!("{name:10} within 1 stderr {p1:5.1} %, within 2 stderr {p2:5.1} %");
-        let checked = ["kappa1", "drag1"].contains(&name.as_str());
-        if checked && ((p1 - 68.0).abs() > 8.0 || (p2 - 95.0).abs() > 4.0) {
-            bad.push(name.clone());
+    let which = std::env::var("HARMONID_MC_SHOTS").unwrap_or_else(|_| "50,10".into());
+    for shots in which
+        .split(',')
+        .filter_map(|s| s.trim().parse::<usize>().ok())
+    {
+        let clean = gen::simulate_sweeps_clean(&model, &v, &sweeps(&v, 4, 25), &[1.0], shots);
+        let data = with_feedthrough(&clean);
+        let sigma = 2e-11 * (shots as f64 / 10.0).sqrt();
+        let mut c: [Coverage; 3] = Default::default();
+        let mut infl = Vec::new();
+        for seed in 0..runs {
+            let ds = gen::add_noise(&data, sigma, 60_000 + seed);
+            let rep = identify(&model, &ds, &settings(&[BackgroundTerm::Drive])).expect("identify");
+            Coverage::add_all(&mut c, &errors(&rep, &v));
+            infl.push(inflations(&rep));
+        }
+        println!("{shots} shots: {:.0} s so far", t0.elapsed().as_secs_f64());
+        c[0].print(&format!("{shots} shots"));
+        c[1].print(&format!("{shots} shots, Fisher bound (as before)"));
+        c[2].print(&format!(
+            "{shots} shots, inflated whenever chi2/dof > expected"
+        ));
+        print_inflations(&format!("{shots} shots"), &infl);
+        for (a, b) in [
+            ("Q", "drive im"),
+            ("Q", "drive re"),
+            ("f", "drive im"),
+            ("f", "drive re"),
+        ] {
+            println!(
+                "correlation of the errors of {a} and {b}: {:+.3}",
+                c[0].correlation(a, b)
+            );
+        }
+        for (name, a, b, _, _) in c[0].table() {
+            if (a - 0.68).abs() > 0.08 || (b - 0.95).abs() > 0.04 {
+                bad.push(format!("{name} at {shots} shots: {a:.3} / {b:.3}"));
+            }
         }
     }
     assert!(bad.is_empty(), "miscalibrated: {bad:?}");
@@ -335,4 +337,73 @@ fn held_back_stand_in() {
     }
     assert!(out[0].0 <= 0.08 && out[0].1 <= 0.06, "{out:?}");
     assert!(out[1].0 > out[0].0 && out[1].1 > out[0].1, "{out:?}");
+}
+
+/// [`crate::background::Draw`]s of the quantities [`deviations`] names.
+fn errors(rep: &harmonid::ident::Report, v: &gen::Values) -> Vec<crate::background::Draw> {
+    let mut out = Vec::new();
+    let (inflation, always) = crate::background::inflations(rep);
+    let mut dev = |name: &str, e: &harmonid::data::result::Estimate, t: f64| {
+        let fisher = e.crlb.map_or(f64::NAN, |c| c * always);
+        let se = [e.stderr, fisher, e.stderr / inflation * always];
+        out.push((name.to_string(), e.value - t, se));
+    };
+    dev("f", &rep.modes["q1"].f_hz, v.f_hz[0]);
+    dev("Q", &rep.modes["q1"].q, v.q[0]);
+    for (p, &t) in &v.params {
+        dev(p, &rep.parameters[p], t);
+    }
+    if let Some(b) = rep.background.get("q1") {
+        for (term, _, c) in b.terms() {
+            if term == "drive" {
+                dev("drive re", &c.re, B.re);
+                dev("drive im", &c.im, B.im);
+            }
+        }
+    }
+    out
+}
+
+/// Diagnostics: shots and draws from `HARMONID_MC_SHOTS`, `HARMONID_MC_RUNS`, seeds from
+/// `HARMONID_MC_SEED`; the noise estimated from the shots and given as known.
+#[test]
+#[ignore]
+fn coverage_diagnostics() {
+    use crate::background::{with_known_noise, Coverage};
+    let env = |k: &str, d: u64| {
+        std::env::var(k)
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(d)
+    };
+    let (shots, runs, seed0) = (
+        env("HARMONID_MC_SHOTS", 10) as usize,
+        env("HARMONID_MC_RUNS", 100),
+        env("HARMONID_MC_SEED", 5000),
+    );
+    let known_too = env("HARMONID_MC_KNOWN", 1) == 1;
+    let (model, v) = (model(), values());
+    let clean = gen::simulate_sweeps_clean(&model, &v, &sweeps(&v, 4, 25), &[1.0], shots);
+    let data = with_feedthrough(&clean);
+    let sigma = 2e-11 * (shots as f64 / 10.0).sqrt();
+    let (mut c, mut k): ([Coverage; 3], Coverage) = Default::default();
+    let t0 = std::time::Instant::now();
+    for seed in 0..runs {
+        let ds = gen::add_noise(&data, sigma, seed0 + seed);
+        let s = settings(&[BackgroundTerm::Drive]);
+        let rep = identify(&model, &ds, &s).expect("identify");
+        Coverage::add_all(&mut c, &errors(&rep, &v));
+        if known_too {
+            let rep = identify(&model, &with_known_noise(&ds, sigma), &s).expect("identify");
+            k.add(errors(&rep, &v).into_iter().map(|x| (x.0, x.1, x.2[0])));
+        }
+    }
+    println!(
+        "{runs} draws, {shots} shots, {:.0} s",
+        t0.elapsed().as_secs_f64()
+    );
+    c[0].print("noise from the shots, stderr");
+    c[1].print("noise from the shots, Fisher bound, inflated whenever chi2/dof > expected");
+    c[2].print("noise from the shots, inflated whenever chi2/dof > expected");
+    k.print("noise known");
 }

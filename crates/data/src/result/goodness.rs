@@ -39,7 +39,8 @@ pub struct GoodnessOfFit {
     #[serde(default = "yes")]
     pub converged: bool,
     /// The factor the output-error standard errors were multiplied by,
-    /// `√max(1, chi2_per_dof / expected_chi2_per_dof)`: above 1 they are model-limited (the
+    /// `√max(1, (chi2_per_dof − spread_chi2_per_dof) / expected_chi2_per_dof)` (a correct
+    /// model's χ² within its spread widens nothing): above 1 they are model-limited (the
     /// misfit, not the noise, sets them).
     pub stderr_inflation: f64,
     /// Per measurement, in the dataset's order.
@@ -242,7 +243,7 @@ impl GoodnessOfFit {
             })
             .unwrap_or_default();
         Some(format!(
-            "THE MODEL DOES NOT FIT THE DATA: χ²/dof = {} where a correct model gives {:.3} ± {:.2} (p {}); it misses the measured lines by {} noise sigmas RMS. Worst: {}{line}. The standard errors assume the model is right: they are model-limited (inflated by √(χ²/dof / expected) = {}), and the values are the best this model can do, not the device's.",
+            "THE MODEL DOES NOT FIT THE DATA: χ²/dof = {} where a correct model gives {:.3} ± {:.2} (p {}); it misses the measured lines by {} noise sigmas RMS. Worst: {}{line}. The standard errors assume the model is right: they are model-limited (inflated by √((χ²/dof − spread) / expected) = {}), and the values are the best this model can do, not the device's.",
             sig3(self.chi2_per_dof),
             self.expected_chi2_per_dof,
             self.spread_chi2_per_dof,

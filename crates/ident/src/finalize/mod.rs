@@ -419,8 +419,9 @@ struct Judge<'a> {
 }
 
 impl Judge<'_> {
-    /// Sets `e`'s value and, unless the model fixes it, its standard error (Fisher bound
-    /// times the model-misfit inflation for ml, the per-shot spread over `√n` for linear),
+    /// Sets `e`'s value and, unless the model fixes it, its standard error (for ml the Fisher
+    /// bound, corrected per quantity for weights estimated from the shots, times the
+    /// model-misfit inflation; the per-shot spread over `√n` for linear),
     /// bounds, jackknife and whether the data determine it. A jackknife that disagrees with
     /// the Fisher error is added to `disagreements`.
     fn apply(
@@ -454,7 +455,14 @@ impl Judge<'_> {
         e.jackknife = self
             .fo
             .and_then(|f| f.jackknife.iter().find(|(j, _)| *j == q).map(|x| x.1));
-        e.stderr = match (ml, bound, self.fo) {
+        let corrected = self.fo.and_then(|f| {
+            f.stderr_bounds
+                .quantities
+                .iter()
+                .find(|b| b.quantity == q)
+                .map(|b| b.std)
+        });
+        e.stderr = match (ml, corrected, self.fo) {
             (true, Some(b), Some(f)) => b * f.inflation,
             _ => e.std / self.n_used.sqrt(),
         };

@@ -99,6 +99,10 @@ pub(crate) enum OutputErrorFailure {
 pub(crate) struct OutputError {
     pub fit: MlFit,
     pub bounds: uncertainty::Bounds,
+    /// The bounds the standard errors are: `bounds` corrected, quantity by quantity, for
+    /// weights estimated from the shot scatter (`uncertainty::estimated_noise`);
+    /// `bounds` otherwise.
+    pub stderr_bounds: uncertainty::Bounds,
     /// `√max(1, χ²/(dof·E₀))` when the noise came from the shot scatter
     /// ([`expected_reduced_chi2`]); 1 otherwise.
     pub inflation: f64,
@@ -256,6 +260,10 @@ pub(crate) fn fit(
     let (noise, inflation) = noise_at(&fit, &sigma, from_shots, e0);
     let bounds = uncertainty::crlb_from_jacobian(fwd, &fit.theta, &fit.jac, &noise, 1)
         .map_err(OutputErrorFailure::Fisher)?;
+    // Weights from the shot scatter cost precision that `bounds` does not see.
+    let stderr_bounds =
+        uncertainty::stderr_bounds(fwd, &fit.at_estimate(), pooled, shot_sigma, &sigma, &bounds)
+            .map_err(OutputErrorFailure::Fisher)?;
     // The delete-one-shot jackknife sees the shots' scatter only, not the floor.
     let jackknife = if settings.jackknife && from_shots && floor.is_none() {
         jackknife(fwd, &fit.at_estimate(), &sigma, ds_shots, pooled, &cols)
@@ -268,6 +276,8 @@ pub(crate) fn fit(
         Vec::new()
     };
     let mut goodness = goodness(pooled, &meas, &fit, &sigma, &noise, from_shots);
+    // Widened for a misfit only beyond the χ²'s own spread (with the noise from the shots).
+    let inflation = uncertainty::misfit_inflation(&goodness, from_shots).unwrap_or(inflation);
     goodness.stderr_inflation = inflation;
     goodness.converged = fit.converged;
     if let Some(s0) = floor {
@@ -317,6 +327,7 @@ pub(crate) fn fit(
         fit,
         unidentifiable,
         bounds,
+        stderr_bounds,
         inflation,
         jackknife,
         at_bound,

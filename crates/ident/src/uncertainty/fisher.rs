@@ -67,7 +67,7 @@ impl Noise {
         }
     }
 
-    fn check(&self, n_obs: usize) -> Result<(), FisherError> {
+    pub(crate) fn check(&self, n_obs: usize) -> Result<(), FisherError> {
         let bad = |s: f64| !(s.is_finite() && s > 0.0);
         match self {
             Noise::Uniform(s) if bad(*s) => Err(FisherError::Noise(format!(
@@ -320,6 +320,22 @@ pub fn bounds_from_information(
 ) -> Bounds {
     let labels: Vec<String> = free.iter().map(|&k| fwd.label(k)).collect();
     let (cov, condition, dropped) = invert(info, &labels);
+    bounds_from_covariance(fwd, theta, free, cov, (condition, dropped), shots)
+}
+
+/// Bounds from a covariance `cov` of the unknowns `free` (row-major, units of `θ`; infinite
+/// on the diagonal of the unknowns `dropped` left out, with why) at `θ`, in the reported
+/// parametrisation (`f_n` Hz, `Q_n`, parameters; first-order propagation), `condition` the
+/// information's condition number as [`invert`] gives it.
+pub(crate) fn bounds_from_covariance(
+    fwd: &ForwardModel,
+    theta: &[f64],
+    free: &[usize],
+    cov: Vec<f64>,
+    (condition, dropped): (f64, Vec<(usize, String)>),
+    shots: usize,
+) -> Bounds {
+    let labels: Vec<String> = free.iter().map(|&k| fwd.label(k)).collect();
     let c = free.len();
     let local = |u: &Unknown| free.iter().position(|&k| fwd.unknowns()[k] == *u);
     let var = |i: Option<usize>, j: Option<usize>| match (i, j) {
