@@ -18,11 +18,11 @@
 //! - `twenty_mode_string` (ignored): the twenty-mode string (20 + 190 unknown parameters,
 //!   `harmonid_testgen::string_model(20)`) from its committed nominal plan
 //!   (`tests/it/data/string_20mode_plan.toml`, 210 measurements), to be identified within 4
-//!   stderr (the goal: under 60 s). NOT MET YET: on the 2-core VM (shared) the
-//!   identification had not finished after 8.5 min at 7.0 GB and was stopped; on
-//!   2026-11-27 it was still in the staged start's group fits after 6.5 min at 7.0 GB (every
-//!   measurement keeps a harmonic-balance solver of all twenty modes with its dense
-//!   Jacobian and LU). Run with
+//!   stderr (the goal: under 60 s). NOT MET YET: on 2026-11-27 22:31 UTC (2-core VM shared,
+//!   load 2-4) it identified in 69.4 s, 654 MB peak with its simulation, but fails: χ²/dof
+//!   25.2 where a correct model gives 1.036, 247 of 250 determined, g2_9 25.6 stderr off
+//!   (107 s and χ²/dof 456 before the staged start's parameter scan; 6.5-8.5 min at 7.0 GB
+//!   before each measurement solved only the modes its drive reaches). Run with
 //!   `cargo test --release --test it -- ten_mode_family::twenty_mode_string --ignored --nocapture`.
 
 use harmonid::experiment::Plan;
