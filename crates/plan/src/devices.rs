@@ -116,9 +116,9 @@ pub(crate) fn solve_on(
             percent: 100.0 * s,
         })
     } else {
-        match solver.stability(&st) {
-            Ok(v) if v.stable => Ok(()),
-            Ok(v) => Err(PlanError::from(ExperimentError::Unstable {
+        match solver.unstable(&st) {
+            Ok(None) => Ok(()),
+            Ok(Some(v)) => Err(PlanError::from(ExperimentError::Unstable {
                 measurement: pm.name.clone(),
                 growth_rate: v.growth_rate,
                 linear_decay_rate: v.linear_decay_rate,

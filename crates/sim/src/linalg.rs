@@ -213,7 +213,10 @@ impl std::fmt::Debug for DenseLu {
 impl Clone for DenseLu {
     fn clone(&self) -> Self {
         let mut c = Self::with_blocks(self.n, self.block);
-        c.lu.copy_from(&self.lu);
+        if self.lu.nrows() == self.n && self.n > 0 {
+            c.allocate();
+            c.lu.copy_from(&self.lu);
+        }
         c.order.copy_from_slice(&self.order);
         c.parts.clone_from(&self.parts);
         c.perm.copy_from_slice(&self.perm);
@@ -243,33 +246,50 @@ impl DenseLu {
     }
 
     /// Buffers for `n × n` systems whose unknowns come in groups of `block` (`n` a multiple of
-    /// `block`; otherwise one group).
+    /// `block`; otherwise one group). The `n × n` factors and faer's scratch are allocated at
+    /// the first factorisation: a solver used only for its Jacobian (the idle modes' blocks of
+    /// a stability check, [`crate::ReducedSolver::stability`]) never zero-fills them.
     pub(crate) fn with_blocks(n: usize, block: usize) -> Self {
-        use faer::linalg::lu::partial_pivoting::{factor, solve};
         let block = if block > 0 && n.is_multiple_of(block) {
             block
         } else {
             n.max(1)
         };
-        let req =
-            factor::lu_in_place_scratch::<usize, f64>(n, n, lu_par(n), Default::default()).or(
-                solve::solve_in_place_scratch::<usize, f64>(n, 1, faer::Par::Seq),
-            );
         Self {
             n,
             block,
-            lu: faer::Mat::zeros(n, n),
+            lu: faer::Mat::new(),
             order: (0..n).collect(),
             parts: vec![(0, n)],
             perm: (0..n).collect(),
             perm_inv: (0..n).collect(),
             rhs: faer::Mat::zeros(n, 1),
-            buf: faer::dyn_stack::MemBuffer::new(req),
+            buf: faer::dyn_stack::MemBuffer::new(faer::dyn_stack::StackReq::EMPTY),
             coupled: vec![true; (n / block).pow(2)],
             parent: vec![0; n / block],
             det_sign: 1.0,
             small: None,
         }
+    }
+
+    /// The factors' `n × n` storage and faer's scratch, once (see [`DenseLu::with_blocks`]).
+    fn allocate(&mut self) {
+        use faer::linalg::lu::partial_pivoting::{factor, solve};
+        let n = self.n;
+        if self.lu.nrows() == n {
+            return;
+        }
+        let req =
+            factor::lu_in_place_scratch::<usize, f64>(n, n, lu_par(n), Default::default()).or(
+                solve::solve_in_place_scratch::<usize, f64>(n, 1, faer::Par::Seq),
+            );
+        self.lu = faer::Mat::zeros(n, n);
+        self.buf = faer::dyn_stack::MemBuffer::new(req);
+    }
+
+    /// Whether a factorisation is held (its storage exists; [`DenseLu::dense`] always).
+    fn allocated(&self) -> bool {
+        self.small.is_some() || self.lu.nrows() == self.n
     }
 
     /// Marks in `self.coupled` the blocks of `a` that hold a non-zero.
@@ -339,6 +359,7 @@ impl DenseLu {
     fn factor_parts(&mut self, a: &[f64]) -> bool {
         use faer::linalg::lu::partial_pivoting::factor;
         let n = self.n;
+        self.allocate();
         self.find_parts();
         // det A = Π over the parts of det(P)·Π diag(U): the parts are a symmetric reordering
         // (det unchanged), each a row-pivoted LU with `L` unit lower.
@@ -389,6 +410,9 @@ impl DenseLu {
             lu_solve(lu, n, piv, b);
             return;
         }
+        // Before any factorisation, the factors of a zero matrix (as the eager allocation
+        // held): a singular system, whose solve is not finite.
+        self.allocate();
         let b = faer::MatMut::from_column_major_slice_mut(b, n, 1);
         let Self {
             lu,
@@ -426,6 +450,12 @@ impl DenseLu {
             b.nrows() == self.n && k <= buf.cols,
             "solve_columns: shapes"
         );
+        if !self.allocated() {
+            // Never factorised: nothing to solve with (callers factorise first).
+            let mut b = b;
+            b.fill(f64::NAN);
+            return;
+        }
         if let Some((lu, piv)) = &self.small {
             let mut b = b;
             for c in 0..k {

@@ -249,7 +249,8 @@ impl HbSolver {
             jac: vec![0.0; nu * nu],
             // A mode's lines are one group: modes the state does not couple factorise apart.
             lu: DenseLu::with_blocks(nu, 2 * nr),
-            coupled: vec![true; nm * nm],
+            // Set by each assembly before it is read; none yet (`jac` is zero).
+            coupled: vec![false; nm * nm],
             step: vec![0.0; nu],
             x_try: vec![Z; nm * nr],
             vel: if model.n_vars() > nm {
@@ -328,7 +329,16 @@ impl HbSolver {
         let nm = self.model.n_modes();
         let nr = self.lattice.len();
         let nu = 2 * nm * nr;
-        self.jac.iter_mut().for_each(|v| *v = 0.0);
+        // Zero only the blocks the last assembly flagged (`coupled` still holds them; every
+        // entry outside them is zero): the solver of a stability check's idle blocks
+        // ([`ReducedSolver::stability`]) holds every mode but writes few blocks, and zeroing
+        // its whole `nu²` cost more than assembling them.
+        for (b, _) in self.coupled.iter().enumerate().filter(|(_, &c)| c) {
+            let (e, m) = (b / nm, b % nm);
+            for row in 2 * e * nr..2 * (e + 1) * nr {
+                self.jac[row * nu + 2 * m * nr..row * nu + 2 * (m + 1) * nr].fill(0.0);
+            }
+        }
         for i in 0..nm * nr {
             let l = self.lin[i];
             self.jac[(2 * i) * nu + 2 * i] = l.re;

@@ -403,3 +403,123 @@ fn a_state_continued_onto_a_wider_lattice_is_the_one_the_ramp_finds_there() {
     assert_eq!(continued.drive_jumps, st.drive_jumps);
     assert_eq!(continued.ramp_steps, st.ramp_steps);
 }
+
+/// States of the parametric pair on both sides of its threshold and of the nanostring under
+/// three tones, each scaled from weak to far past its fold (`HbSolver`s with their states).
+fn states_weak_to_strong() -> Vec<(HbSolver, Vec<SteadyState>)> {
+    let settings = HbSettings::default();
+    let scaled = |st: &SteadyState, k: f64| SteadyState {
+        amplitudes: st
+            .amplitudes
+            .iter()
+            .map(|row| row.iter().map(|z| z * k).collect())
+            .collect(),
+        lattice_hz: st.lattice_hz.clone(),
+        drive_jumps: Vec::new(),
+        ..*st
+    };
+    let mut out = Vec::new();
+    let m = parametric_pair(1e10);
+    let threshold = m.gamma(0) * m.omega(0) / 1e10 * m.gamma(1) * m.omega(1);
+    for ratio in [0.3, 0.95, 1.3] {
+        let c = |x: f64| Complex64::new(x, 0.0);
+        let drive = Excitation {
+            pumps: Vec::new(),
+            tones_hz: vec![1003.0, 2000.0],
+            force: vec![vec![c(1e-3), c(0.0)], vec![c(0.0), c(ratio * threshold)]],
+        };
+        let mut solver = HbSolver::new(&m, &drive, &settings.lattice).expect("solver");
+        let st = solver.solve_from(&vec![vec![Z; solver.lattice.len()]; 2], &settings);
+        assert!(st.converged());
+        let states = [0.1, 1.0, 3.0].iter().map(|&k| scaled(&st, k)).collect();
+        out.push((solver, states));
+    }
+    let drive = three_tone_drive();
+    let mut solver = HbSolver::new(&nanostring(), &drive, &settings.lattice).expect("solver");
+    let st = solver.solve(&settings);
+    assert!(st.converged());
+    let states = [0.05, 0.3, 1.0, 3.0]
+        .iter()
+        .map(|&k| scaled(&st, k))
+        .collect();
+    out.push((solver, states));
+    out
+}
+
+/// The norm bound that lets a verdict skip a block's spectrum (`HbSolver::growth_bound`) lies
+/// above every growth rate of the condensed flow it stands for, and the verdict without the
+/// blocks it proves (`unproven_growth`) is the full one, with the full growth rate whenever
+/// a block is left to compute. Both proven and unproven blocks, stable and unstable
+/// verdicts occur.
+#[test]
+fn the_growth_bound_holds_and_skipping_proven_blocks_keeps_the_verdict() {
+    let (mut proven, mut unproven, mut unstable) = (0, 0, 0);
+    for (mut solver, states) in states_weak_to_strong() {
+        for st in &states {
+            for (bound, growth) in solver.bounds_and_growths(st).expect("bounds") {
+                assert!(growth <= bound, "growth {growth} above its bound {bound}");
+                if bound < 0.0 {
+                    proven += 1;
+                } else {
+                    unproven += 1;
+                }
+            }
+            let exact = solver.stability(st).expect("verdict");
+            let quick = solver.unproven_growth(st, None).expect("quick verdict");
+            let threshold = 1e-6 * exact.linear_decay_rate;
+            assert_eq!(exact.stable, quick < threshold, "{exact:?} vs {quick}");
+            assert!(quick <= exact.growth_rate);
+            if quick > f64::NEG_INFINITY {
+                assert_eq!(quick, exact.growth_rate);
+            }
+            unstable += usize::from(!exact.stable);
+        }
+    }
+    assert!(
+        proven > 0 && unproven > 0 && unstable > 0,
+        "proven {proven}, unproven {unproven}, unstable {unstable}"
+    );
+}
+
+/// `check_stability` keeps its solvers between calls: over devices with other values on the
+/// same lattice and tones (the parametric pair on both sides of its threshold), another
+/// lattice and back, its verdicts and rates are bit for bit those of a solver set up for each
+/// call.
+#[test]
+fn kept_stability_solvers_give_a_fresh_solvers_verdicts() {
+    let settings = HbSettings::default();
+    let c = |x: f64| Complex64::new(x, 0.0);
+    let mut stable = [0, 0];
+    for (k, (alpha, ratio)) in [
+        (1e10, 0.8),
+        (2e10, 1.3),
+        (1e10, 1.2),
+        (3e10, 0.5),
+        (1e10, 0.8),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let m = parametric_pair(alpha);
+        let threshold = m.gamma(0) * m.omega(0) / alpha * m.gamma(1) * m.omega(1);
+        let probe = if k == 2 { 1005.0 } else { 1003.0 };
+        let d = Excitation {
+            pumps: Vec::new(),
+            tones_hz: vec![probe, 2000.0],
+            force: vec![vec![c(1e-3), c(0.0)], vec![c(0.0), c(ratio * threshold)]],
+        };
+        let mut solver = HbSolver::new(&m, &d, &settings.lattice).expect("solver");
+        let st = solver.solve_from(&vec![vec![Z; solver.lattice.len()]; 2], &settings);
+        let kept = check_stability(&m, &d, &st).expect("kept");
+        let fresh = super::stability::check_stability_fresh(&m, &d, &st).expect("fresh");
+        assert_eq!(kept.stable, fresh.stable, "{k}");
+        assert_eq!(
+            kept.growth_rate.to_bits(),
+            fresh.growth_rate.to_bits(),
+            "{k}"
+        );
+        assert_eq!(kept.linear_decay_rate, fresh.linear_decay_rate);
+        stable[usize::from(kept.stable)] += 1;
+    }
+    assert_eq!(stable, [2, 3], "unstable above the threshold, stable below");
+}

@@ -121,6 +121,12 @@ fn reduced_states_and_stability_are_the_whole_models() {
             sb.growth_rate
         );
         assert_eq!(sa.linear_decay_rate, sb.linear_decay_rate);
+        // The verdict without the spectra of the blocks a norm bound proves decaying is the
+        // same, with the same rates when unstable.
+        match red.unstable(&b).expect("quick verdict") {
+            None => assert!(sb.stable, "{hz} Hz"),
+            Some(v) => assert_eq!((v.stable, v.growth_rate), (false, sb.growth_rate)),
+        }
         if !sb.stable {
             unstable += 1;
             // The active modes alone are stable there: the idle block (q2 pumped
