@@ -177,7 +177,7 @@ fn goodness_of_fit_long() {
 
 /// `identify --holdout` (issue 22, item 2): a correct model predicts a held-out measurement
 /// to about its noise; one without q1's Duffing term misses it by far more; bad holdouts are
-/// refused with the names.
+/// refused with the names; a quantity the rest leaves undetermined is warned about.
 #[test]
 fn held_out_measurements_are_predicted_by_a_correct_model_only() {
     use harmonid_ident::{identify_with_holdout, IdentError};
@@ -230,6 +230,23 @@ fn held_out_measurements_are_predicted_by_a_correct_model_only() {
     let twice = vec!["single_q1".to_string(); 3];
     let rep = identify_with_holdout(&truth, &ds, &twice, &Settings::default()).expect("twice");
     assert_eq!(rep.holdout.len(), 1);
+    // Without the coupled measurement g12 has no value at all: refused, naming it.
+    let coupled = vec!["couple_q1_q2".to_string()];
+    let e = identify_with_holdout(&truth, &ds, &coupled, &Settings::default()).expect_err("g12");
+    assert!(e.to_string().contains("do not determine g12"), "{e}");
+    // Without single_q2, beta2 has a value but is not determined (relative stderr 0.49): the
+    // prediction is made from it, a warning names it, and the misfit shows it mattered.
+    let q2 = vec!["single_q2".to_string()];
+    let rep = identify_with_holdout(&truth, &ds, &q2, &Settings::default()).expect("predicted");
+    assert!(
+        rep.warnings
+            .iter()
+            .any(|w| w.contains("--holdout single_q2: the other measurements do not determine beta2")),
+        "{:?}",
+        rep.warnings
+    );
+    let rms = rep.holdout[0].rms_sigma.expect("noise from the shots");
+    assert!(rms > 10.0, "undetermined beta2 predicts single_q2 to {rms} sigmas");
 }
 
 /// A `Q` the model fixes is reported as the model's value exactly, also when `f` is identified

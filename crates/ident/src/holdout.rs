@@ -19,13 +19,35 @@ pub use harmonid_data::result::HeldOut;
 
 /// Identifies `model` from `ds` without the measurements named in `held`, and reports how well
 /// the estimate predicts them in [`Report::holdout`]; see the module documentation.
+///
+/// A quantity the remaining measurements do not determine does not stop the prediction: it is
+/// made from the estimate and a warning names the quantity (unless the fit left it without a
+/// finite value: then it is refused, naming it). Its relative standard error can be
+/// unbounded while the prediction does not depend on it (a linear damping 1/Q at zero beside a
+/// quadratic drag that carries the damping: Q → ∞), and the held-out misfit itself says whether
+/// it mattered. `compare` still sets such a model apart ([`fit_and_predict`]).
 pub fn identify_with_holdout(
     model: &Model,
     ds: &Dataset,
     held: &[String],
     settings: &Settings,
 ) -> Result<Report, IdentError> {
-    fit_and_predict(model, ds, held, settings, true)?.map_err(|u| IdentError::Holdout(u.message))
+    let mut report = fit_and_predict(model, ds, held, settings, false)?
+        .map_err(|u| IdentError::Holdout(u.message))?;
+    let undetermined: Vec<String> = report
+        .estimates()
+        .into_iter()
+        .filter(|(_, e)| !e.identifiable)
+        .map(|(name, _)| name)
+        .collect();
+    if !undetermined.is_empty() {
+        report.warnings.push(format!(
+            "--holdout {}: the other measurements do not determine {}; the held-out data are predicted from the estimate as it stands, so the prediction error says whether that matters (fix the quantity in the model, e.g. `Q = ...` on the mode, to predict without it)",
+            held.join(","),
+            undetermined.join(", ")
+        ));
+    }
+    Ok(report)
 }
 
 /// A model the measurements left after a holdout do not determine: a property of the model and
@@ -92,13 +114,15 @@ pub(crate) fn fit_and_predict(
     let fit_ds = split(false)?;
     let held_ds = split(true)?;
     let mut report = identify(model, &fit_ds, settings)?;
-    let undetermined: Vec<(String, String)> = report
-        .estimates()
-        .into_iter()
+    let estimates = report.estimates();
+    let undetermined: Vec<(String, String)> = estimates
+        .iter()
         .filter(|(_, e)| !e.identifiable)
-        .map(|(name, e)| (name, e.reason.clone().unwrap_or_default()))
+        .map(|(name, e)| (name.clone(), e.reason.clone().unwrap_or_default()))
         .collect();
-    if require_determined && !undetermined.is_empty() {
+    // Without a value (the fit left it NaN) nothing can be predicted, whatever was asked.
+    let valueless = estimates.iter().any(|(_, e)| !e.value.is_finite());
+    if (require_determined || valueless) && !undetermined.is_empty() {
         return Ok(Err(Undetermined {
             names: undetermined.iter().map(|u| u.0.clone()).collect(),
             message: format!(
