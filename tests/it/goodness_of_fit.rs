@@ -241,12 +241,16 @@ fn held_out_measurements_are_predicted_by_a_correct_model_only() {
     assert!(
         rep.warnings
             .iter()
-            .any(|w| w.contains("--holdout single_q2: the other measurements do not determine beta2")),
+            .any(|w| w
+                .contains("--holdout single_q2: the other measurements do not determine beta2")),
         "{:?}",
         rep.warnings
     );
     let rms = rep.holdout[0].rms_sigma.expect("noise from the shots");
-    assert!(rms > 10.0, "undetermined beta2 predicts single_q2 to {rms} sigmas");
+    assert!(
+        rms > 10.0,
+        "undetermined beta2 predicts single_q2 to {rms} sigmas"
+    );
 }
 
 /// A `Q` the model fixes is reported as the model's value exactly, also when `f` is identified
