@@ -23,7 +23,7 @@
 //! output-error fit that fails (the linear estimate is then reported) says the background
 //! was not fitted.
 
-pub use crate::background_terms::{Background, BackgroundTerm, UnknownBackground};
+pub use crate::background_terms::{Background, BackgroundTerm, BadBackground};
 use crate::layout::{Unknown, UnknownTable};
 use crate::problem::{nearest_mode, IdentError};
 use crate::settings::Settings;
@@ -65,7 +65,7 @@ pub(crate) fn check(ds: &Dataset, settings: &Settings) -> Result<(), IdentError>
         .filter(|t| t.needs_drive_levels())
         .map(|t| t.name())
         .collect();
-    if let Some(first) = needs.first() {
+    if !needs.is_empty() {
         if let Some(m) = ds
             .measurements
             .iter()
@@ -74,10 +74,10 @@ pub(crate) fn check(ds: &Dataset, settings: &Settings) -> Result<(), IdentError>
             return Err(IdentError::Background {
                 file,
                 why: format!(
-                    "--background {bg}: measurement \"{}\" records no drive_levels_v and drive_phases_rad, and the {} term{} proportional to the drive level (e.g. `{first}`) need{} them: give the dataset its drive levels (`harmonid import ... --map` with a drive_level column), or fit `--background constant` alone",
+                    "--background {bg}: measurement \"{}\" records no drive_levels_v and drive_phases_rad, which the {} term{} need{} (proportional to the drive level): give the dataset its drive levels (`harmonid import ... --map` with a drive_level column), or fit `--background constant` alone",
                     m.spec.name,
-                    needs.join(" and "),
-                    if needs.len() == 1 { " is" } else { "s are" },
+                    needs.iter().map(|n| format!("`{n}`")).collect::<Vec<_>>().join(" and "),
+                    if needs.len() == 1 { "" } else { "s" },
                     if needs.len() == 1 { "s" } else { "" },
                 ),
             });

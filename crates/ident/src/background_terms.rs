@@ -50,7 +50,7 @@ impl BackgroundTerm {
 }
 
 /// The background terms an identification fits (none by default). Read from
-/// `drive[,slope][,constant]` (any order, each once; `none` or empty for none).
+/// `drive[,slope][,constant]` (any order, each once; `none` for none).
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct Background {
     terms: Vec<BackgroundTerm>,
@@ -87,33 +87,42 @@ impl std::fmt::Display for Background {
     }
 }
 
+/// Reads `drive,slope,constant` or `none`. An empty text, an empty word (`drive,`), a word
+/// given twice and `none` beside a term are refused rather than read as something else: a
+/// typo in a shell variable should not silently fit no background.
 impl std::str::FromStr for Background {
-    type Err = UnknownBackground;
+    type Err = BadBackground;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let words: Vec<&str> = s.split(',').map(str::trim).collect();
+        if words == ["none"] {
+            return Ok(Background::default());
+        }
         let mut terms = Vec::new();
-        for word in s.split(',').map(str::trim).filter(|w| !w.is_empty()) {
-            if word == "none" {
-                continue;
-            }
+        for word in words {
             let t = BackgroundTerm::ALL
                 .into_iter()
                 .find(|t| t.name() == word)
-                .ok_or_else(|| UnknownBackground {
-                    found: word.to_string(),
-                })?;
+                .ok_or_else(|| BadBackground::Unknown(word.to_string()))?;
+            if terms.contains(&t) {
+                return Err(BadBackground::Repeated(t.name()));
+            }
             terms.push(t);
         }
         Ok(Background::of(&terms))
     }
 }
 
-/// A word that is no [`BackgroundTerm`]'s name.
+/// A background text that names no background: a word that is no [`BackgroundTerm`]'s name
+/// (empty included), or a term given twice.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("background term {found:?} is not one of \"drive\", \"slope\", \"constant\" (e.g. --background drive,slope; \"none\" for no background)")]
-pub struct UnknownBackground {
-    /// The word given.
-    pub found: String,
+pub enum BadBackground {
+    /// A word that is no term's name.
+    #[error("background term {0:?} is not one of \"drive\", \"slope\", \"constant\" (e.g. --background drive,slope; \"none\" for no background)")]
+    Unknown(String),
+    /// A term named twice.
+    #[error("background term {0:?} is given twice: name each of \"drive\", \"slope\", \"constant\" at most once (e.g. --background drive,slope)")]
+    Repeated(&'static str),
 }
 
 #[cfg(test)]
@@ -130,9 +139,15 @@ mod tests {
         assert_eq!(b.to_string(), "drive,constant");
         assert_eq!(b.to_string().parse::<Background>(), Ok(b));
         assert!("none".parse::<Background>().expect("none").is_empty());
-        assert!("".parse::<Background>().expect("empty").is_empty());
+        for bad in ["", "drive,", "none,drive", " , "] {
+            let err = bad.parse::<Background>().expect_err(bad);
+            assert!(matches!(err, BadBackground::Unknown(_)), "{bad:?}: {err}");
+        }
+        let err = "drive, drive".parse::<Background>().expect_err("twice");
+        assert_eq!(err, BadBackground::Repeated("drive"));
+        assert!(err.to_string().contains("\"drive\" is given twice"), "{err}");
         let err = "drive,feedthrough".parse::<Background>().expect_err("bad");
-        assert_eq!(err.found, "feedthrough");
+        assert_eq!(err, BadBackground::Unknown("feedthrough".into()));
         let text = err.to_string();
         assert!(
             text.contains("\"drive\", \"slope\", \"constant\""),

@@ -60,7 +60,7 @@ mod shots;
 mod solve;
 mod uncertainty;
 
-pub use background_terms::{Background, BackgroundTerm, UnknownBackground};
+pub use background_terms::{Background, BackgroundTerm, BadBackground};
 pub use compare::{
     compare, compare_with_holdout, CompareError, ModelComparison, ModelFit, NestedTest,
     NotDetermined,

@@ -479,8 +479,9 @@ fn kind_warning(list: &[&Comparison], total: usize, limit: f64) -> String {
     } else {
         String::new()
     };
+    let p = shown_decimals(worst.values, worst.stderrs);
     format!(
-        "inconsistent measurements: {} of {} is {:.6e} ± {:.2e}{unit} in \"{}\" but {:.6e} ± {:.2e}{unit} in \"{}\": {:.1} standard errors apart (the limit for {total} comparisons is {limit:.2}){more}; the device changed between them, or the model misses something one of them excites",
+        "inconsistent measurements: {} of {} is {:.p$e} ± {:.2e}{unit} in \"{}\" but {:.p$e} ± {:.2e}{unit} in \"{}\": {:.1} standard errors apart (the limit for {total} comparisons is {limit:.2}){more}; the device changed between them, or the model misses something one of them excites",
         worst.quantity.label(),
         worst.mode,
         worst.values[0],
@@ -493,9 +494,35 @@ fn kind_warning(list: &[&Comparison], total: usize, limit: f64) -> String {
     )
 }
 
+/// Decimals of the mantissa that show both values to their standard errors and their
+/// difference (a frequency of 1 MHz known to 0.5 Hz needs 7, not a fixed 6 that prints two
+/// values 5 standard errors apart as the same number); 3 to 15.
+fn shown_decimals(values: [f64; 2], stderrs: [f64; 2]) -> usize {
+    let size = values[0].abs().max(values[1].abs());
+    let finest = stderrs[0]
+        .min(stderrs[1])
+        .min((values[0] - values[1]).abs())
+        .max(size * 1e-15);
+    if !(size > 0.0 && finest.is_finite()) {
+        return 3;
+    }
+    ((size / finest).log10().ceil() as usize).clamp(3, 15)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn two_values_apart_by_their_errors_print_apart() {
+        // 1 MHz known to 0.48 Hz, 3.8 Hz apart: six decimals print 1.000002e6 twice.
+        let p = shown_decimals([1.0000020e6, 1.0000058e6], [0.478, 0.478]);
+        let (a, b) = (format!("{:.p$e}", 1.0000020e6), format!("{:.p$e}", 1.0000058e6));
+        assert_ne!(a, b);
+        assert_eq!(p, 7);
+        assert_eq!(shown_decimals([1.0, 2.0], [0.5, 0.5]), 3);
+        assert_eq!(shown_decimals([0.0, 0.0], [f64::NAN, 1.0]), 3);
+    }
     use harmonid_data::{Dataset, Manifest, Measurement, MeasurementSpec, Point};
     use rand::SeedableRng;
     use rand_distr::{Distribution, Normal};
