@@ -145,7 +145,10 @@ mod tests {
         }
         let err = "drive, drive".parse::<Background>().expect_err("twice");
         assert_eq!(err, BadBackground::Repeated("drive"));
-        assert!(err.to_string().contains("\"drive\" is given twice"), "{err}");
+        assert!(
+            err.to_string().contains("\"drive\" is given twice"),
+            "{err}"
+        );
         let err = "drive,feedthrough".parse::<Background>().expect_err("bad");
         assert_eq!(err, BadBackground::Unknown("feedthrough".into()));
         let text = err.to_string();

@@ -517,7 +517,10 @@ mod tests {
     fn two_values_apart_by_their_errors_print_apart() {
         // 1 MHz known to 0.48 Hz, 3.8 Hz apart: six decimals print 1.000002e6 twice.
         let p = shown_decimals([1.0000020e6, 1.0000058e6], [0.478, 0.478]);
-        let (a, b) = (format!("{:.p$e}", 1.0000020e6), format!("{:.p$e}", 1.0000058e6));
+        let (a, b) = (
+            format!("{:.p$e}", 1.0000020e6),
+            format!("{:.p$e}", 1.0000058e6),
+        );
         assert_ne!(a, b);
         assert_eq!(p, 7);
         assert_eq!(shown_decimals([1.0, 2.0], [0.5, 0.5]), 3);
