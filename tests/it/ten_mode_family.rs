@@ -22,7 +22,11 @@
 //!   load 2-4) it identified in 69.4 s, 654 MB peak with its simulation, but fails: χ²/dof
 //!   25.2 where a correct model gives 1.036, 247 of 250 determined, g2_9 25.6 stderr off
 //!   (107 s and χ²/dof 456 before the staged start's parameter scan; 6.5-8.5 min at 7.0 GB
-//!   before each measurement solved only the modes its drive reaches). Run with
+//!   before each measurement solved only the modes its drive reaches). Unchanged on
+//!   2026-11-27 23:05 UTC with the staged start's groups widened where truncated (no group
+//!   was: 65.0 s alone, χ²/dof 25.16, g2_9 25.6 stderr). Noise seed 7
+//!   (`TWENTY_MODE_SEED=7`): 136 s, χ²/dof 500.5, 98 of 250 determined, g1_8 16.6 stderr
+//!   off. Run with
 //!   `cargo test --release --test it -- ten_mode_family::twenty_mode_string --ignored --nocapture`.
 
 use harmonid::experiment::Plan;
@@ -208,6 +212,11 @@ fn ten_mode_family_study() {
 #[ignore = "the twenty-mode string, minutes (its 60 s goal is not met yet): run with --ignored --nocapture"]
 fn twenty_mode_string() {
     let (model, v) = gen::string_model(20);
-    let (verdict, secs) = round_trip(&model, &read_plan("string_20mode_plan.toml"), &v, 20);
+    // The noise seed: 20 unless TWENTY_MODE_SEED says another (7 is the other one measured).
+    let seed = std::env::var("TWENTY_MODE_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(20);
+    let (verdict, secs) = round_trip(&model, &read_plan("string_20mode_plan.toml"), &v, seed);
     check_verdict("twenty modes identified", &verdict, secs);
 }
