@@ -255,7 +255,14 @@ pub(crate) fn fit(
     if let Some(s0) = floor {
         notes.push(floor_note(shot_sigma, s0));
     }
-    let (fit, widenings) = widen_and_refine(fwd, &tries, &sigma, fit, from_shots)?;
+    let (fit, after) = widen_and_refine(fwd, &tries, &sigma, fit, from_shots)?;
+    // Those the staged start widened after a group's fit first (its lattices are the joint
+    // fit's), then those widened after the joint fit.
+    let mut widenings = Vec::new();
+    let staged_widened = staged.iter().flat_map(|s| s.widened.iter().cloned());
+    for w in staged_widened.chain(after) {
+        merge_widening(&mut widenings, w);
+    }
     notes.extend(widening_note(&widenings));
     let (noise, inflation) = noise_at(&fit, &sigma, from_shots, e0);
     let bounds = uncertainty::crlb_from_jacobian(fwd, &fit.theta, &fit.jac, &noise, 1)
@@ -374,17 +381,7 @@ fn widen_and_refine(
             break;
         }
         for w in widened {
-            match widenings
-                .iter_mut()
-                .find(|e| e.measurement == w.measurement)
-            {
-                Some(e) => {
-                    e.order = w.order;
-                    e.lines = w.lines;
-                    e.moved = e.moved.max(w.moved);
-                }
-                None => widenings.push(w),
-            }
+            merge_widening(&mut widenings, w);
         }
         fit = ml::refine(
             fwd,
@@ -398,6 +395,22 @@ fn widen_and_refine(
         .map_err(OutputErrorFailure::Fit)?;
     }
     Ok((fit, widenings))
+}
+
+/// Adds `w` to `widenings`: a measurement widened again keeps its last order and lines and
+/// the largest move.
+fn merge_widening(widenings: &mut Vec<Widened>, w: Widened) {
+    match widenings
+        .iter_mut()
+        .find(|e| e.measurement == w.measurement)
+    {
+        Some(e) => {
+            e.order = w.order;
+            e.lines = w.lines;
+            e.moved = e.moved.max(w.moved);
+        }
+        None => widenings.push(w),
+    }
 }
 
 /// The noise the bounds use and the factor their standard errors are inflated by: with shot

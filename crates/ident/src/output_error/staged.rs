@@ -26,7 +26,7 @@
 
 use super::ml::{self, MlSettings};
 use super::{Tries, GOOD_FIT, MAX_WIDENINGS, TRUNCATION_SIGMA};
-use crate::forward::ForwardModel;
+use crate::forward::{ForwardModel, Widened};
 use crate::layout::Unknown;
 use harmonid_data::Dataset;
 use nalgebra::DMatrix;
@@ -48,6 +48,8 @@ pub(crate) struct GroupFit {
 pub(crate) struct Staged {
     pub theta: Vec<f64>,
     pub groups: Vec<GroupFit>,
+    /// The lattices widened after a group's fit ([`settle_truncation`]), for the report's note.
+    pub widened: Vec<Widened>,
 }
 
 /// `theta` with the model parameters among `which` at zero (or their nearest bound).
@@ -165,6 +167,8 @@ struct GroupResult {
     precision: Vec<(usize, f64)>,
     /// The new unknowns' values fitted with the others held.
     held: Vec<f64>,
+    /// Its measurements' lattices widened after the fit ([`settle_truncation`]).
+    widened: Vec<Widened>,
 }
 
 /// Refits the group `keep` over its `new` unknowns from `theta` (the others held there),
@@ -280,7 +284,7 @@ fn fit_group(
     let (f, sub) = best?;
     let held: Vec<f64> = new.iter().map(|&k| f.theta[k]).collect();
     let with_precisions = |fit: ml::MlFit, mut sub: ForwardModel, cols: &[usize]| {
-        let fit = settle_truncation(&mut sub, (&meas, &sigma), fit, cols, tries);
+        let (fit, widened) = settle_truncation(&mut sub, (&meas, &sigma), fit, cols, tries);
         let inflation = (reduced(&fit) / tries.e0).max(1.0);
         let precision = precisions(&fit.jac, fwd.unknowns().len(), &sigma, cols)
             .into_iter()
@@ -291,6 +295,7 @@ fn fit_group(
             sub,
             precision,
             held: held.clone(),
+            widened,
         })
     };
     if reduced(&f) <= GOOD_FIT * tries.e0 || all.len() == new.len() {
@@ -325,14 +330,15 @@ fn fit_group(
 /// coupling measurement's truncation can move its lines by thousands of sigmas (the
 /// twenty-mode string, seed 7: `couple_q1_q8`), so its group fits a biased forward model, and
 /// the joint fit starts from those values. A refit that fails keeps the last fit (the
-/// lattice stays widened: the joint fit refits on it).
+/// lattice stays widened: the joint fit refits on it). Returns the fit and every widening.
 fn settle_truncation(
     sub: &mut ForwardModel,
     (meas, sigma): (&[Complex64], &[f64]),
     mut fit: ml::MlFit,
     cols: &[usize],
     tries: &Tries,
-) -> ml::MlFit {
+) -> (ml::MlFit, Vec<Widened>) {
+    let mut widenings = Vec::new();
     for _ in 0..MAX_WIDENINGS {
         // Without noise from the shots (`e0` infinite), the residuals' own scale.
         let scale = if tries.e0.is_finite() {
@@ -342,7 +348,7 @@ fn settle_truncation(
         };
         let tol: Vec<f64> = sigma.iter().map(|s| TRUNCATION_SIGMA * s * scale).collect();
         match sub.widen_where_truncated(&fit.theta, &tol) {
-            Ok(w) if !w.is_empty() => {}
+            Ok(w) if !w.is_empty() => widenings.extend(w),
             _ => break,
         }
         let settings = MlSettings {
@@ -354,7 +360,7 @@ fn settle_truncation(
             Err(_) => break,
         }
     }
-    fit
+    (fit, widenings)
 }
 
 /// `theta` with the actuator gains among `new` at the mean of the gains of the same mode and
@@ -533,6 +539,7 @@ pub(crate) fn staged_start(
     // The groups that share unknowns with earlier ones, with their new unknowns' values
     // fitted with the shared ones held.
     let mut held: Vec<(usize, Vec<f64>)> = Vec::new();
+    let mut widened = Vec::new();
     for modes in 0..=most {
         let class = groups_of(&deps, modes, &settled, &follows);
         for (keep, new) in &class {
@@ -551,7 +558,9 @@ pub(crate) fn staged_start(
                     sub,
                     precision,
                     held: h,
+                    widened: w,
                 }) => {
+                    widened.extend(w);
                     for &k in &new {
                         theta[k] = f.theta[k];
                     }
@@ -614,7 +623,11 @@ pub(crate) fn staged_start(
             fwd.adopt(&sub, &[mi]);
         }
     }
-    Some(Staged { theta, groups })
+    Some(Staged {
+        theta,
+        groups,
+        widened,
+    })
 }
 
 /// A group whose own fit is far from a correct model's (`χ²/dof` above [`GOOD_FIT`] times
@@ -799,7 +812,11 @@ mod tests {
             before > 1.0,
             "the start's lattice biased by only {before} stderr"
         );
-        let settled = settle_truncation(&mut narrow, (&x, &sigma), fit, &cols, &tries);
+        let (settled, widened) = settle_truncation(&mut narrow, (&x, &sigma), fit, &cols, &tries);
+        assert!(widened
+            .iter()
+            .all(|w| w.measurement == "couple_a_b" && w.order > 9));
+        assert!(!widened.is_empty());
         let after = offsets(&settled);
         println!("worst offset {before:.2} stderr on the start's lattice, {after:.3} widened");
         assert!(
