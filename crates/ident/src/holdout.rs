@@ -25,7 +25,7 @@ pub use harmonid_data::result::HeldOut;
 /// finite value: then it is refused, naming it). Its relative standard error can be
 /// unbounded while the prediction does not depend on it (a linear damping 1/Q at zero beside a
 /// quadratic drag that carries the damping: Q → ∞), and the held-out misfit itself says whether
-/// it mattered. `compare` still sets such a model apart ([`fit_and_predict`]).
+/// it mattered. `compare` still sets such a model apart (through the same fit and prediction).
 pub fn identify_with_holdout(
     model: &Model,
     ds: &Dataset,

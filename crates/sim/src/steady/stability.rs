@@ -434,7 +434,7 @@ thread_local! {
 ///
 /// A caller checking the same experiment on many devices (a planner's range, a simulation's
 /// levels) would plan the lattice's products and allocate the solvers each time (a tenth of a
-/// ten-mode plan went there): the solvers of the last [`KEPT_STABILITY_SOLVERS`] calls are
+/// ten-mode plan went there): the solvers of the last `KEPT_STABILITY_SOLVERS` (2) calls are
 /// kept per thread and given the new values ([`super::ReducedSolver::set_values`]) when the
 /// lattice, the tones and the model's terms are theirs. The verdict is the fresh solver's
 /// (a test compares them).

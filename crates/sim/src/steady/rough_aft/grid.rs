@@ -61,7 +61,7 @@ impl Grid {
     }
 
     /// [`Grid::choose`] with at least `least` samples on a one-dimensional grid
-    /// ([`ROUGH_MIN_SAMPLES`] with a jump, [`ROUGH_MIN_SAMPLES_SMOOTH`] without).
+    /// (`ROUGH_MIN_SAMPLES`, 4096, with a jump; `ROUGH_MIN_SAMPLES_SMOOTH`, 512, without).
     pub fn choose_with(generators: &[f64], lattice: &[f64], least: usize) -> Result<Self, String> {
         let harmonic = common_harmonics(lattice).map(|ks| {
             let kmax = ks.iter().copied().max().unwrap_or(1).max(1);
