@@ -484,21 +484,23 @@ fn errors(rep: &harmonid::ident::Report, v: &gen::Values) -> Vec<Draw> {
     out
 }
 
+/// A Monte-Carlo diagnostic's setting `k` from the environment, `d` when unset or unreadable.
+pub(crate) fn mc_env(k: &str, d: u64) -> u64 {
+    std::env::var(k)
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(d)
+}
+
 /// Diagnostics: shots and draws from `HARMONID_MC_SHOTS`, `HARMONID_MC_RUNS`, seeds from
 /// `HARMONID_MC_SEED`; the noise estimated from the shots and given as known.
 #[test]
 #[ignore]
 fn coverage_diagnostics() {
-    let env = |k: &str, d: u64| {
-        std::env::var(k)
-            .ok()
-            .and_then(|s| s.parse().ok())
-            .unwrap_or(d)
-    };
     let (shots, runs, seed0) = (
-        env("HARMONID_MC_SHOTS", 10) as usize,
-        env("HARMONID_MC_RUNS", 100),
-        env("HARMONID_MC_SEED", 1000),
+        mc_env("HARMONID_MC_SHOTS", 10) as usize,
+        mc_env("HARMONID_MC_RUNS", 100),
+        mc_env("HARMONID_MC_SEED", 1000),
     );
     let model = harmonid::model::parse_str(gen::DAMPED_DUFFING, "stepped.hb").expect("model");
     let (v, d) = gen::stepped_sweep_plan();

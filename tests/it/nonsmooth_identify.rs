@@ -369,19 +369,13 @@ fn errors(rep: &harmonid::ident::Report, v: &gen::Values) -> Vec<crate::backgrou
 #[test]
 #[ignore]
 fn coverage_diagnostics() {
-    use crate::background::{with_known_noise, Coverage};
-    let env = |k: &str, d: u64| {
-        std::env::var(k)
-            .ok()
-            .and_then(|s| s.parse().ok())
-            .unwrap_or(d)
-    };
+    use crate::background::{mc_env, with_known_noise, Coverage};
     let (shots, runs, seed0) = (
-        env("HARMONID_MC_SHOTS", 10) as usize,
-        env("HARMONID_MC_RUNS", 100),
-        env("HARMONID_MC_SEED", 5000),
+        mc_env("HARMONID_MC_SHOTS", 10) as usize,
+        mc_env("HARMONID_MC_RUNS", 100),
+        mc_env("HARMONID_MC_SEED", 5000),
     );
-    let known_too = env("HARMONID_MC_KNOWN", 1) == 1;
+    let known_too = mc_env("HARMONID_MC_KNOWN", 1) == 1;
     let (model, v) = (model(), values());
     let clean = gen::simulate_sweeps_clean(&model, &v, &sweeps(&v, 4, 25), &[1.0], shots);
     let data = with_feedthrough(&clean);

@@ -34,12 +34,7 @@ pub fn identify_with_holdout(
 ) -> Result<Report, IdentError> {
     let mut report = fit_and_predict(model, ds, held, settings, false)?
         .map_err(|u| IdentError::Holdout(u.message))?;
-    let undetermined: Vec<String> = report
-        .estimates()
-        .into_iter()
-        .filter(|(_, e)| !e.identifiable)
-        .map(|(name, _)| name)
-        .collect();
+    let undetermined: Vec<String> = undetermined(&report).into_iter().map(|u| u.0).collect();
     if !undetermined.is_empty() {
         report.warnings.push(format!(
             "--holdout {}: the other measurements do not determine {}; the held-out data are predicted from the estimate as it stands, so the prediction error says whether that matters (fix the quantity in the model, e.g. `Q = ...` on the mode, to predict without it)",
@@ -114,14 +109,9 @@ pub(crate) fn fit_and_predict(
     let fit_ds = split(false)?;
     let held_ds = split(true)?;
     let mut report = identify(model, &fit_ds, settings)?;
-    let estimates = report.estimates();
-    let undetermined: Vec<(String, String)> = estimates
-        .iter()
-        .filter(|(_, e)| !e.identifiable)
-        .map(|(name, e)| (name.clone(), e.reason.clone().unwrap_or_default()))
-        .collect();
+    let undetermined = undetermined(&report);
     // Without a value (the fit left it NaN) nothing can be predicted, whatever was asked.
-    let valueless = estimates.iter().any(|(_, e)| !e.value.is_finite());
+    let valueless = report.estimates().iter().any(|(_, e)| !e.value.is_finite());
     if (require_determined || valueless) && !undetermined.is_empty() {
         return Ok(Err(Undetermined {
             names: undetermined.iter().map(|u| u.0.clone()).collect(),
@@ -156,6 +146,16 @@ pub(crate) fn fit_and_predict(
         }
     };
     Ok(Ok(report))
+}
+
+/// The quantities `report` leaves undetermined, each with its reason.
+fn undetermined(report: &Report) -> Vec<(String, String)> {
+    report
+        .estimates()
+        .into_iter()
+        .filter(|(_, e)| !e.identifiable)
+        .map(|(name, e)| (name, e.reason.clone().unwrap_or_default()))
+        .collect()
 }
 
 /// The held-out entries of the prediction's verdict `g` on `held_ds`: one per measurement
