@@ -8,6 +8,9 @@ use std::f64::consts::TAU;
 const LAND_MAX_STEPS: usize = 400;
 /// Most landing attempts in a row ([`HbSolver::land_persistently`]).
 const LANDINGS: usize = 8;
+/// Largest move of a landing step along the slow flow, relative to the state's largest
+/// amplitude ([`HbSolver::land`]).
+const LAND_FLOW_STEP: f64 = 0.25;
 
 impl HbSolver {
     /// [`HbSolver::land`] up to [`LANDINGS`] times in a row, each from where the last ended
@@ -24,6 +27,11 @@ impl HbSolver {
     /// `(C/Δt + J) ΔX = −R`, from `Δt` a tenth of the fastest decay time, growing as the
     /// residual falls (switched evolution relaxation) until it is Newton. Small steps first
     /// keep the trajectory, so the state ends in the basin the physical transient reaches.
+    /// Beyond its first value `Δt` is also held to where the flow's own step `Δt |C⁻¹R|`
+    /// moves the state by at most [`LAND_FLOW_STEP`] of its largest amplitude: in a fold's
+    /// ghost the residual falls while the state is still far from any steady state, and a
+    /// `Δt` grown there is a Newton step that leaves the trajectory (a stepped sweep of a
+    /// strongly softening beam jumped from 5 nm to a spurious 300 nm orbit that way).
     /// Returns whether the residual met `tol` within [`LAND_MAX_STEPS`] steps (the state is
     /// where the flow got to either way: another call continues from there).
     pub(super) fn land(&mut self, s: f64, tol: f64) -> bool {
@@ -31,13 +39,15 @@ impl HbSolver {
         let nr = self.lattice.len();
         let nu = self.unknowns();
         let g_max = (0..nm).map(|n| self.model.gamma(n)).fold(0.0, f64::max);
-        let mut dt = 0.1 * 2.0 / g_max;
+        let dt0 = 0.1 * 2.0 / g_max;
+        let mut dt = dt0;
         let mut r0 = self.residual(false, s);
         for _ in 0..LAND_MAX_STEPS {
             if r0 <= tol {
                 self.have_lu = false;
                 return true;
             }
+            dt = dt.min(dt0.max(LAND_FLOW_STEP * self.flow_time_scale()));
             self.assemble_jacobian();
             for n in 0..nm {
                 let g = self.model.gamma(n);
@@ -74,5 +84,27 @@ impl HbSolver {
         }
         self.have_lu = false;
         false
+    }
+
+    /// The time (s) the slow flow takes to move the state by its own largest amplitude at
+    /// the current rate: `max |X| / max |C⁻¹R|`, with `C = γ_n + 2iΩ_r` per line and `R` the
+    /// residual in `self.res` (infinite at a steady state).
+    fn flow_time_scale(&self) -> f64 {
+        let nm = self.model.n_modes();
+        let nr = self.lattice.len();
+        let mut rate: f64 = 0.0;
+        for n in 0..nm {
+            let g = self.model.gamma(n);
+            for (r, &f) in self.lattice.iter().enumerate() {
+                let c = Complex64::new(g, 2.0 * TAU * f).norm();
+                rate = rate.max(self.res[n * nr + r].norm() / c);
+            }
+        }
+        let size = self.x.iter().map(|z| z.norm()).fold(0.0, f64::max);
+        if rate > 0.0 {
+            size / rate
+        } else {
+            f64::INFINITY
+        }
     }
 }
