@@ -16,9 +16,22 @@ fn import_error(e: &ImportError) -> PyErr {
     DatasetError::new_err(e.to_string())
 }
 
-/// The dataset an import made, with its note, as a Python `Dataset`.
-fn done(r: Result<(harmonid_data::Dataset, String), ImportError>) -> PyResult<Dataset> {
+/// The dataset an import made, with its note, as a Python `Dataset`: each warning of the
+/// import (rows where nothing was measured, dropped) raised as a Python `UserWarning` too.
+fn done(
+    py: Python<'_>,
+    r: Result<(harmonid_data::Dataset, String), ImportError>,
+) -> PyResult<Dataset> {
     let (mut ds, note) = r.map_err(|e| import_error(&e))?;
+    for w in &ds.notes {
+        let msg = std::ffi::CString::new(w.replace('\0', " ")).unwrap_or_default();
+        PyErr::warn(
+            py,
+            py.get_type::<pyo3::exceptions::PyUserWarning>().as_any(),
+            &msg,
+            1,
+        )?;
+    }
     ds.notes.push(note);
     Ok(Dataset::wrap(ds))
 }
@@ -55,10 +68,21 @@ fn phase_unit(unit: Option<&str>) -> PyResult<Option<PhaseUnit>> {
 
 /// Reads `files` (CSV/TSV/whitespace text or MATLAB v5/v7) with the mapping file `mapping`
 /// (columns, conventions, settling: docs/data-format.md, "From your instrument to a dataset").
+/// Rows where nothing was measured (every value NaN) are dropped at a sweep's end with a
+/// warning; `drop_nan_rows=True` (or the mapping's `drop_nan_rows = true`) drops those inside a
+/// sweep too, which are refused otherwise.
 #[pyfunction]
-pub fn read_table(py: Python<'_>, files: Vec<PathBuf>, mapping: PathBuf) -> PyResult<Dataset> {
-    let m = table::Mapping::load(&mapping).map_err(|e| import_error(&e))?;
-    done(py.detach(|| table::import(&files, &m, Path::new("<imported>"))))
+#[pyo3(signature = (files, mapping, *, drop_nan_rows = false))]
+pub fn read_table(
+    py: Python<'_>,
+    files: Vec<PathBuf>,
+    mapping: PathBuf,
+    drop_nan_rows: bool,
+) -> PyResult<Dataset> {
+    let mut m = table::Mapping::load(&mapping).map_err(|e| import_error(&e))?;
+    m.drop_nan_rows |= drop_nan_rows;
+    let r = py.detach(|| table::import(&files, &m, Path::new("<imported>")));
+    done(py, r)
 }
 
 /// Reads LabOne demodulator CSV exports, one file per demodulator (the drive's first).
@@ -89,7 +113,8 @@ pub fn read_zi_csv(
         drive_level,
         drive_phase_rad: None,
     };
-    done(py.detach(|| zi_csv::import(&files, &conv, settle, &opts, Path::new("<imported>"))))
+    let r = py.detach(|| zi_csv::import(&files, &conv, settle, &opts, Path::new("<imported>")));
+    done(py, r)
 }
 
 /// Reads LabOne HDF5 saves (record groups `000`, `001`, … each one sweep); `demods` lists the
@@ -120,7 +145,8 @@ pub fn read_zi_hdf5(
         demods: demods.unwrap_or_default(),
         drive_level,
     };
-    done(py.detach(|| zi_hdf5::import(&files, &conv, settle, &opts, Path::new("<imported>"))))
+    let r = py.detach(|| zi_hdf5::import(&files, &conv, settle, &opts, Path::new("<imported>")));
+    done(py, r)
 }
 
 /// Reads Moku lock-in records converted to CSV, one file per frequency step. `channels` is
@@ -169,13 +195,17 @@ pub fn read_moku_csv(
         demod_hz: demod_hz.unwrap_or_default(),
         drive_level,
     };
-    done(py.detach(|| moku_csv::import(&files, &conv, settle, &opts, Path::new("<imported>"))))
+    let r = py.detach(|| moku_csv::import(&files, &conv, settle, &opts, Path::new("<imported>")));
+    done(py, r)
 }
 
 /// Reads LabOne sweeper CSVs (one per demodulator, the drive's first): each point a step whose
-/// noise is the sweeper's standard deviation over `count` samples.
+/// noise is the sweeper's standard deviation over `count` samples. Points never reached (`x`
+/// and `y` NaN: a sweep stopped early) are dropped at the sweep's end with a warning;
+/// `drop_nan_rows=True` drops those inside the sweep too, which are refused otherwise.
 #[pyfunction]
-#[pyo3(signature = (files, *, amplitude, quadrature, metres_per_unit, response = "displacement", drive_level = None))]
+#[pyo3(signature = (files, *, amplitude, quadrature, metres_per_unit, response = "displacement", drive_level = None, drop_nan_rows = false))]
+#[allow(clippy::too_many_arguments)] // one keyword per convention, as the CLI's flags
 pub fn read_zi_sweeper(
     py: Python<'_>,
     files: Vec<PathBuf>,
@@ -184,8 +214,13 @@ pub fn read_zi_sweeper(
     metres_per_unit: Option<f64>,
     response: &str,
     drive_level: Option<f64>,
+    drop_nan_rows: bool,
 ) -> PyResult<Dataset> {
     let conv = conventions(amplitude, quadrature, response, metres_per_unit, None)?;
-    let opts = zi_sweeper::Options { drive_level };
-    done(py.detach(|| zi_sweeper::import(&files, &conv, &opts, Path::new("<imported>"))))
+    let opts = zi_sweeper::Options {
+        drive_level,
+        drop_nan_rows,
+    };
+    let r = py.detach(|| zi_sweeper::import(&files, &conv, &opts, Path::new("<imported>")));
+    done(py, r)
 }

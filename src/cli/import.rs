@@ -92,6 +92,11 @@ pub struct Args {
     /// file's `% ... demodulation ... Hz` header line).
     #[arg(long, value_name = "HZ,...", value_delimiter = ',')]
     pub demod_hz: Vec<f64>,
+    /// table, zi-sweeper: also drop rows where nothing was measured (every value NaN) inside a
+    /// sweep, each run counted in a warning. Without it only those at a sweep's end (a sweep
+    /// stopped early) are dropped, and one inside is refused with its row.
+    #[arg(long)]
+    pub drop_nan_rows: bool,
 }
 
 /// `--channels`.
@@ -196,12 +201,19 @@ pub fn run(args: Args) -> miette::Result<()> {
         settle_s: args.settle_s,
         settle_samples: args.settle_samples,
     };
+    if args.drop_nan_rows && !matches!(args.format, Format::Table | Format::ZiSweeper) {
+        return Err(miette::Report::new(ImportError::Convention {
+            origin: "--drop-nan-rows".into(),
+            message: "applies to table and zi-sweeper (a sweeper writes the points it never reached as NaN); a demodulator record or a Moku file with a NaN sample is refused with its row".into(),
+        }));
+    }
     let (ds, note) = match args.format {
         Format::Table => {
             let map = args.map.as_ref().ok_or_else(|| {
                 miette::miette!("import table needs --map MAPPING.toml (the columns and conventions; docs/data-format.md)")
             })?;
-            let mapping = table::Mapping::load(map).map_err(miette::Report::new)?;
+            let mut mapping = table::Mapping::load(map).map_err(miette::Report::new)?;
+            mapping.drop_nan_rows |= args.drop_nan_rows;
             table::import(&args.inputs, &mapping, &args.out)
         }
         Format::ZiCsv => conventions(&args).and_then(|conv| {
@@ -229,6 +241,7 @@ pub fn run(args: Args) -> miette::Result<()> {
             }
             let opts = zi_sweeper::Options {
                 drive_level: args.drive_level,
+                drop_nan_rows: args.drop_nan_rows,
             };
             zi_sweeper::import(&args.inputs, &conv, &opts, &args.out)
         }),
@@ -265,6 +278,10 @@ pub fn run(args: Args) -> miette::Result<()> {
     ds.write_with(&args.out, opts)
         .map_err(miette::Report::new)
         .wrap_err_with(|| format!("cannot write the dataset {}", args.out.display()))?;
+    // One line per run of rows dropped because nothing was measured there.
+    for warning in &ds.notes {
+        eprintln!("warning: {warning}");
+    }
     eprintln!("note: {note}");
     eprintln!(
         "wrote {} ({} steps in {} sweeps)",

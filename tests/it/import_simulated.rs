@@ -302,7 +302,7 @@ fn zi_sweeper_from_a_simulated_sweep_with_its_noise() {
     let (got, _) = zi_sweeper::import(
         &[p],
         &conv(Amplitude::Rms, Quadrature::XMinusIY, None),
-        &zi_sweeper::Options { drive_level: None },
+        &zi_sweeper::Options::default(),
         Path::new("out"),
     )
     .expect("import");

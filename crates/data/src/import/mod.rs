@@ -10,8 +10,10 @@
 
 pub mod mat;
 pub mod moku_csv;
+mod passes;
 pub mod table;
 mod text_table;
+mod unmeasured;
 pub mod zi_csv;
 pub mod zi_hdf5;
 pub mod zi_sweeper;
@@ -151,6 +153,11 @@ pub struct Record {
     /// When the sample is an average the instrument made: the standard deviation per quadrature
     /// of the samples it averaged (the file's units) and how many.
     pub noise: Option<(f64, u32)>,
+    /// Nothing was measured at this row: every measured value is NaN (a LabOne sweeper stopped
+    /// early writes the points it never reached so). Dropped at a sweep's end, refused inside
+    /// one unless [`Grouping::drop_nan_rows`]; its other fields are not used but `group`,
+    /// `level` and `origin`.
+    pub unmeasured: bool,
 }
 
 /// The sweep name for `original` (a file stem, a sweep label), kept as the lab wrote it but
@@ -188,6 +195,13 @@ pub struct Grouping {
     /// Start a new sweep when the drive level changes between steps of one group (for files
     /// that hold several level sweeps one after the other).
     pub split_on_level: bool,
+    /// Drop the rows where nothing was measured ([`Record::unmeasured`]) inside a sweep too,
+    /// each run counted in a warning; else only those at a sweep's end are dropped and one
+    /// inside is refused with its row.
+    pub drop_nan_rows: bool,
+    /// Refuse a sweep without drive levels that turns back more than once: it may be several
+    /// levels, each swept up and down, merged (a table without its level column).
+    pub passes_need_level: bool,
 }
 
 impl Conventions {
@@ -529,7 +543,7 @@ fn check_record(r: &Record, fscale: f64, inputs: &[PathBuf]) -> Result<(), Impor
             inputs,
             r.origin,
             format!(
-                "amplitude ({}, {}) is not finite; NaN rows must be removed, not imported",
+                "amplitude ({}, {}) is not finite; NaN rows must be removed, not imported (a row with every measured value NaN, a point never measured, is dropped at a sweep's end or with --drop-nan-rows; this one has a value)",
                 number(r.z.re),
                 number(r.z.im)
             ),
@@ -544,12 +558,19 @@ fn collect_steps(
     records: impl IntoIterator<Item = Record>,
     conv: &Conventions,
     settle: Settle,
+    grouping: &Grouping,
     inputs: &[PathBuf],
-) -> Result<Vec<Step>, ImportError> {
+) -> Result<(Vec<Step>, unmeasured::Gaps), ImportError> {
     let fscale = conv.frequency_scale.unwrap_or(1.0);
     let mut steps: Vec<Step> = Vec::new();
     let mut last: Option<Record> = None;
+    let mut gaps = unmeasured::Gaps::default();
     for r in records {
+        if r.unmeasured {
+            gaps.hold(r);
+            continue;
+        }
+        gaps.settle(last.as_ref(), Some(&r), grouping, inputs)?;
         if settle.settle_s.is_some() && r.time_s.is_none() {
             return Err(ImportError::Convention {
                 origin: "--settle-s".into(),
@@ -570,17 +591,25 @@ fn collect_steps(
         let step = steps.last_mut().expect("just pushed");
         step.add(&r, conv, fscale, inputs)?;
     }
+    gaps.settle(last.as_ref(), None, grouping, inputs)?;
     let Some(tail) = steps.last() else {
         return Err(ImportError::Input {
             path: inputs.first().cloned().unwrap_or_default(),
             row: None,
-            message: "no data rows were read".into(),
+            message: if gaps.dropped > 0 {
+                format!(
+                    "no measured row: all {} rows have every value NaN",
+                    gaps.dropped
+                )
+            } else {
+                "no data rows were read".into()
+            },
         });
     };
     if !tail.complete() {
         return Err(tail.incomplete(inputs));
     }
-    Ok(steps)
+    Ok((steps, gaps))
 }
 
 /// Drops every step's settling samples; returns how many samples were read and how many
@@ -601,7 +630,7 @@ fn drop_settling(steps: &mut [Step], settle: Settle) -> Result<(usize, usize), I
 }
 
 /// The sweeps as `[start, end)` ranges of steps: a new one at each group change, and at each
-/// level change when `grouping` asks (then [`split_turns`] cuts one that turns back).
+/// level change when `grouping` asks (then [`passes::split_passes`] cuts one that turns back).
 fn cut_sweeps(steps: &[Step], grouping: &Grouping) -> Vec<(usize, usize)> {
     let mut sweeps: Vec<(usize, usize)> = Vec::new();
     let mut start = 0;
@@ -617,86 +646,20 @@ fn cut_sweeps(steps: &[Step], grouping: &Grouping) -> Vec<(usize, usize)> {
     sweeps
 }
 
-/// A cut sweep: its `[start, end)` range of steps and the suffix of its name (`_up`, `_down`
-/// for the two legs of a sweep that turns back; empty otherwise).
-type Cut = (usize, usize, &'static str);
-
-/// Where the drives `fs` turn back: `Some(k)` when `fs[..k]` runs strictly one way (up or
-/// down) and `fs[k..]` strictly the other, each leg of two steps or more (the turning point
-/// may be repeated at the start of the second leg); `None` for a sweep one way, of one step, or
-/// in any other order.
-fn turning_point(fs: &[f64]) -> Option<usize> {
-    if fs.len() < 4 {
-        return None;
-    }
-    let dir = (fs[1] - fs[0]).signum();
-    if dir == 0.0 {
-        return None;
-    }
-    let k = 1 + fs
-        .windows(2)
-        .take_while(|w| (w[1] - w[0]).signum() == dir)
-        .count();
-    if k == fs.len() {
-        return None;
-    }
-    let back = &fs[k..];
-    let turns =
-        (fs[k] - fs[k - 1]) * dir <= 0.0 && back.windows(2).all(|w| (w[1] - w[0]).signum() == -dir);
-    (k >= 2 && back.len() >= 2 && turns).then_some(k)
-}
-
-/// The sweeps `sweeps`, each that turns back (a lab's up-and-down sweep per level) cut into
-/// its two legs, named with `_up` and `_down`; when one does, every other sweep one way is
-/// named by its direction too (the top level swept up only is `level_0.6_up`, beside the
-/// others' `_up` and `_down`).
-fn split_turns(steps: &[Step], sweeps: &[(usize, usize)]) -> Vec<Cut> {
-    let mut cuts = split_each(steps, sweeps);
-    if cuts.iter().any(|c| !c.2.is_empty()) {
-        for c in cuts.iter_mut().filter(|c| c.2.is_empty() && c.1 - c.0 >= 2) {
-            let fs: Vec<f64> = steps[c.0..c.1].iter().map(|s| s.drive).collect();
-            if fs.windows(2).all(|w| w[1] > w[0]) {
-                c.2 = "_up";
-            } else if fs.windows(2).all(|w| w[1] < w[0]) {
-                c.2 = "_down";
-            }
-        }
-    }
-    cuts
-}
-
-/// [`split_turns`]'s cut of each sweep that turns back, the others kept whole.
-fn split_each(steps: &[Step], sweeps: &[(usize, usize)]) -> Vec<Cut> {
-    let mut cuts = Vec::new();
-    for &(a, b) in sweeps {
-        let fs: Vec<f64> = steps[a..b].iter().map(|s| s.drive).collect();
-        match turning_point(&fs) {
-            Some(k) => {
-                let (first, second) = if fs[1] > fs[0] {
-                    ("_up", "_down")
-                } else {
-                    ("_down", "_up")
-                };
-                cuts.push((a, a + k, first));
-                cuts.push((a + k, b, second));
-            }
-            None => cuts.push((a, b, "")),
-        }
-    }
-    cuts
-}
-
-/// The name of the sweep of steps `part`: its group's name, else its drive level, then
-/// `suffix`, with `_2`, `_3`, ... appended when `names` (the sweeps named so far) already has it.
-fn sweep_name(part: &[Step], grouping: &Grouping, suffix: &str, names: &mut Vec<String>) -> String {
-    let base = match grouping.group_names.get(part[0].group) {
+/// The name of the sweep of group `group` at drive level `level` before any suffix: its
+/// group's name, else (cut by level, or no name) its drive level, `level_0.1`.
+fn base_name(group: usize, level: Option<f64>, grouping: &Grouping) -> String {
+    match grouping.group_names.get(group) {
         // A sweep cut by level is named by it; a single input without levels by the input.
-        Some(n) if !grouping.split_on_level || part[0].level.is_none() => n.clone(),
-        _ => format!(
-            "level_{}",
-            part[0].level.map_or("none".into(), |l| format!("{l}"))
-        ),
-    } + suffix;
+        Some(n) if !grouping.split_on_level || level.is_none() => n.clone(),
+        _ => format!("level_{}", level.map_or("none".into(), |l| format!("{l}"))),
+    }
+}
+
+/// The name of the sweep of steps `part`: [`base_name`], then `suffix`, with `_2`, `_3`, ...
+/// appended when `names` (the sweeps named so far) already has it.
+fn sweep_name(part: &[Step], grouping: &Grouping, suffix: &str, names: &mut Vec<String>) -> String {
+    let base = base_name(part[0].group, part[0].level, grouping) + suffix;
     let mut name = base.clone();
     let mut i = 2;
     while names.contains(&name) {
@@ -736,14 +699,14 @@ fn sweep_spec(part: &[Step], name: String) -> SweepSpec {
 fn sweeps_and_measurements(
     manifest: &mut Manifest,
     steps: &[Step],
-    sweeps: &[Cut],
+    sweeps: &[passes::Cut],
     grouping: &Grouping,
     inputs: &[PathBuf],
 ) -> Result<Vec<Measurement>, ImportError> {
     let mut measurements = Vec::new();
     let mut names: Vec<String> = Vec::new();
-    for &(a, b, suffix) in sweeps {
-        let part = &steps[a..b];
+    for (a, b, suffix) in sweeps {
+        let part = &steps[*a..*b];
         let name = sweep_name(part, grouping, suffix, &mut names);
         let mut sw = sweep_spec(part, name);
         sw.source = grouping
@@ -759,23 +722,32 @@ fn sweeps_and_measurements(
     Ok(measurements)
 }
 
-/// The one-line note on what was cut and dropped as settling.
-fn settle_note(settle: Settle, sweeps: usize, steps: usize, read: usize, kept: usize) -> String {
+/// The one-line note on what was cut (`passes`: [`passes::passes_note`]) and dropped as
+/// settling.
+fn settle_note(
+    settle: Settle,
+    (sweeps, steps, passes): (usize, usize, &str),
+    read: usize,
+    kept: usize,
+) -> String {
     let rule = match (settle.settle_s, settle.settle_samples) {
         (Some(t), _) => format!(" (earlier than {t} s into their step)"),
         (None, Some(n)) => format!(" (the first {n} of each step)"),
         _ => String::new(),
     };
     format!(
-        "{sweeps} sweeps, {steps} steps; {} of {read} samples dropped as settling{rule}",
+        "{sweeps} sweeps, {steps} steps{passes}; {} of {read} samples dropped as settling{rule}",
         read - kept
     )
 }
 
 /// The dataset the records make: conventions applied, steps and sweeps cut, settling
-/// dropped. `inputs` name the files in messages; `out` names the dataset. Returns the
-/// dataset and the one-line note on settling. Records are consumed as they come: a million
-/// samples take their 16-byte amplitudes and little else.
+/// dropped, rows where nothing was measured dropped or refused (`unmeasured`), sweeps that
+/// turn back cut into their passes (`passes`). `inputs` name the files in messages; `out`
+/// names the dataset. Returns the dataset, its `notes` holding one warning line per run of
+/// unmeasured rows dropped, and the one-line note on the sweeps, their passes and settling.
+/// Records are consumed as they come: a million samples take their 16-byte amplitudes and
+/// little else.
 pub fn build(
     format: &str,
     inputs: &[PathBuf],
@@ -786,9 +758,10 @@ pub fn build(
     out: &Path,
 ) -> Result<(Dataset, String), ImportError> {
     check_settle_s(settle)?;
-    let mut steps = collect_steps(records, conv, settle, inputs)?;
+    let (mut steps, gaps) = collect_steps(records, conv, settle, grouping, inputs)?;
     let (read, kept) = drop_settling(&mut steps, settle)?;
-    let sweeps = split_turns(&steps, &cut_sweeps(&steps, grouping));
+    let (sweeps, split) = passes::split_passes(&steps, &cut_sweeps(&steps, grouping));
+    passes::refuse_levelless_passes(&steps, &split, grouping, inputs)?;
     let mut manifest = Manifest::new(format!("imported by harmonid import {format}"));
     manifest.displacement_unit = conv.displacement_unit.clone();
     let measurements = sweeps_and_measurements(&mut manifest, &steps, &sweeps, grouping, inputs)?;
@@ -801,7 +774,9 @@ pub fn build(
         samples_read: read,
         instrument: Default::default(),
     });
-    let ds = Dataset::from_parts(out, manifest, measurements, None)?;
-    let note = settle_note(settle, sweeps.len(), steps.len(), read, kept);
+    let mut ds = Dataset::from_parts(out, manifest, measurements, None)?;
+    ds.notes.extend(gaps.warnings);
+    let passes = passes::passes_note(&steps, &sweeps, &split, grouping);
+    let note = settle_note(settle, (sweeps.len(), steps.len(), &passes), read, kept);
     Ok((ds, note))
 }

@@ -245,6 +245,7 @@ pub fn import(
                 time_s: Some(time),
                 origin: (fi, row),
                 noise: None,
+                unmeasured: false,
             });
         }
     }
@@ -252,6 +253,8 @@ pub fn import(
         group_names: vec!["sweep".into()],
         split_on_level: false,
         sources: Vec::new(),
+        drop_nan_rows: false,
+        passes_need_level: false,
     };
     let (mut ds, note) = build("moku-csv", inputs, records, conv, settle, &grouping, out)?;
     record_instrument(

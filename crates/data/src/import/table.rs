@@ -114,6 +114,10 @@ pub struct Mapping {
     /// Field separator of text tables: "," ";" "\t" or " " (any run of whitespace); default
     /// by extension (`.csv` comma, else whitespace).
     pub delimiter: Option<String>,
+    /// Drop rows where nothing was measured (x and y, or r and theta, all NaN) inside a sweep
+    /// too, not only at its end (`--drop-nan-rows`); each run is counted in a warning.
+    #[serde(default)]
+    pub drop_nan_rows: bool,
 }
 
 impl Mapping {
@@ -325,6 +329,9 @@ pub fn import(
         split_on_level,
         group_names,
         sources,
+        drop_nan_rows: mapping.drop_nan_rows,
+        // Without a level column, a sweep that turns back twice may be levels merged.
+        passes_need_level: c.drive_level.is_none(),
     };
     let (ds, note) = build(
         "table",
@@ -417,12 +424,15 @@ fn group_records(
         String::new()
     });
     for i in 0..n {
-        let z = match (get(&c.x), get(&c.y), get(&c.r), get(&c.theta)) {
-            (Some(x), Some(y), _, _) => Complex64::new(x[i], y[i]),
-            (_, _, Some(r), Some(t)) => {
-                Complex64::from_polar(r[i], unit.map_or(t[i], |u| u.to_rad(t[i])))
+        let (z, unmeasured) = match (get(&c.x), get(&c.y), get(&c.r), get(&c.theta)) {
+            (Some(x), Some(y), _, _) => {
+                (Complex64::new(x[i], y[i]), x[i].is_nan() && y[i].is_nan())
             }
-            _ => Complex64::new(f64::NAN, f64::NAN),
+            (_, _, Some(r), Some(t)) => (
+                Complex64::from_polar(r[i], unit.map_or(t[i], |u| u.to_rad(t[i]))),
+                r[i].is_nan() && t[i].is_nan(),
+            ),
+            _ => (Complex64::new(f64::NAN, f64::NAN), false),
         };
         let group = match &labels {
             Some(s) => names.label_group(&s[i]),
@@ -444,6 +454,7 @@ fn group_records(
             time_s: get(&c.time_s).map(|v| v[i]),
             origin: (fi, row_of(i)),
             noise: None,
+            unmeasured,
         });
     }
     Ok(())

@@ -172,12 +172,15 @@ pub fn import(
             time_s: Some(d.timestamp[i] as f64 / opts.clockbase_hz),
             origin: (k, i + 2),
             noise: None,
+            unmeasured: false,
         })
     });
     let grouping = Grouping {
         group_names: vec!["sweep".into()],
         split_on_level: false,
         sources: Vec::new(),
+        drop_nan_rows: false,
+        passes_need_level: false,
     };
     let (mut ds, note) = build("zi-csv", inputs, records, conv, settle, &grouping, out)?;
     record_instrument(

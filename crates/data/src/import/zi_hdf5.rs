@@ -137,6 +137,7 @@ pub fn import(
                 // No rows in HDF5: the sample index, 1-based.
                 origin: (*fi, i + 1),
                 noise: None,
+                unmeasured: false,
             })
         })
     });
@@ -144,6 +145,8 @@ pub fn import(
         group_names: names,
         split_on_level: false,
         sources: Vec::new(),
+        drop_nan_rows: false,
+        passes_need_level: false,
     };
     let (mut ds, note) = build("zi-hdf5", inputs, records, conv, settle, &grouping, out)?;
     record_instrument(

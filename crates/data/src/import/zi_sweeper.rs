@@ -7,7 +7,12 @@
 //!
 //! Each point becomes one step of one sample with its noise given (the dataset's `std` and
 //! `samples`): `√((σx² + σy²)/2)` per quadrature, from `count` samples. A sweep that turns
-//! back (the sweeper's bidirectional mode) becomes two sweeps, up and down.
+//! back (the sweeper's bidirectional mode) becomes two sweeps, up and down; with several
+//! loops, one per pass (`sweep_up`, `sweep_down`, `sweep_up_2`, …), counted in the note.
+//!
+//! A sweep stopped early still writes its whole grid, the points not reached with `x` and `y`
+//! NaN (their other fields NaN or 0 too): those rows are not measured, dropped at the sweep's
+//! end with a warning (refused inside it unless [`Options::drop_nan_rows`]).
 
 use super::{build, for_each_line, Conventions, Grouping, ImportError, Record};
 use crate::dataset::Dataset;
@@ -19,6 +24,9 @@ use std::path::{Path, PathBuf};
 pub struct Options {
     /// The drive level of every point, if known.
     pub drive_level: Option<f64>,
+    /// Drop the points not measured (`x` and `y` NaN) inside the sweep too, not only at its
+    /// end (`--drop-nan-rows`); each run is counted in a warning.
+    pub drop_nan_rows: bool,
 }
 
 /// One point of one demodulator.
@@ -30,6 +38,8 @@ struct Point {
     std: f64,
     count: u32,
     row: usize,
+    /// `x` and `y` are NaN: the sweeper never reached this point.
+    unmeasured: bool,
 }
 
 const REQUIRED: [&str; 6] = ["grid", "x", "y", "xstddev", "ystddev", "count"];
@@ -86,6 +96,23 @@ fn read_points(path: &Path) -> Result<Vec<Point>, ImportError> {
                 })
         };
         let grid = num(c[0], "grid")?;
+        let nan = |i: usize| {
+            fields
+                .get(i)
+                .is_some_and(|t| t.parse::<f64>().is_ok_and(f64::is_nan))
+        };
+        if nan(c[1]) && nan(c[2]) {
+            points.push(Point {
+                grid,
+                line: grid,
+                z: Complex64::new(f64::NAN, f64::NAN),
+                std: f64::NAN,
+                count: 0,
+                row,
+                unmeasured: true,
+            });
+            return Ok(());
+        }
         let (sx, sy) = (num(c[3], "xstddev")?, num(c[4], "ystddev")?);
         for (name, sd) in [("xstddev", sx), ("ystddev", sy)] {
             if sd < 0.0 {
@@ -124,6 +151,7 @@ fn read_points(path: &Path) -> Result<Vec<Point>, ImportError> {
             std,
             count,
             row,
+            unmeasured: false,
         });
         Ok(())
     })?;
@@ -215,6 +243,7 @@ pub fn import(
                 time_s: None,
                 origin: (k, p.row),
                 noise: Some((p.std, p.count)),
+                unmeasured: p.unmeasured,
             }
         })
     });
@@ -242,8 +271,10 @@ pub fn import(
             .collect(),
         split_on_level: false,
         sources: Vec::new(),
+        drop_nan_rows: opts.drop_nan_rows,
+        passes_need_level: false,
     };
-    build(
+    let (ds, mut note) = build(
         "zi-sweeper",
         inputs,
         records,
@@ -251,5 +282,14 @@ pub fn import(
         super::Settle::default(),
         &grouping,
         out,
-    )
+    )?;
+    if ds.manifest.sweeps.len() > 1 {
+        let names: Vec<&str> = ds.manifest.sweeps.iter().map(|s| s.name.as_str()).collect();
+        note += &format!(
+            "; the grid turned back: {} passes ({})",
+            names.len(),
+            names.join(", ")
+        );
+    }
+    Ok((ds, note))
 }

@@ -117,6 +117,7 @@ fn zi_sweeper_bidirectional_is_an_up_and_a_down_sweep() {
     let p = write(dir.path(), "sweep_demod0.csv", &s);
     let opts = zi_sweeper::Options {
         drive_level: Some(0.1),
+        ..Default::default()
     };
     let (ds, _) = zi_sweeper::import(&[p], &conv(), &opts, Path::new("o")).expect("sweeper");
     assert_up_and_down(&ds, "sweep", "zi-sweeper");
@@ -213,7 +214,7 @@ fn zi_sweeper_files_of_two_levels_are_refused_by_name() {
         }
         paths.push(write(dir.path(), n, &s));
     }
-    let opts = zi_sweeper::Options { drive_level: None };
+    let opts = zi_sweeper::Options::default();
     let err = match zi_sweeper::import(&paths, &conv(), &opts, Path::new("o")) {
         Ok(_) => panic!("two levels' files read as two demodulators"),
         Err(e) => e.to_string(),

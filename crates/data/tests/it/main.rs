@@ -2,5 +2,6 @@
 //! one module per subject, built and linked once.
 
 mod import_headerless;
+mod import_passes;
 mod import_roundtrip;
 mod import_turns;
