@@ -171,6 +171,13 @@ pub struct Settings {
     /// as a result reports them; default empty): a held-out prediction (`holdout`) keeps the
     /// background the fit found, as it keeps the model.
     pub background_fixed: BTreeMap<String, harmonid_data::result::BackgroundResult>,
+    /// Let the output-error fit's staged start scan a group's new model parameters over a
+    /// geometric grid where neither the linear estimate nor zero starts the group well
+    /// (default true: on a many-mode device a coupling's linear estimate can be hundreds of
+    /// times off). [`crate::discover()`] turns it off for the models it tries: most of them lack
+    /// a term the device has, so their groups fit poorly from every start, and the scan, which
+    /// cannot make a wrong model fit, was a third of a discovery's time.
+    pub staged_scan: bool,
 }
 
 impl Default for Settings {
@@ -191,6 +198,7 @@ impl Default for Settings {
             error_floor: false,
             background: Background::default(),
             background_fixed: BTreeMap::new(),
+            staged_scan: true,
         }
     }
 }

@@ -224,6 +224,7 @@ pub(crate) fn fit(
         cols: &cols,
         bounds: prob.table.bounds(),
         e0,
+        scan: settings.staged_scan,
     };
     // The pooled linear start first; where its fit is not as good as a correct model's, the
     // staged start (computed only then: a hundred small fits on ten modes), then the others.
@@ -504,6 +505,7 @@ fn fit_error_floor(
         cols,
         bounds,
         e0,
+        ..
     } = *tries;
     let mut floor = 0.0;
     let mut sigma = shot_sigma.to_vec();
@@ -583,6 +585,8 @@ struct Tries<'a> {
     bounds: &'a [(Option<f64>, Option<f64>)],
     /// A correct model's expected `χ²/dof` (infinite when the noise is not from the shots).
     e0: f64,
+    /// Whether the staged start may scan a poorly started group ([`Settings::staged_scan`]).
+    scan: bool,
 }
 
 impl Tries<'_> {

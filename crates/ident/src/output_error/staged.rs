@@ -261,7 +261,7 @@ fn fit_group(
         b.as_ref()
             .is_none_or(|(f, _)| reduced(f) > GOOD_FIT * tries.e0)
     };
-    if poor(&best) {
+    if tries.scan && poor(&best) {
         if let Some(t) = scan_params(fwd, &sub_ds, tries, (keep, new), neighbours) {
             let mut sub = fwd.subset(keep);
             sub.start_from_data(&sub_ds);
@@ -794,6 +794,7 @@ mod tests {
             cols: &cols,
             bounds: &bounds,
             e0: 1.0,
+            scan: true,
         };
         let settings = MlSettings {
             ramp_at_start: false,
