@@ -82,7 +82,7 @@ pub use problem::{
     DatasetShape, Fit, FitGroup, GroupDiagnostics, IdentError, NotIdentifiable, Problem,
 };
 pub use settings::{Estimator, ForceModel, Settings, UnknownEstimator, UnknownForceModel};
-pub use shots::{disturbed_shots, pool, shot_stats, Pooled, ShotStats};
+pub use shots::{disturbed_shots, pool, shot_stats, Pooled, ShotStats, REJECTION_ALPHA};
 pub use solve::{solve_ls, LsSolution};
 pub use uncertainty::consistency::{
     threshold as consistency_threshold, Compared, Comparison, FAMILY_ALPHA,

@@ -5,5 +5,5 @@
 mod pool;
 mod stats;
 
-pub use pool::{disturbed_shots, pool, Pooled};
+pub use pool::{disturbed_shots, pool, Pooled, REJECTION_ALPHA};
 pub use stats::{shot_stats, ShotStats};

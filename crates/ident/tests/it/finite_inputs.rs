@@ -58,7 +58,7 @@ proptest! {
             .map(|s| s.iter().map(|&(re, im)| Complex64::new(re, im)).collect())
             .collect();
         let refs: Vec<&[Complex64]> = data.iter().map(Vec::as_slice).collect();
-        let bad = disturbed_shots(&refs);
+        let bad = disturbed_shots(&refs, data.len());
         prop_assert!(bad.iter().all(|&s| s < data.len()));
         let _ = drift_check(&delta, var);
     }

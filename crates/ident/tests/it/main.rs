@@ -2,6 +2,7 @@
 //! one module per subject, built and linked once.
 
 mod crlb;
+mod disturbed_shots_mc;
 mod finite_inputs;
 mod ml_fallback;
 mod near_resonance;
