@@ -856,6 +856,9 @@ impl Eval<'_, '_, '_, '_> {
                         self.mul(&acc, &p, *sp)?
                     };
                 }
+                if ok {
+                    self.sign_powers(&acc, *sp)?;
+                }
                 ok.then_some(acc)
             }
             Expr::Pow(base, exp, sp) => {
@@ -865,6 +868,7 @@ impl Eval<'_, '_, '_, '_> {
                 for _ in 0..k {
                     acc = self.mul(&acc, &b, *sp)?;
                 }
+                self.sign_powers(&acc, *sp)?;
                 Some(acc)
             }
         }

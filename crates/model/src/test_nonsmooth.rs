@@ -119,6 +119,21 @@ fn misused_nonsmooth_factors_are_located_errors() {
         ("eom q1 += k*abs(-q1)", "sign outside"),
         ("eom q1 += k*abs(q1^2)", "not a product"),
         ("eom q1 += k*abs(q1, q2)", "one argument"),
+        ("eom q1 += k*tanh(q2)", "`tanh(q2/1e-9)`"),
+        ("eom q1 += k*tanh(d(q1))", "`tanh(d(q1))` has no scale"),
+        ("eom q1 += k*tanh(q1 + q2)", "of a sum"),
+        (
+            "eom q1 += k*sign(q1)^2",
+            "`sign(q1)^2` is 1 wherever `q1` is not zero",
+        ),
+        (
+            "eom q1 += k*sign(d(q2))*q1*sign(d(q2))",
+            "the term is its other factors alone",
+        ),
+        (
+            "eom q1 += k*sign(d(q1))^3",
+            "`sign(d(q1))^3` is `sign(d(q1))`",
+        ),
         ("potential: k*abs(q1)^3", "write the force in the equation"),
         (
             "dissipation: k*abs(d(q1))*d(q1)^2",
@@ -131,13 +146,18 @@ fn misused_nonsmooth_factors_are_located_errors() {
         assert!(text.contains(words), "{line}: {text}");
         assert!(text.contains("bad.hb:4:"), "{line} is located: {text}");
     }
-    // A fixed parameter is a valid scale; so is no scale at all (c = 1).
-    let m = ok(&format!("{head}eom q1 += k*tanh(d(q1)/c) + u*tanh(q2)\n"));
+    // A fixed parameter is a valid scale; so is 1 written out (a coordinate that is a pure
+    // number), and abs of sign or sign times abs is no power of sign.
+    let m = ok(&format!(
+        "{head}eom q1 += k*tanh(d(q1)/c) + u*tanh(q2/1) + k*sign(q1)*abs(q1)\n"
+    ));
     assert_eq!(
         m.nonsmooth_factors,
         [
             NonSmooth::Tanh(VarId(2), 0.5),
-            NonSmooth::Tanh(VarId(1), 1.0)
+            NonSmooth::Tanh(VarId(1), 1.0),
+            NonSmooth::Sign(VarId(0)),
+            NonSmooth::Abs(VarId(0))
         ]
     );
     // Other functions stay refused as not polynomial.

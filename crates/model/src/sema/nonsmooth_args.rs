@@ -50,6 +50,11 @@ impl Eval<'_, '_, '_, '_> {
                     )
                 }
             },
+            ("tanh", x) => {
+                // The argument's own faults first (a sum, a parameter), then the scale.
+                self.nonsmooth_var_of(f, x)?;
+                return self.no_scale(x);
+            }
             _ => (arg, None),
         };
         let var = self.nonsmooth_var_of(f, x)?;
@@ -147,6 +152,88 @@ impl Eval<'_, '_, '_, '_> {
                 format!("{outside}; a parameter is a coefficient outside the function: `kappa1*abs(q1)*q1`"),
             ),
         }
+    }
+
+    /// Refuses `tanh(x)` without a scale: tanh takes a pure number, and a mode is in metres
+    /// (a velocity in m/s), so the scale would be 1 m, where tanh is linear at any amplitude a
+    /// resonator reaches: almost surely `tanh(x/x0)` was meant.
+    fn no_scale<T>(&mut self, x: &Expr) -> Option<T> {
+        let sp = x.span();
+        let written = self
+            .sink
+            .source
+            .get(sp.start..sp.end)
+            .unwrap_or("q1")
+            .to_string();
+        let velocity = matches!(x, Expr::Call(g, _, _) if g == "d");
+        let (unit, c) = if velocity {
+            ("m/s", "1e-3")
+        } else {
+            ("m", "1e-9")
+        };
+        bad(
+            self.sink,
+            sp,
+            format!("`tanh({written})` has no scale: tanh takes a pure number, and `{written}` is in {unit}"),
+            "no scale",
+            format!("write `tanh({written}/{c})`, the scale in {unit} where tanh bends, or a fixed parameter (`param c0 = {c}` and `tanh({written}/c0)`); without one the scale is 1 {unit}, where tanh is linear at any amplitude a resonator reaches. A coordinate that is a pure number in this model takes `tanh({written}/1)`"),
+        )
+    }
+
+    /// Refuses a power of `sign` above the first in a product or power `p` (written at `sp`;
+    /// checked on the whole, so `sign(x)^3` is named as itself): `sign(x)²`
+    /// is 1 wherever `x ≠ 0`, so the term is a constant force (or the smooth term without its
+    /// sign), almost surely written by mistake; `sign(x)³` is `sign(x)`.
+    pub(super) fn sign_powers(&mut self, p: &Poly, sp: Span) -> Option<()> {
+        let base = 2 * self.names.n_modes as usize + 1;
+        let found = {
+            let list = self.names.factors.borrow();
+            p.terms().find_map(|(m, _)| {
+                m.factors().iter().find_map(|&(v, e)| {
+                    let factor = *list.get(v.index().checked_sub(base)?)?;
+                    (e >= 2 && matches!(factor, NonSmooth::Sign(_))).then_some((factor, e))
+                })
+            })
+        };
+        let Some((factor, e)) = found else {
+            return Some(());
+        };
+        let vars = self.variable_names();
+        let name = factor.name(&vars);
+        let x = vars.get(factor.var().index()).map_or("x", String::as_str);
+        if e % 2 == 0 {
+            bad(
+                self.sink,
+                sp,
+                format!("`{name}^{e}` is 1 wherever `{x}` is not zero: the term is its other factors alone (a constant force if there are none), almost surely not what was meant"),
+                "an even power of sign",
+                format!("keep one factor for a force that changes sign with `{x}` (Coulomb friction: `mu1*sign(d(q1))`); for a magnitude write abs (`kappa1*abs(q1)*q1`); a constant force is a static load, not a term of the model"),
+            )
+        } else {
+            bad(
+                self.sink,
+                sp,
+                format!("`{name}^{e}` is `{name}`"),
+                "an odd power of sign",
+                format!("write `{name}` once"),
+            )
+        }
+    }
+
+    /// The variables' names as the model writes them: modes (`q1`), then velocities (`d(q1)`).
+    fn variable_names(&self) -> Vec<String> {
+        let nm = self.names.n_modes as usize;
+        let mut out = vec![String::new(); 2 * nm];
+        for (name, (sym, _)) in self.names.table {
+            if let super::Sym::Mode(i) = *sym {
+                let i = i as usize;
+                if i < nm {
+                    out[nm + i] = format!("d({name})");
+                    out[i] = name.clone();
+                }
+            }
+        }
+        out
     }
 
     /// The scale `c` of `tanh(x/c)`: a positive number or a fixed parameter.
