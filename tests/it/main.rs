@@ -13,6 +13,7 @@ mod discover_nonsmooth;
 mod drive_ladder;
 mod error_floor;
 mod explore_cli;
+mod false_alarms;
 mod given_noise;
 mod goodness_of_fit;
 mod guess_support;

@@ -295,8 +295,9 @@ pub(crate) fn fit(
         goodness.fits = None;
         goodness.error_floor = floor;
     }
+    let judged = (shot_sigma, from_shots.then_some(&goodness));
     let (consistency, skipped) =
-        compare_measurements(fwd, &fit, &meas, &noise, &cols, &pooled.mean);
+        compare_measurements(fwd, &fit, (&meas, &noise, &cols), pooled, judged);
     notes.extend(skipped);
     if !fit.converged {
         notes.push(format!(
@@ -697,15 +698,18 @@ impl Tries<'_> {
 
 /// Every frequency, Q and gain compared between the measurements that see it
 /// ([`consistency::compare`]), with the noise the fit used, and the note when the dataset has
-/// too many units to compare ([`consistency::too_many_units`]).
+/// too many units to compare ([`consistency::too_many_units`]). With the noise from the shots
+/// (`judged`, the fit's goodness; `shot_sigma` the lines' own noise) the comparisons' standard
+/// errors are the estimates' own: the weights' noise counted, widened only for a misfit beyond
+/// a correct model's `χ²`.
 fn compare_measurements(
     fwd: &ForwardModel,
     fit: &MlFit,
-    meas: &[Complex64],
-    noise: &Noise,
-    cols: &[usize],
-    mean: &Dataset,
+    (meas, noise, cols): (&[Complex64], &Noise, &[usize]),
+    pooled: &Pooled,
+    (shot_sigma, judged): (&[f64], Option<&GoodnessOfFit>),
 ) -> (Vec<consistency::Comparison>, Option<String>) {
+    let mean = &pooled.mean;
     let kept: Vec<usize> = cols
         .iter()
         .copied()
@@ -721,6 +725,9 @@ fn compare_measurements(
         .map(|m| m.spec.name.clone())
         .collect();
     let units = consistency::units(mean);
+    let nu =
+        judged.map(|_| uncertainty::estimated_noise::weight_dof(pooled, shot_sigma, &sigma_used));
+    let expected = judged.map(|g| (g.expected_chi2_per_dof, g.spread_chi2_per_dof));
     let comparisons = consistency::compare(&consistency::Fitted {
         fwd,
         theta: &fit.theta,
@@ -732,6 +739,8 @@ fn compare_measurements(
         dof: fit.dof,
         names: &names,
         units: &units,
+        nu: nu.as_deref(),
+        expected_chi2: expected,
     });
     (comparisons, consistency::too_many_units(&units))
 }
