@@ -293,7 +293,9 @@ def evaluate_plan(
     nominal: bool = False,
     draws: int = 10,
 ) -> PlanResult: ...
-def read_table(files: Sequence[_Path], mapping: _Path) -> Dataset: ...
+def read_table(
+    files: Sequence[_Path], mapping: _Path, *, drop_nan_rows: bool = False
+) -> Dataset: ...
 def read_zi_csv(
     files: Sequence[_Path],
     *,
@@ -343,4 +345,5 @@ def read_zi_sweeper(
     metres_per_unit: Optional[float],
     response: str = "displacement",
     drive_level: Optional[float] = None,
+    drop_nan_rows: bool = False,
 ) -> Dataset: ...

@@ -8,7 +8,11 @@ Every convention is a keyword without a default, so nothing is guessed:
 - ``response``: ``"displacement"`` (default), ``"velocity"`` or ``"acceleration"``.
 
 Settling samples (``settle_s`` seconds into each step, or the first ``settle_samples``) are
-dropped and counted in ``dataset.notes``. See ``docs/data-format.md``, "From your instrument to
+dropped and counted in ``dataset.notes``. A sweep that turns back is cut into its passes
+(``sweep_up``, ``sweep_down``, ``sweep_up_2``, ...), each an ordered sweep. Rows where nothing was
+measured (every value NaN: a LabOne sweep stopped early) are dropped at a sweep's end with a
+``UserWarning`` (also in ``dataset.notes``); inside a sweep they are refused with their row unless
+``drop_nan_rows=True`` (``read_table``, ``read_zi_sweeper``). See ``docs/data-format.md``, "From your instrument to
 a dataset", for each format's layout.
 
 Example::

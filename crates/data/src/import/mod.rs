@@ -202,6 +202,9 @@ pub struct Grouping {
     /// Refuse a sweep without drive levels that turns back more than once: it may be several
     /// levels, each swept up and down, merged (a table without its level column).
     pub passes_need_level: bool,
+    /// The groups are the passes of one sweep (a sweeper's loops, cut by the format): whether
+    /// an unmeasured row is at the sweep's end or inside it is judged over all of them.
+    pub one_sweep: bool,
 }
 
 impl Conventions {

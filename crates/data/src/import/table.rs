@@ -332,6 +332,7 @@ pub fn import(
         drop_nan_rows: mapping.drop_nan_rows,
         // Without a level column, a sweep that turns back twice may be levels merged.
         passes_need_level: c.drive_level.is_none(),
+        one_sweep: false,
     };
     let (ds, note) = build(
         "table",

@@ -36,9 +36,13 @@ enum Place {
     Before,
 }
 
-/// Whether `a` and `b` belong to one sweep: one group, and one drive level when `grouping`
-/// cuts by level (a NaN level, as an unmeasured row may have, matches any).
+/// Whether `a` and `b` belong to one sweep: one group (any, when the groups are passes of
+/// [`Grouping::one_sweep`]), and one drive level when `grouping` cuts by level (a NaN level, as
+/// an unmeasured row may have, matches any).
 fn same_sweep(a: &Record, b: &Record, grouping: &Grouping) -> bool {
+    if grouping.one_sweep {
+        return true;
+    }
     let level = match (a.level, b.level) {
         (Some(x), Some(y)) => x.to_bits() == y.to_bits() || x.is_nan() || y.is_nan(),
         _ => true,
@@ -124,6 +128,9 @@ impl Gaps {
         };
         let path = input_path(inputs, chunk[0].origin).display().to_string();
         let where_ = match place {
+            Place::End if grouping.one_sweep => {
+                format!("at the end of the sweep (it stopped in \"{name}\")")
+            }
             Place::End => format!("at the end of sweep \"{name}\""),
             Place::Never => format!("in sweep \"{name}\", which has no measured row"),
             Place::Inside => format!("inside sweep \"{name}\" (measured rows before and after)"),

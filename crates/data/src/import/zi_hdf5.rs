@@ -147,6 +147,7 @@ pub fn import(
         sources: Vec::new(),
         drop_nan_rows: false,
         passes_need_level: false,
+        one_sweep: false,
     };
     let (mut ds, note) = build("zi-hdf5", inputs, records, conv, settle, &grouping, out)?;
     record_instrument(

@@ -273,6 +273,8 @@ pub fn import(
         sources: Vec::new(),
         drop_nan_rows: opts.drop_nan_rows,
         passes_need_level: false,
+        // A point never reached ends the whole sweep, not one of its passes.
+        one_sweep: true,
     };
     let (ds, mut note) = build(
         "zi-sweeper",
