@@ -211,22 +211,20 @@ pub fn invert(info: &[f64], labels: &[String]) -> (Vec<f64>, f64, Vec<(usize, St
             return (cov, f64::INFINITY, dropped);
         }
         let scale: Vec<f64> = keep.iter().map(|&i| 1.0 / info[i * c + i].sqrt()).collect();
-        let s = DMatrix::from_fn(k, k, |a, b| {
-            info[keep[a] * c + keep[b]] * scale[a] * scale[b]
-        });
-        let eig = SymmetricEigen::new(s);
+        let (values, vectors) =
+            symmetric_eigen(k, |a, b| info[keep[a] * c + keep[b]] * scale[a] * scale[b]);
         let (mut imin, mut imax) = (0, 0);
         for i in 0..k {
-            if eig.eigenvalues[i] < eig.eigenvalues[imin] {
+            if values[i] < values[imin] {
                 imin = i;
             }
-            if eig.eigenvalues[i] > eig.eigenvalues[imax] {
+            if values[i] > values[imax] {
                 imax = i;
             }
         }
-        let (lmin, lmax) = (eig.eigenvalues[imin], eig.eigenvalues[imax]);
+        let (lmin, lmax) = (values[imin], values[imax]);
         if lmin <= SINGULAR_REL * lmax {
-            let v = eig.eigenvectors.column(imin);
+            let v = vectors.col(imin);
             let j = (0..k)
                 .max_by(|&a, &b| v[a].abs().total_cmp(&v[b].abs()))
                 .unwrap_or(0);
@@ -248,22 +246,39 @@ pub fn invert(info: &[f64], labels: &[String]) -> (Vec<f64>, f64, Vec<(usize, St
             continue;
         }
         let mut cov = vec![0.0; c * c];
+        let mut kept = vec![false; c];
+        keep.iter().for_each(|&i| kept[i] = true);
         for i in 0..c {
-            if !keep.contains(&i) {
+            if !kept[i] {
                 cov[i * c + i] = f64::INFINITY;
             }
         }
+        // V Λ⁻¹ Vᵀ as W Wᵀ with W = V Λ^{-1/2}: one matrix product (k³), not k³ strided sums.
+        let w = faer::Mat::<f64>::from_fn(k, k, |a, e| vectors[(a, e)] / values[e].sqrt());
+        let inv = &w * w.transpose();
         for a in 0..k {
             for b in 0..k {
-                let mut x = 0.0;
-                for e in 0..k {
-                    x += eig.eigenvectors[(a, e)] * eig.eigenvectors[(b, e)] / eig.eigenvalues[e];
-                }
-                cov[keep[a] * c + keep[b]] = x * scale[a] * scale[b];
+                cov[keep[a] * c + keep[b]] = inv[(a, b)] * scale[a] * scale[b];
             }
         }
         return (cov, lmax / lmin, dropped);
     }
+}
+
+/// The eigenvalues and eigenvectors (columns) of the symmetric `k × k` matrix `at(a, b)`:
+/// by faer's self-adjoint decomposition (the twenty-mode string's thousand unknowns in a
+/// fraction of a second), by nalgebra's when that does not converge.
+fn symmetric_eigen(k: usize, at: impl Fn(usize, usize) -> f64) -> (Vec<f64>, faer::Mat<f64>) {
+    let s = faer::Mat::<f64>::from_fn(k, k, &at);
+    if let Ok(eig) = s.self_adjoint_eigen(faer::Side::Lower) {
+        let values: Vec<f64> = (0..k).map(|i| eig.S()[i]).collect();
+        if values.iter().all(|v| v.is_finite()) {
+            return (values, eig.U().to_owned());
+        }
+    }
+    let eig = SymmetricEigen::new(DMatrix::from_fn(k, k, at));
+    let vectors = faer::Mat::<f64>::from_fn(k, k, |a, b| eig.eigenvectors[(a, b)]);
+    (eig.eigenvalues.iter().copied().collect(), vectors)
 }
 
 /// Cramér–Rao bounds of `fwd`'s free unknowns at `θ` (layout of
