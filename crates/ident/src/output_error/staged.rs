@@ -21,15 +21,19 @@
 //! at those earlier groups fitted for the same modes (the twenty-mode string, noise seed 20:
 //! 12 of the 210 pair groups missed from the first two starts, the linear estimate of their
 //! coupling up to 400 times off and their gains between −24 and 8 where they are about 1;
-//! with the scan none misses); the best is kept. The steady states found are the joint fit's
-//! warm starts.
+//! with the scan none misses); the best is kept. Every unknown then goes to the minimum of the
+//! groups' `χ²` summed, each a quadratic model around its own fit with the correlations of its
+//! information ([`combine`]; an inverse-variance mean of each unknown moved the strongly driven
+//! pairs' modes out of their regime: seed 20 stopped at `χ²/dof` 25, seed 7 at 500, where now
+//! both converge to the noise), and the groups sharing unknowns refit their own there. The
+//! steady states found are the joint fit's warm starts.
 
 use super::ml::{self, MlSettings};
 use super::{Tries, GOOD_FIT, MAX_WIDENINGS, TRUNCATION_SIGMA};
 use crate::forward::{ForwardModel, Widened};
 use crate::layout::Unknown;
 use harmonid_data::Dataset;
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 use std::collections::BTreeSet;
 
@@ -163,10 +167,8 @@ struct GroupResult {
     fit: ml::MlFit,
     /// The group's forward model at the fit's steady states.
     sub: ForwardModel,
-    /// Each fitted unknown's precision `1/var` ([`precisions`]).
-    precision: Vec<(usize, f64)>,
-    /// The new unknowns' values fitted with the others held.
-    held: Vec<f64>,
+    /// Its `χ²` as a quadratic model over every unknown it depends on ([`Quadratic`]).
+    model: Option<Quadratic>,
     /// Its measurements' lattices widened after the fit ([`settle_truncation`]).
     widened: Vec<Widened>,
 }
@@ -217,8 +219,8 @@ fn observations_of(
 /// sees its modes more sharply than the measurements that fitted them: held at their values
 /// it can miss by many sigmas). The best fit's values (only `new`'s are the group's
 /// estimates) and its forward model (the subset, at the fit's steady states), or `None` when
-/// neither start reached a fit. With them, the precision of each unknown fitted
-/// ([`precisions`]).
+/// neither start reached a fit. With them, the group's `χ²` as a quadratic model over `all`
+/// at the fit ([`Quadratic`]).
 fn fit_group(
     fwd: &ForwardModel,
     mean: &Dataset,
@@ -282,19 +284,22 @@ fn fit_group(
         }
     }
     let (f, sub) = best?;
-    let held: Vec<f64> = new.iter().map(|&k| f.theta[k]).collect();
     let with_precisions = |fit: ml::MlFit, mut sub: ForwardModel, cols: &[usize]| {
         let (fit, widened) = settle_truncation(&mut sub, (&meas, &sigma), fit, cols, tries);
+        // A fit worse than a correct model's counts as that much noisier.
         let inflation = (reduced(&fit) / tries.e0).max(1.0);
-        let precision = precisions(&fit.jac, fwd.unknowns().len(), &sigma, cols)
-            .into_iter()
-            .map(|(k, p)| (k, p / inflation))
-            .collect();
+        let resid: Vec<Complex64> = meas.iter().zip(&fit.x).map(|(m, x)| m - x).collect();
+        let model = Quadratic::of_fit(
+            (&fit.jac, fwd.unknowns().len()),
+            (&resid, &sigma),
+            all,
+            &fit.theta,
+            1.0 / inflation,
+        );
         Some(GroupResult {
             fit,
             sub,
-            precision,
-            held: held.clone(),
+            model,
             widened,
         })
     };
@@ -474,38 +479,131 @@ fn scan_params(
     Some(best.1)
 }
 
-/// The precision `1/var` of each unknown in `cols` from the information `AᵀA` of the fit
-/// (`A = J/σ`, real and imaginary rows; `jac` with `nk` columns), by its equilibrated
-/// inverse; none when the information is singular.
-fn precisions(jac: &[Complex64], nk: usize, sigma: &[f64], cols: &[usize]) -> Vec<(usize, f64)> {
-    let m = cols.len();
-    let mut a = DMatrix::<f64>::zeros(2 * sigma.len(), m);
-    for (o, s) in sigma.iter().enumerate() {
-        for (j, &k) in cols.iter().enumerate() {
-            let z = jac[o * nk + k] / *s;
-            a[(2 * o, j)] = z.re;
-            a[(2 * o + 1, j)] = z.im;
+/// One group's `χ²` as a quadratic model around its fit `θ_g`, over the unknowns `cols` it
+/// depends on: `χ²_g(θ) ≈ χ²_g(θ_g) − 2 bᵀ(θ − θ_g) + (θ − θ_g)ᵀ I (θ − θ_g)` with the
+/// information `I = AᵀA` and `b = Aᵀr` (`A = J/σ` and `r = (y − x)/σ` at the fit, real and
+/// imaginary rows), times a weight (below 1 for a fit worse than a correct model's). Stored as
+/// `I` and `I θ_g + b`, the model's contribution to the normal equations of the sum over
+/// groups ([`combine`]).
+///
+/// Why the full matrix and not each unknown's precision: a strongly driven pair measurement
+/// pins a combination of its modes' `f`, `Q`, `β` and its coupling (a line's shifted frequency)
+/// thousands of times more sharply than each of them alone. An inverse-variance mean of each
+/// unknown over the groups moves the combination by thousands of the pair's sigmas, out of the
+/// pair's regime (the twenty-mode string, seed 20: `couple_q2_q9` missed by `χ²/dof` 2.6·10⁴
+/// at that mean and refitting its coupling there left it so); the minimum of the summed
+/// models moves the coupling with the modes along the pair's valley.
+#[derive(Debug, Clone)]
+struct Quadratic {
+    /// The unknowns (indices into the forward model's).
+    cols: Vec<usize>,
+    /// `w I` over `cols`.
+    info: DMatrix<f64>,
+    /// `w (I θ_g + b)` over `cols`.
+    rhs: DVector<f64>,
+}
+
+impl Quadratic {
+    /// The model of a fit at `theta` (every unknown) with Jacobian `jac` (`nk` columns, the
+    /// layout of [`ForwardModel::evaluate`]) and residuals `resid = y − x` of noise `sigma`,
+    /// over `cols`, weighted by `weight`. `None` when a value is not finite.
+    fn of_fit(
+        (jac, nk): (&[Complex64], usize),
+        (resid, sigma): (&[Complex64], &[f64]),
+        cols: &[usize],
+        theta: &[f64],
+        weight: f64,
+    ) -> Option<Quadratic> {
+        let m = cols.len();
+        let mut info = DMatrix::<f64>::zeros(m, m);
+        let mut grad = DVector::<f64>::zeros(m);
+        let mut row = vec![Complex64::new(0.0, 0.0); m];
+        for (o, (r, s)) in resid.iter().zip(sigma).enumerate() {
+            for (z, &k) in row.iter_mut().zip(cols) {
+                *z = jac[o * nk + k] / *s;
+            }
+            let r = r / *s;
+            for (i, zi) in row.iter().enumerate() {
+                grad[i] += zi.re * r.re + zi.im * r.im;
+                for (j, zj) in row.iter().enumerate().skip(i) {
+                    info[(i, j)] += zi.re * zj.re + zi.im * zj.im;
+                }
+            }
+        }
+        info.fill_lower_triangle_with_upper_triangle();
+        let at = DVector::from_iterator(m, cols.iter().map(|&k| theta[k]));
+        let rhs = (&info * at + grad) * weight;
+        info *= weight;
+        (info.iter().chain(rhs.iter()).all(|v| v.is_finite())).then_some(Quadratic {
+            cols: cols.to_vec(),
+            info,
+            rhs,
+        })
+    }
+}
+
+/// Below this fraction of its own information (equilibrated diagonal), an unknown is held
+/// near its value in `theta` by [`combine`]: a direction no group determines stays put.
+const COMBINE_RIDGE: f64 = 1e-9;
+
+/// The minimum of the sum of the groups' quadratic models ([`Quadratic`]): `θ = (Σ I_g)⁻¹
+/// Σ (I_g θ_g + b_g)`, the weighted least-squares combination of the groups' fits with their
+/// correlations (for linear measurements, exactly the joint fit of all of them). The unknowns
+/// no model covers keep their value in `theta`; each is held towards it by [`COMBINE_RIDGE`]
+/// of its information, solved equilibrated (`D (Σ I) D`, `D = diag^-1/2`) by Cholesky, and
+/// clamped to its `bounds`. `theta` unchanged when the sum is not positive definite or the
+/// solution not finite.
+fn combine(models: &[Quadratic], theta: &[f64], bounds: &[(Option<f64>, Option<f64>)]) -> Vec<f64> {
+    let mut index: Vec<Option<usize>> = vec![None; theta.len()];
+    let mut cols = Vec::new();
+    for &k in models.iter().flat_map(|q| &q.cols) {
+        if index[k].is_none() {
+            index[k] = Some(cols.len());
+            cols.push(k);
         }
     }
-    let d: Vec<f64> = (0..m)
-        .map(|j| match a.column(j).norm() {
-            n if n > 0.0 && n.is_finite() => 1.0 / n,
+    let n = cols.len();
+    let mut info = DMatrix::<f64>::zeros(n, n);
+    let mut rhs = DVector::<f64>::zeros(n);
+    for q in models {
+        let at: Vec<usize> = q.cols.iter().filter_map(|&k| index[k]).collect();
+        for (a, &i) in at.iter().enumerate() {
+            rhs[i] += q.rhs[a];
+            for (b, &j) in at.iter().enumerate() {
+                info[(i, j)] += q.info[(a, b)];
+            }
+        }
+    }
+    let d: Vec<f64> = (0..n)
+        .map(|i| match info[(i, i)] {
+            v if v > 0.0 && v.is_finite() => 1.0 / v.sqrt(),
             _ => 0.0,
         })
         .collect();
-    for (j, dj) in d.iter().enumerate() {
-        a.column_mut(j).scale_mut(*dj);
+    for i in 0..n {
+        for j in 0..n {
+            info[(i, j)] *= d[i] * d[j];
+        }
+        // A column no model informs: the identity row keeps its value.
+        let ridge = if d[i] > 0.0 { COMBINE_RIDGE } else { 1.0 };
+        info[(i, i)] += ridge;
+        rhs[i] = rhs[i] * d[i] + ridge * theta[cols[i]] / if d[i] > 0.0 { d[i] } else { 1.0 };
     }
-    let Some(inv) = (a.transpose() * &a).try_inverse() else {
-        return Vec::new();
+    let mut out = theta.to_vec();
+    let Some(y) = info.cholesky().map(|c| c.solve(&rhs)) else {
+        return out;
     };
-    cols.iter()
-        .enumerate()
-        .filter_map(|(j, &k)| {
-            let var = inv[(j, j)] * d[j] * d[j];
-            (var.is_finite() && var > 0.0).then_some((k, 1.0 / var))
-        })
-        .collect()
+    if !y.iter().all(|v| v.is_finite()) {
+        return out;
+    }
+    for (i, &k) in cols.iter().enumerate() {
+        let (lo, hi) = bounds[k];
+        let v = if d[i] > 0.0 { y[i] * d[i] } else { y[i] };
+        out[k] = v
+            .max(lo.unwrap_or(f64::NEG_INFINITY))
+            .min(hi.unwrap_or(f64::INFINITY));
+    }
+    out
 }
 
 /// The staged start from `theta0` (the pooled linear estimate as values of every unknown):
@@ -534,11 +632,10 @@ pub(crate) fn staged_start(
     let mut settled = BTreeSet::new();
     let mut groups = Vec::new();
     let mut fitted = vec![false; fwd.n_measurements()];
-    // Per unknown, the sums of precision and precision × value over the groups that fitted it.
-    let mut combined = vec![(0.0, 0.0); nk];
-    // The groups that share unknowns with earlier ones, with their new unknowns' values
-    // fitted with the shared ones held.
-    let mut held: Vec<(usize, Vec<f64>)> = Vec::new();
+    // Each group's χ² as a quadratic model around its fit.
+    let mut models = Vec::new();
+    // The groups that share unknowns with earlier ones.
+    let mut sharing = Vec::new();
     let mut widened = Vec::new();
     for modes in 0..=most {
         let class = groups_of(&deps, modes, &settled, &follows);
@@ -556,22 +653,18 @@ pub(crate) fn staged_start(
                 Some(GroupResult {
                     fit: f,
                     sub,
-                    precision,
-                    held: h,
+                    model,
                     widened: w,
                 }) => {
                     widened.extend(w);
                     for &k in &new {
                         theta[k] = f.theta[k];
                     }
-                    for (k, p) in precision {
-                        combined[k].0 += p;
-                        combined[k].1 += p * f.theta[k];
-                    }
+                    models.extend(model);
                     fwd.adopt(&sub, keep);
                     keep.iter().for_each(|&mi| fitted[mi] = true);
                     if shares {
-                        held.push((groups.len(), h));
+                        sharing.push(groups.len());
                     }
                     f.chi2 / f.dof.max(1) as f64
                 }
@@ -587,24 +680,18 @@ pub(crate) fn staged_start(
             settled.extend(new);
         }
     }
-    // Each unknown at the inverse-variance mean of the groups that fitted it: a strongly
-    // driven measurement fits its modes' f, Q and β far more sharply than the measurement
-    // that fitted them first, and at their values its own state may not exist (past a fold).
-    for (t, &(w, wt)) in theta.iter_mut().zip(&combined) {
-        if w > 0.0 && (wt / w).is_finite() {
-            *t = wt / w;
-        }
-    }
-    // There, each group that shares unknowns fits its own again (from the values it had with
-    // the shared ones held: a group's own fit of the shared ones may have moved its own along
-    // a valley the group alone does not close), so every steady state is at the start.
-    for (gi, h) in held {
+    // Every unknown at the minimum of the groups' models summed, with their correlations
+    // ([`Quadratic`]): a strongly driven measurement fits combinations of its modes' f, Q and
+    // β far more sharply than the measurement that fitted them first, and where those move by
+    // many of its sigmas its own state may not exist (past a fold).
+    theta = combine(&models, &theta, tries.bounds);
+    // There, each group that shares unknowns fits its own again, from the combined values
+    // (its own moved with the shared ones along its valley; from the values it had with the
+    // shared ones held, the twenty-mode string, seed 20, stopped at χ²/dof 196), so every
+    // steady state is at the start.
+    for gi in sharing {
         let g = &mut groups[gi];
-        let mut start = theta.clone();
-        for (&k, &v) in g.unknowns.iter().zip(&h) {
-            start[k] = v;
-        }
-        if let Some((f, sub)) = refit_held(fwd, tries, &start, (&g.measurements, &g.unknowns)) {
+        if let Some((f, sub)) = refit_held(fwd, tries, &theta, (&g.measurements, &g.unknowns)) {
             for &k in &g.unknowns {
                 theta[k] = f.theta[k];
             }
@@ -702,6 +789,173 @@ mod tests {
 
     const MODEL: &str =
         "mode a at 1 kHz\nmode b at 3 kHz\nparam beta, g\npotential: beta/4*a^4 + g/2*a^2*b^2\n";
+
+    /// The precision `1/var` of each unknown in `cols` from the information `AᵀA` of the fit
+    /// (`A = J/σ`, real and imaginary rows; `jac` with `nk` columns), by its equilibrated
+    /// inverse; none when the information is singular.
+    fn precisions(
+        jac: &[Complex64],
+        nk: usize,
+        sigma: &[f64],
+        cols: &[usize],
+    ) -> Vec<(usize, f64)> {
+        let m = cols.len();
+        let mut a = DMatrix::<f64>::zeros(2 * sigma.len(), m);
+        for (o, s) in sigma.iter().enumerate() {
+            for (j, &k) in cols.iter().enumerate() {
+                let z = jac[o * nk + k] / *s;
+                a[(2 * o, j)] = z.re;
+                a[(2 * o + 1, j)] = z.im;
+            }
+        }
+        let d: Vec<f64> = (0..m)
+            .map(|j| match a.column(j).norm() {
+                n if n > 0.0 && n.is_finite() => 1.0 / n,
+                _ => 0.0,
+            })
+            .collect();
+        for (j, dj) in d.iter().enumerate() {
+            a.column_mut(j).scale_mut(*dj);
+        }
+        let Some(inv) = (a.transpose() * &a).try_inverse() else {
+            return Vec::new();
+        };
+        cols.iter()
+            .enumerate()
+            .filter_map(|(j, &k)| {
+                let var = inv[(j, j)] * d[j] * d[j];
+                (var.is_finite() && var > 0.0).then_some((k, 1.0 / var))
+            })
+            .collect()
+    }
+
+    /// Two linear "groups" of complex observations `y = J θ + e` of three unknowns, sharing
+    /// the middle one, with correlated information (each group's columns nearly collinear),
+    /// each linearised at an arbitrary point, the second weighted by ½: [`combine`] of their
+    /// [`Quadratic`]s is the weighted least-squares fit of all the rows (normal equations of
+    /// the stacked rows, the second's noise `σ/√½`) to 10⁻⁵ of its standard errors (the
+    /// ridge of [`COMBINE_RIDGE`] towards the start), and the per-unknown
+    /// inverse-variance mean of the two groups' own fits is not (2.2 of the joint fit's
+    /// standard errors off).
+    #[test]
+    fn combining_groups_is_the_joint_weighted_least_squares() {
+        let nk = 3;
+        let c = |re: f64, im: f64| Complex64::new(re, im);
+        // Rows of each group over (θ0, θ1, θ2), its observations and noise.
+        let rows1 = [
+            [c(1.0, 0.2), c(0.9, 0.25), c(0.0, 0.0)],
+            [c(0.5, -1.0), c(0.45, -0.9), c(0.0, 0.0)],
+            [c(2.0, 0.1), c(1.9, 0.0), c(0.0, 0.0)],
+        ];
+        let rows2 = [
+            [c(0.0, 0.0), c(1.0, 1.0), c(-1.0, -0.9)],
+            [c(0.0, 0.0), c(0.3, 0.1), c(0.2, 0.3)],
+            [c(0.0, 0.0), c(-0.7, 0.4), c(-0.6, 0.5)],
+        ];
+        let truth = [1.5, -0.5, 2.0];
+        let noise = [c(0.01, -0.02), c(-0.03, 0.01), c(0.02, 0.02)];
+        let sigma = [0.02, 0.01, 0.03];
+        let weights = [1.0, 0.5];
+        let observe = |rows: &[[Complex64; 3]; 3], shift: f64| -> Vec<Complex64> {
+            rows.iter()
+                .zip(&noise)
+                .map(|(r, e)| {
+                    r.iter().zip(&truth).map(|(z, t)| z * t).sum::<Complex64>() + e * shift
+                })
+                .collect()
+        };
+        let ys = [observe(&rows1, 1.0), observe(&rows2, -0.7)];
+        let groups = [(&rows1, vec![0, 1]), (&rows2, vec![1, 2])];
+        let at = [[1.0, 0.0, 7.0], [-3.0, 0.4, 1.0]];
+        let mut models = Vec::new();
+        let mut own = Vec::new();
+        for (g, (rows, cols)) in groups.iter().enumerate() {
+            let jac: Vec<Complex64> = rows.iter().flatten().copied().collect();
+            let x: Vec<Complex64> = rows
+                .iter()
+                .map(|r| r.iter().zip(&at[g]).map(|(z, t)| z * t).sum())
+                .collect();
+            let resid: Vec<Complex64> = ys[g].iter().zip(&x).map(|(y, x)| y - x).collect();
+            let q = Quadratic::of_fit((&jac, nk), (&resid, &sigma), cols, &at[g], weights[g])
+                .expect("finite");
+            // The group's own fit and each unknown's precision (diagonal of I⁻¹).
+            let sol = q.info.clone().cholesky().expect("pd").solve(&q.rhs);
+            let inv = q.info.clone().try_inverse().expect("invertible");
+            own.extend(
+                cols.iter()
+                    .enumerate()
+                    .map(|(i, &k)| (k, sol[i], 1.0 / inv[(i, i)])),
+            );
+            models.push(q);
+        }
+        let bounds = vec![(None, None); nk];
+        let combined = combine(&models, &[0.0; 3], &bounds);
+        // The weighted least-squares fit of all six complex rows.
+        let mut a = DMatrix::<f64>::zeros(12, nk);
+        let mut b = DVector::<f64>::zeros(12);
+        for (g, (rows, _)) in groups.iter().enumerate() {
+            for (o, r) in rows.iter().enumerate() {
+                let s = sigma[o] / weights[g].sqrt();
+                let i = 2 * (3 * g + o);
+                for k in 0..nk {
+                    a[(i, k)] = r[k].re / s;
+                    a[(i + 1, k)] = r[k].im / s;
+                }
+                b[i] = ys[g][o].re / s;
+                b[i + 1] = ys[g][o].im / s;
+            }
+        }
+        let normal = a.transpose() * &a;
+        let wls = normal
+            .clone()
+            .cholesky()
+            .expect("pd")
+            .solve(&(a.transpose() * b));
+        let stderr: Vec<f64> = {
+            let inv = normal.try_inverse().expect("invertible");
+            (0..nk).map(|k| inv[(k, k)].sqrt()).collect()
+        };
+        for k in 0..nk {
+            let off = (combined[k] - wls[k]).abs() / stderr[k];
+            assert!(
+                off < 1e-5,
+                "unknown {k}: {} vs {} ({off} stderr)",
+                combined[k],
+                wls[k]
+            );
+        }
+        // Each unknown's inverse-variance mean over the groups' own fits.
+        let mean = |k: usize| {
+            let (w, wt) = own
+                .iter()
+                .filter(|o| o.0 == k)
+                .fold((0.0, 0.0), |(w, wt), o| (w + o.2, wt + o.2 * o.1));
+            wt / w
+        };
+        let worst = (0..nk)
+            .map(|k| (mean(k) - wls[k]).abs() / stderr[k])
+            .fold(0.0, f64::max);
+        println!("the per-unknown mean is {worst:.2} stderr off the joint fit");
+        assert!(worst > 1.0, "{worst}");
+    }
+
+    /// An unknown no group informs keeps its value; one held at a bound is clamped.
+    #[test]
+    fn combine_keeps_the_uninformed_and_clamps_to_bounds() {
+        let q = Quadratic {
+            cols: vec![0],
+            info: DMatrix::from_element(1, 1, 4.0),
+            rhs: DVector::from_element(1, -8.0),
+        };
+        let bounds = vec![(Some(0.0), None), (None, None)];
+        assert_eq!(
+            combine(std::slice::from_ref(&q), &[1.0, 3.0], &bounds),
+            vec![0.0, 3.0]
+        );
+        let free = vec![(None, None); 2];
+        let v = combine(&[q], &[1.0, 3.0], &free);
+        assert!((v[0] + 2.0).abs() < 1e-6 && v[1] == 3.0, "{v:?}");
+    }
 
     /// One strongly driven pair: two tones on `a` 10 Hz apart across its resonance (Q 100,
     /// a Duffing shift of about a linewidth), one on `b`; `a`'s intermodulation sidebands out
