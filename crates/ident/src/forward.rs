@@ -44,6 +44,7 @@ use harmonid_sim::{
     Observation, PumpTone, ReducedSensitivity, ReducedSolver, SensParam, SteadyState,
 };
 use num_complex::Complex64;
+use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::f64::consts::TAU;
 
@@ -855,16 +856,56 @@ impl ForwardModel {
         }
         self.at = None;
         let numeric = self.numeric(theta)?;
-        for mi in 0..self.meas.len() {
-            let drive = self.excitation(mi, theta);
-            self.solve_measurement(mi, &numeric, &drive, out_x, ramp)?;
-            let m = &self.meas[mi];
+        if self.meas.iter().any(|m| m.follows.is_some()) {
+            // A stepped sweep's step starts from the previous step's state: in order.
+            for mi in 0..self.meas.len() {
+                let drive = self.excitation(mi, theta);
+                self.solve_measurement(mi, &numeric, &drive, out_x, ramp)?;
+            }
+        } else {
+            self.solve_independent(theta, &numeric, out_x, ramp)?;
+        }
+        for m in &self.meas {
             for b in &m.background {
                 out_x[m.offset + b.obs] += Complex64::new(theta[b.re], theta[b.im]) * b.factor;
             }
         }
         self.at = Some(theta.to_vec());
         Ok(())
+    }
+
+    /// Every measurement's steady state at `θ` (`numeric`) into `out_x`, the measurements
+    /// side by side on rayon's threads: none starts from another's state, and a
+    /// measurement's harmonic balance is its own (the twenty-mode string: 210 of them per
+    /// evaluation of the output-error fit). Every measurement is solved; the error is the
+    /// first measurement's in dataset order, as the solve one after the other reports.
+    fn solve_independent(
+        &mut self,
+        theta: &[f64],
+        numeric: &NumericModel,
+        out_x: &mut [Complex64],
+        ramp: bool,
+    ) -> Result<(), ForwardError> {
+        let work: Vec<(Excitation, LatticeSettings)> = (0..self.meas.len())
+            .map(|mi| {
+                (
+                    self.excitation(mi, theta),
+                    self.lattice_settings(mi, self.meas[mi].widened),
+                )
+            })
+            .collect();
+        let hb = &self.settings.hb;
+        let outs = split_rows(out_x, self.meas.iter().map(|m| m.obs.len()), 1);
+        self.meas
+            .par_iter_mut()
+            .zip(outs)
+            .zip(&work)
+            .map(|((m, out), (drive, ls))| {
+                solve_one(m, None, (ls, hb), (numeric, drive), out, ramp)
+            })
+            .collect::<Vec<_>>()
+            .into_iter()
+            .collect()
     }
 
     /// The Jacobian `out_jac[o·K + k] = ∂X_o/∂θ_k` at `θ` (layout of
@@ -882,53 +923,16 @@ impl ForwardModel {
             return self.evaluate(theta, &mut x, Some(out_jac));
         }
         let nk = self.table.len();
-        for m in &mut self.meas {
-            let hb_err = |why: String| ForwardError::Hb {
-                measurement: m.name.clone(),
-                why,
-            };
-            let (Some((solver, sens)), Some(state)) = (m.solver.as_mut(), m.state.as_ref()) else {
-                return Err(hb_err("no steady state to differentiate".into()));
-            };
-            let sens = match sens {
-                Some(s) => s,
-                None => sens.insert(
-                    ReducedSensitivity::new(solver, &m.tones_hz, &m.sens_params, &m.obs)
-                        .map_err(|e| hb_err(e.to_string()))?,
-                ),
-            };
-            sens.compute(solver, state, &mut m.buf)
-                .map_err(|e| hb_err(e.to_string()))?;
-            let no = m.obs.len();
-            for o in 0..no {
-                out_jac[(m.offset + o) * nk..(m.offset + o + 1) * nk].fill(Z);
-            }
-            for (k, chain) in m.chains.iter().enumerate() {
-                let d = &m.buf[k * no..(k + 1) * no];
-                match chain {
-                    Chain::Linear(cols) => {
-                        for &(c, w) in cols {
-                            for o in 0..no {
-                                out_jac[(m.offset + o) * nk + c] += d[o] * w;
-                            }
-                        }
-                    }
-                    Chain::FixedQ { col, q, mode } => {
-                        let w = 1.0 / (2.0 * q * theta[2 * mode].sqrt());
-                        for o in 0..no {
-                            out_jac[(m.offset + o) * nk + col] += d[o] * w;
-                        }
-                    }
-                }
-            }
-            // The background is linear: ∂X/∂re = factor, ∂X/∂im = i·factor.
-            for b in &m.background {
-                let row = (m.offset + b.obs) * nk;
-                out_jac[row + b.re] += b.factor;
-                out_jac[row + b.im] += b.factor * Complex64::i();
-            }
-        }
-        Ok(())
+        let rows = split_rows(out_jac, self.meas.iter().map(|m| m.obs.len()), nk);
+        // Each measurement's sensitivities are its own: side by side on rayon's threads,
+        // the error being the first measurement's in dataset order.
+        self.meas
+            .par_iter_mut()
+            .zip(rows)
+            .map(|(m, rows)| jacobian_one(m, theta, nk, rows))
+            .collect::<Vec<_>>()
+            .into_iter()
+            .collect()
     }
 
     fn check_jacobian_len(&self, jac: Option<&[Complex64]>) -> Result<(), ForwardError> {
@@ -1047,94 +1051,311 @@ impl ForwardModel {
         let (before, rest) = self.meas.split_at_mut(mi);
         let m = &mut rest[0];
         let previous = m.follows.and_then(|p| before[p].state.as_ref());
-        let hb_err = |why: String| ForwardError::Hb {
-            measurement: m.name.clone(),
-            why,
-        };
-        let lattice = match &m.lattice {
-            Some(l) => l.clone(),
-            None => {
-                let l = choose_lattice(numeric, drive, &ls).map_err(|e| hb_err(e.to_string()))?;
-                m.lattice = Some(l.clone());
-                l
-            }
-        };
-        let solver = match m.solver.as_mut() {
-            Some((solver, _)) => {
-                solver
-                    .set_values(numeric, drive)
-                    .map_err(|e| hb_err(e.to_string()))?;
-                solver
-            }
-            None => {
-                let solver =
-                    ReducedSolver::with_lattice(numeric, drive, lattice.clone(), &m.tone_mode)
-                        .map_err(|e| hb_err(e.to_string()))?;
-                &mut m.solver.insert((solver, None)).0
-            }
-        };
-        let warm: Option<Vec<Vec<Complex64>>> = match (&m.state, &m.start) {
-            (Some(st), _) => Some(st.amplitudes.clone()),
-            (None, Some(start)) => {
-                let nm = numeric.n_modes();
-                let mut a = vec![vec![Z; lattice.len()]; nm];
-                for (f, amps) in start {
-                    if let Some(r) = lattice.iter().position(|&x| (x - f).abs() <= 1e-6) {
-                        for n in 0..nm {
-                            a[n][r] = amps[n];
-                        }
+        let range = m.offset..m.offset + m.obs.len();
+        solve_one(
+            m,
+            previous,
+            (&ls, hb),
+            (numeric, drive),
+            &mut out_x[range],
+            ramp,
+        )
+    }
+}
+
+/// Solves the steady state of `m` under `numeric` and `drive` (warm-started from its last
+/// state, or the data; after `previous`, the state of the step before it in its sweep; the
+/// ramp from rest as the fall-back when `ramp`) on its lattice (chosen with `ls` at the first
+/// solve), writes its predictions into `out` (its own observations) and keeps the state.
+fn solve_one(
+    m: &mut MeasFwd,
+    previous: Option<&SteadyState>,
+    (ls, hb): (&LatticeSettings, &HbSettings),
+    (numeric, drive): (&NumericModel, &Excitation),
+    out: &mut [Complex64],
+    ramp: bool,
+) -> Result<(), ForwardError> {
+    let hb_err = |why: String| ForwardError::Hb {
+        measurement: m.name.clone(),
+        why,
+    };
+    let lattice = match &m.lattice {
+        Some(l) => l.clone(),
+        None => {
+            let l = choose_lattice(numeric, drive, ls).map_err(|e| hb_err(e.to_string()))?;
+            m.lattice = Some(l.clone());
+            l
+        }
+    };
+    let solver = match m.solver.as_mut() {
+        Some((solver, _)) => {
+            solver
+                .set_values(numeric, drive)
+                .map_err(|e| hb_err(e.to_string()))?;
+            solver
+        }
+        None => {
+            let solver = ReducedSolver::with_lattice(numeric, drive, lattice.clone(), &m.tone_mode)
+                .map_err(|e| hb_err(e.to_string()))?;
+            &mut m.solver.insert((solver, None)).0
+        }
+    };
+    let warm: Option<Vec<Vec<Complex64>>> = match (&m.state, &m.start) {
+        (Some(st), _) => Some(st.amplitudes.clone()),
+        (None, Some(start)) => {
+            let nm = numeric.n_modes();
+            let mut a = vec![vec![Z; lattice.len()]; nm];
+            for (f, amps) in start {
+                if let Some(r) = lattice.iter().position(|&x| (x - f).abs() <= 1e-6) {
+                    for n in 0..nm {
+                        a[n][r] = amps[n];
                     }
                 }
-                Some(a)
             }
-            (None, None) => None,
-        };
-        let warm_started = warm.is_some();
-        let mut state = match warm {
-            Some(a) => Some(solver.solve_continued(&a, hb)),
-            None if previous.is_none() => Some(solver.solve(hb)),
-            None => None,
-        };
-        let converged = |s: &Option<SteadyState>| s.as_ref().is_some_and(SteadyState::converged);
-        // A sweep's step started from the data may converge onto the unstable middle branch,
-        // where no experiment is: that start did not find the measured branch at this θ.
-        let fresh = m.state.is_none();
-        if previous.is_some() && fresh && converged(&state) {
-            let stable = state
-                .as_ref()
-                .is_some_and(|s| solver.stability(s).is_ok_and(|st| st.stable));
-            if !stable {
-                state = None;
+            Some(a)
+        }
+        (None, None) => None,
+    };
+    let warm_started = warm.is_some();
+    let mut state = match warm {
+        Some(a) => Some(solver.solve_continued(&a, hb)),
+        None if previous.is_none() => Some(solver.solve(hb)),
+        None => None,
+    };
+    let converged = |s: &Option<SteadyState>| s.as_ref().is_some_and(SteadyState::converged);
+    // A sweep's step started from the data may converge onto the unstable middle branch,
+    // where no experiment is: that start did not find the measured branch at this θ.
+    let fresh = m.state.is_none();
+    if previous.is_some() && fresh && converged(&state) {
+        let stable = state
+            .as_ref()
+            .is_some_and(|s| solver.stability(s).is_ok_and(|st| st.stable));
+        if !stable {
+            state = None;
+        }
+    }
+    // Then, or when its own state is lost, the step starts where the experiment had it:
+    // at the previous step's state at this θ. Never the ramp from rest, which may cross a
+    // fold the sweep did not.
+    if let Some(prev) = previous.filter(|_| (ramp || fresh) && !converged(&state)) {
+        state = Some(solver.solve_after(&prev.carried_to(&lattice), hb));
+    }
+    // The ramp from rest as the fall-back, unless it was the first try already.
+    if ramp && previous.is_none() && warm_started && !converged(&state) {
+        state = Some(solver.solve(hb));
+    }
+    let state = match state {
+        Some(s) if s.converged() => s,
+        Some(s) => {
+            return Err(hb_err(format!(
+                "no steady state (status: {}, relative residual {:.2e})",
+                s.status, s.residual
+            )))
+        }
+        None => {
+            return Err(hb_err(
+                "no steady state: the previous step of its sweep has none to start from".into(),
+            ))
+        }
+    };
+    for (o, ob) in m.obs.iter().enumerate() {
+        out[o] = state.at_point(&ob.shape, ob.f_hz);
+    }
+    m.state = Some(state);
+    Ok(())
+}
+
+/// `m`'s rows of the Jacobian at `θ` (`rows[o·nk + k]`, its observations `o` in order) from
+/// its last steady state: the harmonic balance's sensitivities chained into the unknowns'
+/// columns, and the background's own.
+fn jacobian_one(
+    m: &mut MeasFwd,
+    theta: &[f64],
+    nk: usize,
+    rows: &mut [Complex64],
+) -> Result<(), ForwardError> {
+    let hb_err = |why: String| ForwardError::Hb {
+        measurement: m.name.clone(),
+        why,
+    };
+    let (Some((solver, sens)), Some(state)) = (m.solver.as_mut(), m.state.as_ref()) else {
+        return Err(hb_err("no steady state to differentiate".into()));
+    };
+    let sens = match sens {
+        Some(s) => s,
+        None => sens.insert(
+            ReducedSensitivity::new(solver, &m.tones_hz, &m.sens_params, &m.obs)
+                .map_err(|e| hb_err(e.to_string()))?,
+        ),
+    };
+    sens.compute(solver, state, &mut m.buf)
+        .map_err(|e| hb_err(e.to_string()))?;
+    let no = m.obs.len();
+    rows.fill(Z);
+    for (k, chain) in m.chains.iter().enumerate() {
+        let d = &m.buf[k * no..(k + 1) * no];
+        match chain {
+            Chain::Linear(cols) => {
+                for &(c, w) in cols {
+                    for o in 0..no {
+                        rows[o * nk + c] += d[o] * w;
+                    }
+                }
+            }
+            Chain::FixedQ { col, q, mode } => {
+                let w = 1.0 / (2.0 * q * theta[2 * mode].sqrt());
+                for o in 0..no {
+                    rows[o * nk + col] += d[o] * w;
+                }
             }
         }
-        // Then, or when its own state is lost, the step starts where the experiment had it:
-        // at the previous step's state at this θ. Never the ramp from rest, which may cross a
-        // fold the sweep did not.
-        if let Some(prev) = previous.filter(|_| (ramp || fresh) && !converged(&state)) {
-            state = Some(solver.solve_after(&prev.carried_to(&lattice), hb));
+    }
+    // The background is linear: ∂X/∂re = factor, ∂X/∂im = i·factor.
+    for b in &m.background {
+        let row = b.obs * nk;
+        rows[row + b.re] += b.factor;
+        rows[row + b.im] += b.factor * Complex64::i();
+    }
+    Ok(())
+}
+
+/// `data` cut into consecutive pieces of `len · width` entries, one per `len` (a
+/// measurement's observations, `width` entries each).
+fn split_rows(
+    mut data: &mut [Complex64],
+    lens: impl Iterator<Item = usize>,
+    width: usize,
+) -> Vec<&mut [Complex64]> {
+    let mut out = Vec::new();
+    for len in lens {
+        let (head, tail) = std::mem::take(&mut data).split_at_mut(len * width);
+        out.push(head);
+        data = tail;
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use harmonid_data::{Manifest, Measurement, MeasurementSpec, Point};
+    use std::f64::consts::PI;
+
+    const MODEL: &str =
+        "mode a at 1 kHz\nmode b at 3 kHz\nparam beta, g\npotential: beta/4*a^4 + g/2*a^2*b^2\n";
+
+    /// Three measurements of a two-mode model (two tones on `a`, one on `b`, and both), one
+    /// point; amplitudes zero (the shape only).
+    fn dataset() -> Dataset {
+        let mut manifest = Manifest::new("three");
+        manifest.points.push(Point {
+            name: "p0".into(),
+            shape: [("a".to_string(), 0.5), ("b".to_string(), 0.8)]
+                .into_iter()
+                .collect(),
+        });
+        let designs: [(&str, Vec<f64>, Vec<f64>); 3] = [
+            (
+                "single_a",
+                vec![995.0, 1005.0],
+                vec![985.0, 995.0, 1005.0, 1015.0],
+            ),
+            ("single_b", vec![3005.0], vec![3005.0]),
+            (
+                "couple_a_b",
+                vec![1005.0, 3005.0],
+                vec![995.0, 1005.0, 3005.0, 3015.0],
+            ),
+        ];
+        let measurements: Vec<Measurement> = designs
+            .into_iter()
+            .map(|(name, drives, freqs)| {
+                let spec = MeasurementSpec {
+                    name: name.to_string(),
+                    file: None,
+                    drive_levels_v: Some(vec![1.0; drives.len()]),
+                    drive_phases_rad: Some(vec![0.0; drives.len()]),
+                    drives_hz: drives,
+                    pumps_hz: Vec::new(),
+                    pump_levels: None,
+                    pump_phases_rad: None,
+                    bandwidth_hz: None,
+                    sweep: None,
+                };
+                Measurement::zeros(spec, freqs, vec![0], 1)
+            })
+            .collect();
+        manifest.measurements = measurements.iter().map(|m| m.spec.clone()).collect();
+        Dataset {
+            dir: "three".into(),
+            manifest,
+            measurements,
+            truth: None,
+            notes: Vec::new(),
         }
-        // The ramp from rest as the fall-back, unless it was the first try already.
-        if ramp && previous.is_none() && warm_started && !converged(&state) {
-            state = Some(solver.solve(hb));
+    }
+
+    /// The measurements solved side by side ([`ForwardModel::evaluate`]) give every line
+    /// exactly as one after the other (the stepped sweeps' path) does, and the Jacobian's rows
+    /// of each measurement are those of the measurement alone.
+    #[test]
+    fn side_by_side_equals_one_after_the_other() {
+        let model = harmonid_model::parse_str(MODEL, "three.hb").expect("model");
+        let ds = dataset();
+        let mut fwd = ForwardModel::new(&model, &ds, ForceModel::Auto, &ForwardSettings::default())
+            .expect("forward model");
+        let theta: Vec<f64> = fwd
+            .unknowns()
+            .iter()
+            .map(|u| match *u {
+                Unknown::OmegaSq(n) => (2.0 * PI * [1000.0, 3000.0][n]).powi(2),
+                Unknown::Gamma(n) => 2.0 * PI * [1000.0, 3000.0][n] / [100.0, 200.0][n],
+                Unknown::Param(p) => [4e15, 2e15][p],
+                Unknown::Gain { mode, quad, .. } => {
+                    [[3.0, 1.0], [-2.0, 4.0]][mode][usize::from(quad)]
+                }
+                _ => 0.0,
+            })
+            .collect();
+        let (n_obs, nk) = (fwd.n_observations(), fwd.unknowns().len());
+        let mut seq = fwd.clone();
+        let mut x = vec![Z; n_obs];
+        let mut jac = vec![Z; n_obs * nk];
+        fwd.evaluate(&theta, &mut x, Some(&mut jac))
+            .expect("evaluate");
+        let numeric = seq.numeric(&theta).expect("numeric");
+        let mut x_seq = vec![Z; n_obs];
+        for mi in 0..seq.n_measurements() {
+            let drive = seq.excitation(mi, &theta);
+            seq.solve_measurement(mi, &numeric, &drive, &mut x_seq, true)
+                .expect("solve");
         }
-        let state = match state {
-            Some(s) if s.converged() => s,
-            Some(s) => {
-                return Err(hb_err(format!(
-                    "no steady state (status: {}, relative residual {:.2e})",
-                    s.status, s.residual
-                )))
+        assert_eq!(x, x_seq);
+        assert!(x.iter().any(|z| z.norm() > 0.0));
+        for mi in 0..fwd.n_measurements() {
+            let mut alone = fwd.subset(&[mi]);
+            let no = alone.n_observations();
+            let (mut xa, mut ja) = (vec![Z; no], vec![Z; no * nk]);
+            alone
+                .evaluate(&theta, &mut xa, Some(&mut ja))
+                .expect("alone");
+            let r = fwd.observations_of(mi);
+            // Newton from the converged state: the same state to rounding.
+            let close = |a: &[Complex64], b: &[Complex64]| {
+                let scale = b.iter().map(|z| z.norm()).fold(0.0, f64::max);
+                a.iter()
+                    .zip(b)
+                    .all(|(p, q)| (p - q).norm() <= 1e-10 * scale)
+            };
+            assert!(close(&x[r.clone()], &xa), "{mi}: predictions");
+            for o in 0..no {
+                let row = |j: &[Complex64], at: usize| j[at * nk..(at + 1) * nk].to_vec();
+                assert!(
+                    close(&row(&jac, r.start + o), &row(&ja, o)),
+                    "{mi}, {o}: Jacobian"
+                );
             }
-            None => {
-                return Err(hb_err(
-                    "no steady state: the previous step of its sweep has none to start from".into(),
-                ))
-            }
-        };
-        for (o, ob) in m.obs.iter().enumerate() {
-            out_x[m.offset + o] = state.at_point(&ob.shape, ob.f_hz);
+            assert!(ja.iter().any(|z| z.norm() > 0.0));
         }
-        m.state = Some(state);
-        Ok(())
     }
 }
