@@ -21,7 +21,7 @@
 //! unknown parameters, `harmonid_testgen::string_model(20)`), each from its committed
 //! `harmonid plan --nominal --noise 0.1nm --shots 30` plan (`tests/it/data/`), 30 shots at
 //! 0.1 nm; the whole default identification. `HARMONID_BENCH_SKIP_20=1` leaves the twenty-mode
-//! one out (a sample is most of a minute).
+//! one out (a sample is about 30 s: 28.5 s on the 2-core VM at load 3.5).
 //! `long_record_1m_rows`: one Duffing mode driven by two tones (the nanostring's `single_q1`),
 //! 125 000 shots of its 8 lines at 0.05 nm, 1 million rows, as a long lock-in record gives;
 //! the whole default identification.
