@@ -124,7 +124,7 @@ pub(super) fn refuse_levelless_passes(
         path: input_path(inputs, steps[a].origin),
         row: None,
         message: format!(
-            "sweep \"{}\" turns back {} times ({n} passes up and down) and the mapping gives no drive level: several drive levels, each swept up and down, merged into one? Map the level column ([columns] drive_level = \"<its header>\") or label the sweeps ([columns] sweep = \"<column>\"); if it is one level swept back and forth, give that level ([drive] level = <V>, or [files.\"<file>\"] drive_level = <V>)",
+            "sweep \"{}\" turns back {} times ({n} passes up and down) and the mapping gives no drive level: several drive levels merged into one sweep, each swept up and down? Map the level column ([columns] drive_level = \"<its header>\") or label the sweeps ([columns] sweep = \"<column>\"); if it is one level swept back and forth, give that level ([drive] level = <V>, or [files.\"<file>\"] drive_level = <V>)",
             super::base_name(steps[a].group, steps[a].level, grouping),
             n - 1
         ),

@@ -260,12 +260,16 @@ pub fn import(
         }
     };
     let grouping = Grouping {
+        // Each leg its final name (the n-th leg each way `_2`, ...), so a warning names it as
+        // the dataset does.
         group_names: (0..legs)
             .map(|l| {
-                if legs == 1 {
-                    "sweep".into()
-                } else {
-                    leg_dir(l).to_string()
+                let dir = leg_dir(l);
+                let n = (0..=l).filter(|&m| leg_dir(m) == dir).count();
+                match (legs, n) {
+                    (1, _) => "sweep".into(),
+                    (_, 1) => dir.to_string(),
+                    _ => format!("{dir}_{n}"),
                 }
             })
             .collect(),

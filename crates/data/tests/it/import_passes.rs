@@ -249,6 +249,14 @@ fn zi_sweeper_two_loops_are_four_passes() {
         note.contains("4 passes (sweep_up, sweep_down, sweep_up_2, sweep_down_2)"),
         "{note}"
     );
+    // Stopped in the second pass up: the warning names it as the dataset does.
+    let (ds, _) = import_sweeper(sweeper(dir.path(), &loops, &[7, 8]), false).expect("stopped");
+    assert!(
+        ds.notes[0]
+            .contains("rows 9 to 10) at the end of the sweep (it stopped in \"sweep_up_2\")"),
+        "{:?}",
+        ds.notes
+    );
 }
 
 /// A bidirectional sweep stopped in its down pass: the rest of the grid NaN is dropped with one
