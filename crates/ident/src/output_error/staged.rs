@@ -684,7 +684,17 @@ pub(crate) fn staged_start(
     // ([`Quadratic`]): a strongly driven measurement fits combinations of its modes' f, Q and
     // β far more sharply than the measurement that fitted them first, and where those move by
     // many of its sigmas its own state may not exist (past a fold).
-    theta = combine(&models, &theta, tries.bounds);
+    // Only where groups share unknowns: a group alone keeps its own fit (its model's
+    // Gauss-Newton step from there lost the steady state of ml_fallback's control, one
+    // strongly driven mode below its escape amplitude).
+    let mut covered = vec![0usize; theta.len()];
+    models
+        .iter()
+        .flat_map(|q| &q.cols)
+        .for_each(|&k| covered[k] += 1);
+    if covered.iter().any(|&c| c > 1) {
+        theta = combine(&models, &theta, tries.bounds);
+    }
     // There, each group that shares unknowns fits its own again, from the combined values
     // (its own moved with the shared ones along its valley; from the values it had with the
     // shared ones held, the twenty-mode string, seed 20, stopped at χ²/dof 196), so every
