@@ -14,5 +14,6 @@ mod quasi_periodic;
 mod ramp_past_fold;
 mod reduced_modes;
 mod sensitivity;
+mod stepped_fold;
 mod stop_at_fold;
 mod velocity_terms;
