@@ -133,6 +133,8 @@ fn most_outlying(data: &[&[Complex64]], kept: &[usize]) -> Option<(usize, f64)> 
     let lines = data[kept[0]].len();
     let mut x2 = vec![0.0; m];
     let mut used = 0;
+    // `o` indexes a line within every kept shot (`data[s][o]`), not `data` itself.
+    #[allow(clippy::needless_range_loop)]
     for o in 0..lines {
         let mean = kept.iter().map(|&s| data[s][o]).sum::<Complex64>() / mf;
         let ss: f64 = kept.iter().map(|&s| (data[s][o] - mean).norm_sqr()).sum();
