@@ -176,7 +176,8 @@ pub struct Settings {
     /// (default true: on a many-mode device a coupling's linear estimate can be hundreds of
     /// times off). [`crate::discover()`] turns it off for the models it tries: most of them lack
     /// a term the device has, so their groups fit poorly from every start, and the scan, which
-    /// cannot make a wrong model fit, was a third of a discovery's time.
+    /// cannot make a wrong model fit, was a third of a discovery's time. Off, the groups that
+    /// share unknowns are not refitted at the combined values either (another third).
     pub staged_scan: bool,
 }
 
