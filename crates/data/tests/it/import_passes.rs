@@ -4,31 +4,12 @@
 //! dropped at a sweep's end with a warning, refused inside one unless asked. Small in-memory
 //! files; every value checked.
 
-use harmonid_data::import::{
-    table, zi_csv, zi_sweeper, Amplitude, Conventions, Quadrature, Response, Settle,
-};
+use crate::fixtures::{conv, write, zi_csv_record};
+use harmonid_data::import::{table, zi_csv, zi_sweeper, Settle};
 use harmonid_data::{Dataset, Direction};
 use num_complex::Complex64;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-
-fn conv() -> Conventions {
-    Conventions {
-        amplitude: Amplitude::Rms,
-        quadrature: Quadrature::XPlusIY,
-        response: Response::Displacement,
-        metres_per_unit: None,
-        displacement_unit: "V".into(),
-        phase_unit: None,
-        frequency_scale: None,
-    }
-}
-
-fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
-    let p = dir.join(name);
-    std::fs::write(&p, text).expect("write");
-    p
-}
 
 /// The file's value (RMS volts) at row `k`: distinct per row, so each pass is checked by value.
 fn value(k: usize) -> Complex64 {
@@ -173,17 +154,7 @@ fn table_passes_without_a_level_are_refused_unless_one_level_is_given() {
 #[test]
 fn zi_csv_three_passes() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let mut s = String::from("chunk;timestamp;x;y;freq;phase;dio;trigger;auxin0;auxin1\n");
-    for (k, &f) in THREE.iter().enumerate() {
-        let z = value(k);
-        let _ = writeln!(
-            s,
-            "0;{};{:e};{:e};{f:?};0;0;0;0;0",
-            1000 + 60 * k,
-            z.re,
-            z.im
-        );
-    }
+    let s = zi_csv_record(&THREE, value);
     let p = write(dir.path(), "dev1_demods_0_sample_00000.csv", &s);
     let opts = zi_csv::Options {
         clockbase_hz: 60.0,

@@ -3,13 +3,12 @@
 //! (bidirectional mode) and moku-csv. Each input holds the same five frequencies up then down,
 //! the response of the step `k` a known number, so the two legs are checked value by value.
 
-use harmonid_data::import::{
-    moku_csv, zi_csv, zi_hdf5, zi_sweeper, Amplitude, Conventions, Quadrature, Response, Settle,
-};
+use crate::fixtures::{conv, write, zi_csv_record};
+use harmonid_data::import::{moku_csv, zi_csv, zi_hdf5, zi_sweeper, Settle};
 use harmonid_data::{Dataset, Direction};
 use num_complex::Complex64;
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// Up 100..104 Hz, then down 103..100 Hz (the turning point is measured once).
 const DRIVES: [f64; 9] = [
@@ -20,18 +19,6 @@ const DRIVES: [f64; 9] = [
 /// the same frequency (another branch).
 fn value(k: usize) -> Complex64 {
     Complex64::new(1e-3 * (k + 1) as f64, -2e-4 * (k * k) as f64)
-}
-
-fn conv() -> Conventions {
-    Conventions {
-        amplitude: Amplitude::Rms,
-        quadrature: Quadrature::XPlusIY,
-        response: Response::Displacement,
-        metres_per_unit: None,
-        displacement_unit: "V".into(),
-        phase_unit: None,
-        frequency_scale: None,
-    }
 }
 
 /// `ds` has exactly the sweeps `<base>_up` (steps 0..5) and `<base>_down` (steps 5..9), each
@@ -54,26 +41,10 @@ fn assert_up_and_down(ds: &Dataset, base: &str, what: &str) {
     }
 }
 
-fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
-    let p = dir.join(name);
-    std::fs::write(&p, text).expect("write");
-    p
-}
-
 #[test]
 fn zi_csv_and_moku_csv_split_a_sweep_that_turns_back() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let mut s = String::from("chunk;timestamp;x;y;freq;phase;dio;trigger;auxin0;auxin1\n");
-    for (k, &f) in DRIVES.iter().enumerate() {
-        let z = value(k);
-        let _ = writeln!(
-            s,
-            "0;{};{:e};{:e};{f:?};0;0;0;0;0",
-            1000 + 60 * k,
-            z.re,
-            z.im
-        );
-    }
+    let s = zi_csv_record(&DRIVES, value);
     let p = write(dir.path(), "dev1_demods_0_sample_00000.csv", &s);
     let opts = zi_csv::Options {
         clockbase_hz: 60.0,
