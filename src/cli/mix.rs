@@ -400,13 +400,18 @@ fn nonsmooth_lines(
             model.nonsmooth_term_names().join(", ")
         )
     })?;
-    check_nonsmooth_finite(args, &report)?;
+    check_nonsmooth_finite(args, model, &report)?;
     Ok(Some(report))
 }
 
 /// Refuses non-smooth lines that overflow or all underflow at the `--amplitude` values (a
-/// power of a huge or tiny amplitude), rather than print `NaN` or nothing.
-fn check_nonsmooth_finite(args: &Args, report: &nonsmooth::NsReport) -> miette::Result<()> {
+/// power of a huge or tiny amplitude), rather than print `NaN` or nothing; warns, naming it,
+/// of a term whose lines all underflow while others' do not (it is listed without lines).
+fn check_nonsmooth_finite(
+    args: &Args,
+    model: &Model,
+    report: &nonsmooth::NsReport,
+) -> miette::Result<()> {
     let given = if args.amplitude.is_empty() {
         "the default amplitude 1".to_string()
     } else {
@@ -441,6 +446,18 @@ fn check_nonsmooth_finite(args: &Args, report: &nonsmooth::NsReport) -> miette::
                 .collect::<Vec<_>>()
                 .join(", ")
         ));
+    }
+    for t in report.terms.iter().filter(|t| t.underflow) {
+        let scaling = match t.power {
+            Some(p) => format!("its lines scale as amplitude^{p}, "),
+            None => String::new(),
+        };
+        eprintln!(
+            "warning: {}: every line of {} (equation of {}) underflows to zero at {given}: {scaling}below the smallest number a double holds, so it is listed without lines; {help}",
+            args.model.display(),
+            t.monomial,
+            model.modes.get(t.equation).map_or("?", |m| m.name.as_str()),
+        );
     }
     Ok(())
 }

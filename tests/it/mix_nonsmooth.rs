@@ -253,3 +253,39 @@ fn bad_amplitudes_and_orders_are_refused_without_output() {
         assert!(!out_file.exists(), "{args:?} wrote {}", out_file.display());
     }
 }
+
+/// A term whose lines all underflow while another's do not is named in a warning with the
+/// amplitude and what to give instead, and the listing goes on: at X1 = 1e-200 the lines of
+/// abs(q1)*q1 (amplitude²: 1e-400) are below the smallest double, sign(d(q1))'s
+/// (amplitude⁰) are not. At the default amplitude there is no warning.
+#[test]
+fn a_term_whose_lines_underflow_alone_is_named_in_a_warning() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let model = dir.path().join("model.hb");
+    std::fs::write(&model, MODEL).expect("write the model");
+    let run = |extra: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_harmonid"))
+            .arg("mix")
+            .arg(&model)
+            .args(["--drives", "q1:1000"])
+            .args(extra)
+            .output()
+            .expect("the harmonid binary runs");
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{extra:?}: {stderr}");
+        (String::from_utf8_lossy(&out.stdout).into_owned(), stderr)
+    };
+    let (stdout, stderr) = run(&["--amplitude", "X1=1e-200"]);
+    for words in [
+        "warning:",
+        "every line of abs(q1)*q1 (equation of q1) underflows to zero at --amplitude X1=1e-200",
+        "amplitude^2",
+        "--amplitude X1=1e-9",
+    ] {
+        assert!(stderr.contains(words), "expected {words:?} in {stderr}");
+    }
+    assert!(!stderr.contains("sign(d(q1)) (equation"), "{stderr}");
+    assert!(stdout.contains("sign(d(q1))"), "{stdout}");
+    let (_, stderr) = run(&[]);
+    assert!(!stderr.contains("underflows"), "{stderr}");
+}

@@ -212,6 +212,24 @@ const EXPECTED: &[(&str, Code, &[&str])] = &[
     ),
     // Non-smooth factors (issue 36): each refusal names the term and what to write instead.
     (
+        "nonsmooth_sign_squared",
+        Code::BadNonSmooth,
+        &[
+            "`sign(d(q1))^2` is 1 wherever `d(q1)` is not zero",
+            "mu1*sign(d(q1))",
+            "nonsmooth_sign_squared.hb:3:14",
+        ],
+    ),
+    (
+        "nonsmooth_tanh_no_scale",
+        Code::BadNonSmooth,
+        &[
+            "`tanh(q1)` has no scale",
+            "tanh(q1/1e-9)",
+            "nonsmooth_tanh_no_scale.hb:3:18",
+        ],
+    ),
+    (
         "nonsmooth_sum",
         Code::BadNonSmooth,
         &[

@@ -55,6 +55,9 @@ pub(super) struct NsTerm {
     /// with a `tanh` factor (not homogeneous).
     pub power: Option<u32>,
     pub lines: Vec<NsLine>,
+    /// Every line is zero at the given amplitudes but not at amplitude 1: their powers
+    /// underflow (the term is listed without lines).
+    pub underflow: bool,
 }
 
 /// The non-smooth part of a mix report.
@@ -228,6 +231,24 @@ pub(super) fn build(
             omega: TAU * c.combination.hz(assignment.tones()),
         });
     }
+    // The same motion at amplitude 1, to tell a term whose lines underflow from one that
+    // vanishes (a mode without motion).
+    let unit = Motion {
+        n_modes,
+        comps: comps
+            .iter()
+            .map(|cs| {
+                cs.iter()
+                    .map(|c| Comp {
+                        k: c.k.clone(),
+                        amplitude: 1.0,
+                        omega: c.omega,
+                    })
+                    .collect()
+            })
+            .collect(),
+        axes,
+    };
     let motion = Motion {
         n_modes,
         comps,
@@ -276,12 +297,17 @@ pub(super) fn build(
                 .filter(|(f, _)| matches!(f, NonSmooth::Abs(_)))
                 .map(|&(_, e)| e)
                 .sum();
+            let underflow = largest == 0.0
+                && project(&sampled, &unit, &lines, m)
+                    .iter()
+                    .any(|c| c.norm() > 0.0);
             terms.push(NsTerm {
                 equation: n,
                 monomial: model.monomial_name(mono),
                 coefficient: coeff.to_string_with(&params),
                 power: (!tanh).then_some(pp.degree() + abs),
                 lines: out,
+                underflow,
             });
         }
     }
