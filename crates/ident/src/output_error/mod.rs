@@ -586,7 +586,8 @@ struct Tries<'a> {
     bounds: &'a [(Option<f64>, Option<f64>)],
     /// A correct model's expected `χ²/dof` (infinite when the noise is not from the shots).
     e0: f64,
-    /// Whether the staged start may scan a poorly started group ([`Settings::staged_scan`]).
+    /// Whether the staged start may scan a poorly started group and refit the groups that
+    /// share unknowns at the combined values ([`Settings::staged_scan`]; off for `discover`).
     scan: bool,
 }
 
