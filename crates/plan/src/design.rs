@@ -23,9 +23,9 @@ use harmonid_ident::Unknown;
 use harmonid_model::{Linear, Model};
 use harmonid_sim::{ModelValues, NumericModel};
 use rayon::prelude::*;
-use std::cell::{Cell, RefCell};
 use std::collections::BTreeMap;
-use std::rc::Rc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
 
 /// Limits and noise of a design.
 #[derive(Debug, Clone)]
@@ -283,14 +283,16 @@ pub fn design(
     design_with_progress(model, values, settings, &mut |_| {})
 }
 
-/// Where a design is: measurement `done` of `total` is being designed, named `name`.
+/// Where a design is: `done` of `total` steps are done, the last of them (or the work under
+/// way) named `name`.
 #[derive(Debug, Clone, Copy)]
 pub struct DesignStep<'a> {
-    /// Measurements designed so far.
+    /// Steps done so far (measurements designed, then scored, then devices drawn).
     pub done: usize,
-    /// Measurements the design needs.
+    /// Steps the design needs.
     pub total: usize,
-    /// The measurement being designed (`single_q1`, `couple_q1_q2`).
+    /// The measurement just designed (`single_q1`, `couple_q1_q2`; the measurements of a
+    /// stage are designed side by side), or the work under way.
     pub name: &'a str,
 }
 
@@ -345,11 +347,12 @@ pub(crate) fn design_inner(
         s,
         names: &names,
         limits: limits_text(s),
-        notes: RefCell::new(Vec::new()),
+        notes: Mutex::new(Vec::new()),
+        search_notes: Mutex::new(BTreeMap::new()),
         deadline: s
             .time_budget_s
             .map(|t| std::time::Instant::now() + std::time::Duration::from_secs_f64(t.max(0.0))),
-        corners: RefCell::new(BTreeMap::new()),
+        corners: Mutex::new(BTreeMap::new()),
         pool: SolverPool::new(2 * rayon::current_num_threads()),
         gains: instrument.gains,
         caps: instrument.caps,
@@ -376,7 +379,10 @@ pub(crate) fn design_inner(
     })?;
     let deadline = designer.deadline;
     let limits = designer.limits;
-    let notes = designer.notes.into_inner();
+    let notes = designer
+        .notes
+        .into_inner()
+        .unwrap_or_else(PoisonError::into_inner);
     base.measurements = plan_ms;
     let refs: Vec<&MeasInfo> = infos.iter().collect();
     let mut ev = joint_bounds(model, &refs, s.shots)?;
@@ -757,7 +763,10 @@ struct Designer<'a> {
     limits: String,
     /// The design's notes ([`Evaluation::notes`]): candidates skipped because their harmonic
     /// balance is beyond a size bound, measurements the time budget cut, unchecked truncations.
-    notes: RefCell<Vec<String>>,
+    notes: Mutex<Vec<String>>,
+    /// The search's notes by measurement: its measurements are designed side by side, so
+    /// their notes join [`Self::notes`] in the plan's order when the search ends.
+    search_notes: Mutex<BTreeMap<String, Vec<String>>>,
     /// When the search's time budget runs out.
     deadline: Option<std::time::Instant>,
     /// Per mode: its actuator gain (N/kg per level unit; 1 without gains) and largest force
@@ -769,7 +778,7 @@ struct Designer<'a> {
     /// The devices of the range checked per set of tones (frequency bits, mode), built when
     /// first needed, with the one that failed last (tried first: a drive too strong for one
     /// device is usually too strong for the same one at the next level).
-    corners: RefCell<BTreeMap<Vec<(u64, usize)>, CornerSet>>,
+    corners: Mutex<BTreeMap<Vec<(u64, usize)>, CornerSet>>,
     /// Ramp solvers kept across the range checks: a drive's tones keep their lattice while the
     /// search moves its level, so its solvers serve every level (and both fidelities) instead
     /// of being planned and allocated per check.
@@ -777,11 +786,14 @@ struct Designer<'a> {
 }
 
 /// The devices checked for one set of tones and the index of the one that failed last.
-type CornerSet = (Rc<Vec<(String, NumericModel)>>, Rc<Cell<usize>>);
+type CornerSet = Arc<(Vec<(String, NumericModel)>, AtomicUsize)>;
 
 impl Designer<'_> {
     /// The plan's measurements in design order: stage 1, a tone pair per mode; stage 2, one
-    /// measurement per set of coupled modes (which builds on stage 1's pairs and information).
+    /// measurement per set of coupled modes, built on stage 1's pairs and scored with stage
+    /// 1's information. The measurements of a stage do not depend on each other: they are
+    /// designed side by side, and the plan is the same whatever the threads (the order of the
+    /// results and of their notes is the plan's).
     fn measurements_by_stage(
         &self,
         stages: &Stages,
@@ -789,35 +801,44 @@ impl Designer<'_> {
         progress: &mut dyn FnMut(DesignStep<'_>),
     ) -> Result<Vec<PlanMeasurement>, PlanError> {
         let names = self.names;
+        let singles: Vec<(usize, String)> = stages
+            .single
+            .iter()
+            .map(|&n| (n, format!("single_{}", names[n])))
+            .collect();
+        let mut step = Steps {
+            done: 0,
+            total: needed,
+            progress,
+        };
+        let designed = step.in_parallel(&singles, |(n, name)| {
+            (name.as_str(), self.single(*n, &stages.own[*n], name))
+        })?;
         let mut pairs: Vec<Option<Pair>> = vec![None; names.len()];
-        let mut infos: Vec<MeasInfo> = Vec::new();
-        let mut plan_ms: Vec<PlanMeasurement> = Vec::new();
-        for (k, &n) in stages.single.iter().enumerate() {
-            let name = format!("single_{}", names[n]);
-            progress(DesignStep {
-                done: k,
-                total: needed,
-                name: &name,
-            });
-            let (pm, info, pair) = self.single(n, &stages.own[n], &name)?;
-            pairs[n] = Some(pair);
+        let mut infos: Vec<MeasInfo> = Vec::with_capacity(singles.len());
+        let mut plan_ms: Vec<PlanMeasurement> = Vec::with_capacity(needed);
+        for ((n, _), (pm, info, pair)) in singles.iter().zip(designed) {
+            pairs[*n] = Some(pair);
             infos.push(info);
             plan_ms.push(pm);
         }
-        for (modes, unknowns) in &stages.groups {
-            let label = modes
-                .iter()
-                .map(|&n| names[n].as_str())
-                .collect::<Vec<_>>()
-                .join("_");
-            progress(DesignStep {
-                done: plan_ms.len(),
-                total: needed,
-                name: &format!("couple_{label}"),
-            });
-            let (pm, info) = self.coupling(modes, unknowns, &label, &pairs, &infos)?;
-            infos.push(info);
-            plan_ms.push(pm);
+        let groups: Vec<(&Vec<usize>, &Vec<Unknown>, String)> = stages
+            .groups
+            .iter()
+            .map(|(modes, unknowns)| {
+                let label: Vec<&str> = modes.iter().map(|&n| names[n].as_str()).collect();
+                (modes, unknowns, label.join("_"))
+            })
+            .collect();
+        let coupled = step.in_parallel(&groups, |(modes, unknowns, label)| {
+            let r = self.coupling(modes, unknowns, label, &pairs, &infos);
+            (label.as_str(), r.map(|(pm, _)| pm))
+        })?;
+        plan_ms.extend(coupled);
+        let mut by_measurement = std::mem::take(&mut *lock(&self.search_notes));
+        let mut notes = lock(&self.notes);
+        for pm in &plan_ms {
+            notes.extend(by_measurement.remove(&pm.name).unwrap_or_default());
         }
         Ok(plan_ms)
     }
@@ -946,7 +967,7 @@ impl Designer<'_> {
         if self.deadline.is_none_or(|d| std::time::Instant::now() < d) {
             return false;
         }
-        self.note(format!(
+        self.note_on(name, format!(
             "{name}: the time budget ({} s) was spent, so it keeps the best of the candidates tried so far (a larger --time-budget may find better bounds)",
             self.s.time_budget_s.unwrap_or_default()
         ));
@@ -955,7 +976,16 @@ impl Designer<'_> {
 
     /// Adds a note once (the searches revisit the same candidates and measurements).
     fn note(&self, note: String) {
-        let mut list = self.notes.borrow_mut();
+        let mut list = lock(&self.notes);
+        if !list.contains(&note) {
+            list.push(note);
+        }
+    }
+
+    /// Adds a note of the search on `measurement` once (see [`Self::search_notes`]).
+    fn note_on(&self, measurement: &str, note: String) {
+        let mut map = lock(&self.search_notes);
+        let list = map.entry(measurement.to_string()).or_default();
         if !list.contains(&note) {
             list.push(note);
         }
@@ -984,55 +1014,42 @@ impl Designer<'_> {
             }
         }
         let key: Vec<(u64, usize)> = tones.iter().map(|&(f, n)| (f.to_bits(), n)).collect();
-        let cached = self.corners.borrow().get(&key).cloned();
-        let (corners, last_failed) = match cached {
+        let cached = lock(&self.corners).get(&key).cloned();
+        let corners = match cached {
             Some(c) => c,
             None => {
-                let c = (
-                    Rc::new(range.corners(self.model, &tones)?),
-                    Rc::new(Cell::new(0)),
-                );
-                self.corners.borrow_mut().insert(key, c.clone());
+                let c = Arc::new((range.corners(self.model, &tones)?, AtomicUsize::new(0)));
+                lock(&self.corners).insert(key, c.clone());
                 c
             }
         };
-        // The device that failed last first, then the others a core's worth at a time (in
-        // parallel, stopping at the first batch with a failure, the earliest device in it).
-        // A large lattice is screened at a low order first: most drives fail on some device.
-        let first = last_failed.get();
-        let order: Vec<usize> = std::iter::once(first)
-            .chain((0..corners.len()).filter(|&k| k != first))
-            .filter(|&k| k < corners.len())
-            .collect();
-        let batch = rayon::current_num_threads().max(1);
-        let devices: &[(String, NumericModel)] = &corners;
+        let (devices, last_failed) = (&corners.0, &corners.1);
+        // The device that failed last first, then the others in turn, stopping at the first
+        // failure (the measurements of a stage keep the cores busy). A large lattice is
+        // screened at a low order first: most drives fail on some device.
+        let first = last_failed.load(Ordering::Relaxed);
+        let order = std::iter::once(first)
+            .chain((0..devices.len()).filter(|&k| k != first))
+            .filter(|&k| k < devices.len());
         let fidelities: &[Fidelity] = if lattice_lines > SCREEN_ABOVE_LINES {
             &[Fidelity::Screen, Fidelity::Search]
         } else {
             &[Fidelity::Search]
         };
-        // The devices share the tones: a solver planned on a lattice serves every device with it.
-        let pool = &self.pool;
         for &fidelity in fidelities {
-            for ks in std::iter::once(&order[..order.len().min(1)])
-                .chain(order[1.min(order.len())..].chunks(batch))
-            {
-                let outcomes: Vec<Result<(), PlanError>> = ks
-                    .par_iter()
-                    .map(|&k| feasible_on(&devices[k].1, pm, fidelity, pool))
-                    .collect();
-                for (&k, outcome) in ks.iter().zip(outcomes) {
-                    match outcome {
-                        Ok(()) => {}
-                        Err(e) if is_infeasible(&e) || too_large(&e).is_some() => {
-                            last_failed.set(k);
-                            return Ok(false);
-                        }
-                        // The screen's low order failing otherwise proves nothing: the
-                        // search's order decides.
-                        Err(_) if fidelity == Fidelity::Screen => {}
-                        Err(e) => return Err(e),
+            for k in order.clone() {
+                // The devices share the tones: a solver planned on a lattice serves every
+                // device with it.
+                match feasible_on(&devices[k].1, pm, fidelity, &self.pool) {
+                    Ok(()) => {}
+                    Err(e) if is_infeasible(&e) || too_large(&e).is_some() => {
+                        last_failed.store(k, Ordering::Relaxed);
+                        return Ok(false);
                     }
+                    // The screen's low order failing otherwise proves nothing: the search's
+                    // order decides.
+                    Err(_) if fidelity == Fidelity::Screen => {}
+                    Err(e) => return Err(e),
                 }
             }
         }
@@ -1062,11 +1079,14 @@ impl Designer<'_> {
             Err(e) => match too_large(&e) {
                 Some(why) => {
                     let tones: Vec<String> = pm.drives_hz.iter().map(|f| format!("{f}")).collect();
-                    self.note(format!(
-                        "skipped {} with tones at {} Hz: {why}",
-                        pm.name,
-                        tones.join(", ")
-                    ));
+                    self.note_on(
+                        &pm.name,
+                        format!(
+                            "skipped {} with tones at {} Hz: {why}",
+                            pm.name,
+                            tones.join(", ")
+                        ),
+                    );
                     Ok(None)
                 }
                 None => feasible(Err(e)),
@@ -1224,7 +1244,7 @@ impl Designer<'_> {
             if k < MAX_TRUNCATION_TRIES {
                 match self.truncation_checks(&pm)? {
                     None => return Ok((pm, info)),
-                    Some(why) => self.note(format!(
+                    Some(why) => self.note_on(&name, format!(
                         "{name}: tones {:?} Hz not taken first, simulate cannot check their truncation at the guess: {why}",
                         pm.drives_hz
                     )),
@@ -1233,10 +1253,10 @@ impl Designer<'_> {
             first.get_or_insert((pm, info));
         }
         first.ok_or_else(|| {
-            let skipped: Vec<String> = self
-                .notes
-                .borrow()
-                .iter()
+            let skipped: Vec<String> = lock(&self.search_notes)
+                .get(&name)
+                .into_iter()
+                .flatten()
                 .filter(|n| n.starts_with(&format!("skipped {name} ")))
                 .cloned()
                 .collect();
@@ -1254,6 +1274,58 @@ impl Designer<'_> {
                 limits: self.limits.clone(),
             }
         })
+    }
+}
+
+/// `m`'s guard; a lock poisoned by a panicked thread still holds usable notes and caches.
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// The search's progress across its stages: `done` of `total` measurements designed.
+struct Steps<'p> {
+    done: usize,
+    total: usize,
+    progress: &'p mut dyn FnMut(DesignStep<'_>),
+}
+
+impl Steps<'_> {
+    /// `design` of every item on rayon's threads, the results in the items' order (the first
+    /// error in that order is returned, so the outcome does not depend on the threads);
+    /// `design` returns the measurement's name with its result. The progress callback is
+    /// called on this thread as each finishes (it need not be `Send`).
+    fn in_parallel<T: Sync, R: Send>(
+        &mut self,
+        items: &[T],
+        design: impl Fn(&T) -> (&str, Result<R, PlanError>) + Sync,
+    ) -> Result<Vec<R>, PlanError> {
+        let (tx, rx) = std::sync::mpsc::channel::<String>();
+        let design = &design;
+        let results = std::thread::scope(|scope| {
+            let worker = scope.spawn(move || {
+                items
+                    .par_iter()
+                    .map(|item| {
+                        let (name, r) = design(item);
+                        // The receiver outlives the workers; a failed send loses a tick only.
+                        let _ = tx.send(name.to_string());
+                        r
+                    })
+                    .collect::<Vec<_>>()
+            });
+            for name in rx {
+                self.done += 1;
+                (self.progress)(DesignStep {
+                    done: self.done,
+                    total: self.total,
+                    name: &name,
+                });
+            }
+            worker
+                .join()
+                .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+        });
+        results.into_iter().collect()
     }
 }
 
