@@ -65,13 +65,21 @@ pub enum HbStatus {
     },
 }
 
-/// For messages: "converged in N iterations", "stopped at 90.0 % of the drive".
+/// For messages: "converged in N iterations", "stopped at 90.0 % of the drive", or, when the
+/// whole drive was reached but no state settled there (a stepped sweep's step, a landing past
+/// a fold), "no steady state settled at the full drive".
 impl std::fmt::Display for HbStatus {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             HbStatus::Converged { iterations } => write!(f, "converged in {iterations} iterations"),
+            HbStatus::NotConverged { drive_fraction } if *drive_fraction >= 1.0 => {
+                write!(f, "no steady state settled at the full drive")
+            }
             HbStatus::NotConverged { drive_fraction } => {
-                write!(f, "stopped at {:.1} % of the drive", 100.0 * drive_fraction)
+                // Short of the full drive by less than rounding to 0.1 % shows: more digits.
+                let pct = 100.0 * drive_fraction;
+                let digits = if pct >= 99.95 { 3 } else { 1 };
+                write!(f, "stopped at {pct:.digits$} % of the drive")
             }
         }
     }

@@ -11,6 +11,17 @@ fn status_reads_as_words() {
     };
     assert_eq!(s.to_string(), "stopped at 90.0 % of the drive");
     assert!(!s.to_string().contains('{'));
+    let short = HbStatus::NotConverged {
+        drive_fraction: 0.99996,
+    };
+    assert_eq!(short.to_string(), "stopped at 99.996 % of the drive");
+    let full = HbStatus::NotConverged {
+        drive_fraction: 1.0,
+    };
+    assert_eq!(
+        full.to_string(),
+        "no steady state settled at the full drive"
+    );
 }
 
 #[test]
