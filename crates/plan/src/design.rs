@@ -847,52 +847,56 @@ impl Designer<'_> {
     /// them (the truncation check may raise the lattice order the search used). A measurement
     /// whose wider lattice is beyond a size bound keeps the search's lattice, with a note: the
     /// check is not possible, which is not evidence of truncation. The measurements are
-    /// independent: scored in parallel a few at a time (`progress` told how many are done),
-    /// noted in order. Once the time budget is spent, the measurements still to score are
-    /// scored at the search's fidelity (no truncation check), with a note naming them.
+    /// independent: scored side by side (`progress` told how many are done), noted in order.
+    /// Once the time budget is spent, the measurements not yet started are scored at the
+    /// search's fidelity (no truncation check), with a note naming them.
     fn final_information(
         &self,
         plan_ms: &[PlanMeasurement],
         progress: &mut dyn FnMut(usize),
     ) -> Result<Vec<MeasInfo>, PlanError> {
         let (target, base) = (self.target, self.base);
-        let mut infos = Vec::with_capacity(plan_ms.len());
-        let mut unchecked_by_budget = Vec::new();
-        let chunk = 2 * rayon::current_num_threads().max(1);
-        for (c, ms) in plan_ms.chunks(chunk).enumerate() {
+        let mut steps = Steps {
+            done: 0,
+            total: plan_ms.len(),
+            progress: &mut |st: DesignStep<'_>| progress(st.done),
+        };
+        // Each measurement checks the deadline as it starts: once spent, at the search's
+        // fidelity.
+        let scored = steps.in_parallel(plan_ms, |pm| {
             let spent = self
                 .deadline
                 .is_some_and(|d| std::time::Instant::now() >= d);
             let fidelity = if spent {
-                unchecked_by_budget.extend(ms.iter().map(|pm| pm.name.as_str()));
                 Fidelity::Search
             } else {
                 Fidelity::User
             };
-            let scored: Vec<_> = ms
-                .par_iter()
-                .map(|pm| match ladder_info(target, base, pm, fidelity) {
-                    Err(e) if truncation_unchecked(&e) => (
-                        Some(e.to_string()),
-                        ladder_info(target, base, pm, Fidelity::Search),
-                    ),
-                    r => (None, r),
-                })
-                .collect();
-            for (pm, (unchecked, r)) in ms.iter().zip(scored) {
-                if let Some(e) = unchecked {
-                    self.note(format!(
-                        "{}: its harmonic balance's truncation is not checked at a wider lattice ({e})",
-                        pm.name
-                    ));
-                }
-                let (info, lost) = r?;
-                infos.extend(info);
-                for k in lost {
-                    self.note(crate::evaluate::lost_note(pm, k));
-                }
+            let (unchecked, r) = match ladder_info(target, base, pm, fidelity) {
+                Err(e) if truncation_unchecked(&e) => (
+                    Some(e.to_string()),
+                    ladder_info(target, base, pm, Fidelity::Search),
+                ),
+                r => (None, r),
+            };
+            (pm.name.as_str(), r.map(|scored| (spent, unchecked, scored)))
+        })?;
+        let mut infos = Vec::with_capacity(plan_ms.len());
+        let mut unchecked_by_budget = Vec::new();
+        for (pm, (spent, unchecked, (info, lost))) in plan_ms.iter().zip(scored) {
+            if spent {
+                unchecked_by_budget.push(pm.name.as_str());
             }
-            progress(c * chunk + ms.len());
+            if let Some(e) = unchecked {
+                self.note(format!(
+                    "{}: its harmonic balance's truncation is not checked at a wider lattice ({e})",
+                    pm.name
+                ));
+            }
+            infos.extend(info);
+            for k in lost {
+                self.note(crate::evaluate::lost_note(pm, k));
+            }
         }
         if !unchecked_by_budget.is_empty() {
             self.note(format!(
