@@ -8,9 +8,9 @@
 //! `design_range/nanostring_10mode`: the ten-mode example's own command, `harmonid plan
 //! examples/nanostring_10mode/model.hb --values … --noise 0.1nm --shots 30`: designed over the
 //! guess's default range (f ± 2 linewidths, Q ± 30 %, ×/÷ 2), the default ladder, 10 draws, the
-//! command line's 120 s budget, which now bounds the whole design (issue 40, item 4). About three
-//! minutes per design on the shared 2-core VM (2026-11-27): ten samples take half an hour; run it
-//! alone (`cargo bench --bench plan -- design_range`).
+//! command line's 120 s budget, which bounds the whole design (issue 40, item 4). About 54 s per
+//! design on the 2-core VM (2026-11-28, the measurements of a stage designed side by side): ten
+//! samples take ten minutes; run it alone (`cargo bench --bench plan -- design_range`).
 #![allow(missing_docs)] // criterion_group! generates an undocumented pub fn
 
 use criterion::{criterion_group, criterion_main, Criterion};
