@@ -5,7 +5,7 @@
 //! After three rounds every unknown is within 3 standard errors of the truth, and the next
 //! plan's bounds on the device are each within 2× of those of a plan designed from the truth.
 //!
-//! Runs on the cubic three-mode and the three-wave examples. The plans score no drawn devices
+//! Runs on the cubic three-mode and (ignored in CI, for time) the three-wave examples. The plans score no drawn devices
 //! (`draws: 0`: the corners of the range still decide feasibility), which keeps the loop at a
 //! few seconds; the command-line loop is the same (docs/planning.md, "The lab loop").
 //!
@@ -152,7 +152,12 @@ fn three_pooled_rounds_identify_the_cubic_three_mode_device() {
     );
 }
 
+/// Ignored in CI (32 s alone on the 2-core VM, 2026-11-28; CI stood at 840 of its 900 s): the
+/// loop is the cubic device's test's, and the three-wave device's plan and identification are
+/// checked in `roundtrip`, `discover` and the plan Monte Carlo tests. Run it with
+/// `cargo test --release --test it -- lab_loop::three_pooled_rounds_identify_the_three_wave_device --ignored`.
 #[test]
+#[ignore = "32 s, beyond CI's budget: run with --ignored"]
 fn three_pooled_rounds_identify_the_three_wave_device() {
     let (dev, ratio) = three_rounds("three_wave", THREE_WAVE_GUESS);
     assert!(dev <= 3.0, "an unknown {dev:.2} stderr from the truth");
