@@ -1211,13 +1211,9 @@ mod tests {
         let bounds = vec![(None, None); 4];
         let keep = consistent_models(&models, &suspects, &theta, &bounds);
         assert_eq!(keep, vec![true, true, false]);
-        let kept: Vec<Quadratic> = models
-            .iter()
-            .zip(&keep)
-            .filter(|(_, &k)| k)
-            .map(|(q, _)| q.clone())
-            .collect();
-        let v = combine(&kept, &theta, &bounds);
+        let mut v = theta.clone();
+        let left_out = combine_consistent((&models, &suspects, &[11, 12]), &mut v, &bounds);
+        assert_eq!(left_out, vec![12]);
         let all = combine(&models, &theta, &bounds);
         println!("shared unknown: {} kept, {} with every group", v[0], all[0]);
         let mean = (100.0 * 1.0 + 75.0 * 1.05) / 175.0;
